@@ -1,0 +1,66 @@
+"""One exception hierarchy for rrt_pin.
+
+Every error the package raises on purpose derives from :class:`RrtPinError`.
+The CLI turns any of them into one line on stderr and exit status 2.
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "DivergenceError",
+    "InputError",
+    "ParameterError",
+    "RrtPinError",
+    "SceneError",
+    "UrdfError",
+    "ViewerError",
+]
+
+
+class RrtPinError(Exception):
+    """Base class of every error raised by rrt_pin."""
+
+
+class ParameterError(RrtPinError, ValueError):
+    """A physical parameter is invalid.
+
+    Attributes:
+        name: the parameter's name (the seed's symbol, e.g. ``m1``).
+        value: the rejected value.
+    """
+
+    def __init__(self, name: str, value: object, problem: str) -> None:
+        self.name = name
+        self.value = value
+        self.problem = problem
+        super().__init__(f"parameter {name}={value!r}: {problem}")
+
+
+class SceneError(RrtPinError, ValueError):
+    """A scene file or ``--set`` override cannot be used."""
+
+
+class InputError(RrtPinError, ValueError):
+    """An array, time grid, CSV or command-line value is invalid."""
+
+
+class UrdfError(RrtPinError, ValueError):
+    """A URDF does not parse or does not describe a usable model."""
+
+
+class DivergenceError(RrtPinError, ArithmeticError):
+    """A simulation produced a non-finite state or its step size underflowed.
+
+    Attributes:
+        t: the time at which it happened [s].
+        coordinate: the name of the offending coordinate (e.g. ``q2`` or ``qd3``).
+    """
+
+    def __init__(self, t: float, coordinate: str, problem: str) -> None:
+        self.t = t
+        self.coordinate = coordinate
+        super().__init__(f"simulation diverged at t={t:.9g} s in {coordinate}: {problem}")
+
+
+class ViewerError(RrtPinError, RuntimeError):
+    """The viewer could not start, serve or render."""
