@@ -1,0 +1,103 @@
+"""The CLI's contracts shared by every command: one-line errors, exit 2, nothing written."""
+
+import subprocess
+import sys
+
+import pytest
+
+from rrt_pin.cli import main
+from rrt_pin.params import Params
+from rrt_pin.urdf import urdf_xml
+
+
+def run(argv, capsys):
+    code = main(argv)
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_urdf_to_stdout_and_file(tmp_path, capsys):
+    code, out, err = run(["urdf"], capsys)
+    assert code == 0 and out == urdf_xml(Params())
+    target = tmp_path / "arm.urdf"
+    code, out, err = run(["urdf", "-o", str(target), "--set", "m3=50", "--set", "q1f=pi/4"], capsys)
+    assert code == 0 and out == ""
+    assert target.read_text() == urdf_xml(Params(m3=50.0, q1f=0.7853981633974483))
+
+
+@pytest.mark.parametrize(
+    "argv, words",
+    [
+        (["urdf", "--set", "m1=-1"], "m1=-1.0: must be > 0"),
+        (["urdf", "--set", "L2=nan"], "L2=nan: must be finite"),
+        (["urdf", "--set", "I3x=inf"], "I3x=inf: must be finite"),
+        (["urdf", "--set", "I3x=100"], "triangle inequality"),
+        (["urdf", "--set", "mass=1"], "unknown parameter; valid names: L1, L2, m1"),
+        (["urdf", "--set", "m1"], "expected NAME=VALUE"),
+        (["urdf", "--set", "m1=heavy"], "m1='heavy' is not a number"),
+        (["urdf", "--min-inertia", "-1"], "must be >= 0"),
+        (["urdf", "--bogus"], "unrecognized arguments: --bogus"),
+        (["nosuchcommand"], "invalid choice"),
+    ],
+)
+def test_bad_input_is_one_line_exit_2_nothing_written(tmp_path, capsys, argv, words):
+    target = tmp_path / "out.urdf"
+    full = argv + (["-o", str(target)] if argv[0] == "urdf" else [])
+    code, out, err = run(full, capsys)
+    assert code == 2
+    assert out == ""
+    assert err.count("\n") == 1 and words in err, err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_existing_file_is_left_untouched_on_error(tmp_path, capsys):
+    target = tmp_path / "keep.urdf"
+    target.write_text("precious")
+    code, _, _ = run(["urdf", "-o", str(target), "--set", "m2=0"], capsys)
+    assert code == 2 and target.read_text() == "precious"
+    assert [p.name for p in tmp_path.iterdir()] == ["keep.urdf"]
+
+
+def test_scene_file_and_set_precedence(tmp_path, capsys):
+    scene = tmp_path / "scene.toml"
+    scene.write_text("[params]\nm3 = 50\nL2 = 1.0\n")
+    code, out, _ = run(["urdf", "--scene", str(scene), "--set", "m3=45"], capsys)
+    assert code == 0 and out == urdf_xml(Params(m3=45.0, L2=1.0))
+
+
+def test_scene_option_must_belong_to_the_command(tmp_path, capsys):
+    scene = tmp_path / "scene.toml"
+    scene.write_text("[options]\nfps = 30\n")
+    code, _, err = run(["urdf", "--scene", str(scene)], capsys)
+    assert code == 2 and "option 'fps' is not an option of 'rrt-pin urdf'" in err
+
+
+def test_scene_options_are_defaults_that_flags_override(tmp_path, capsys):
+    scene = tmp_path / "scene.toml"
+    scene.write_text("[options]\nmin_inertia = 0.5\n")
+    code, out, _ = run(["urdf", "--scene", str(scene)], capsys)
+    assert code == 0 and out == urdf_xml(Params(), min_inertia=0.5)
+    code, out, _ = run(["urdf", "--scene", str(scene), "--min-inertia", "0"], capsys)
+    assert code == 0 and out == urdf_xml(Params())
+
+
+def test_subprocess_exit_status_and_no_traceback():
+    proc = subprocess.run(
+        [sys.executable, "-m", "rrt_pin", "urdf", "--set", "m1=-1"], capture_output=True, text=True
+    )
+    assert proc.returncode == 2
+    assert proc.stdout == ""
+    assert proc.stderr == "rrt-pin: error: parameter m1=-1.0: must be > 0\n"
+
+
+def test_help_mentions_si_units(capsys):
+    with pytest.raises(SystemExit) as info:
+        main(["--help"])
+    assert info.value.code == 0
+    assert "SI units" in capsys.readouterr().out
+
+
+def test_import_is_light():
+    code = "import sys, rrt_pin, rrt_pin.cli; print(sorted(m for m in ('pinocchio', 'numpy', 'meshcat', 'sympy', 'matplotlib', 'numba') if m in sys.modules))"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]"
