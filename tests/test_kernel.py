@@ -1,0 +1,191 @@
+"""The generated kernel (rrt_pin/kernel.py) against Pinocchio, numba and its generator."""
+
+import subprocess
+import sys
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from rrt_pin import kernel
+from rrt_pin.errors import InputError
+from rrt_pin.model import rrt_model
+from rrt_pin.params import Params
+from tests.conftest import DERIVED, TIGHT, random_states
+from tests.seed_formulas import holding_efforts
+
+N_STATES = 120
+
+
+def random_params(rng: np.random.Generator) -> Params:
+    """Params with general (non-rod) central inertias; a, b, c >= 0 keep the triangle rule."""
+    values = {
+        "L1": rng.uniform(0.1, 1.0),
+        "L2": rng.uniform(0.1, 1.0),
+        "m1": rng.uniform(1.0, 100.0),
+        "m2": rng.uniform(1.0, 100.0),
+        "m3": rng.uniform(1.0, 100.0),
+        "g": rng.uniform(1.0, 20.0),
+    }
+    for body in "123":
+        a, b, c = rng.uniform(0.0, 5.0, 3)
+        values.update({f"I{body}x": b + c, f"I{body}y": a + c, f"I{body}z": a + b})
+    return Params(**values)
+
+
+def rel_err(a: np.ndarray, b: np.ndarray) -> float:
+    """Largest per-sample relative error ‖a − b‖ / ‖b‖ over the first axis."""
+    a, b = np.asarray(a).reshape(len(a), -1), np.asarray(b).reshape(len(b), -1)
+    return float(np.max(np.linalg.norm(a - b, axis=1) / np.linalg.norm(b, axis=1)))
+
+
+def pin_reference(model, q, qd, qdd):
+    """Pinocchio's M (CRBA, symmetrized), RNEA τ, nonlinear effects and gravity per state."""
+    data = model.createData()
+    M, tau, nle, grav = [], [], [], []
+    for qi, vi, ai in zip(q, qd, qdd, strict=True):
+        Mi = pin.crba(model, data, qi).copy()
+        M.append(np.triu(Mi) + np.triu(Mi, 1).T)
+        tau.append(pin.rnea(model, data, qi, vi, ai).copy())
+        nle.append(pin.nonLinearEffects(model, data, qi, vi).copy())
+        grav.append(pin.computeGeneralizedGravity(model, data, qi).copy())
+    return np.array(M), np.array(tau), np.array(nle), np.array(grav)
+
+
+@pytest.fixture(scope="module", params=["seed", "random"])
+def case(request):
+    rng = np.random.default_rng(7 if request.param == "seed" else 8)
+    params = Params() if request.param == "seed" else random_params(rng)
+    q, qd, qdd = random_states(rng, N_STATES)
+    model = rrt_model(params)
+    return params, q, qd, qdd, pin_reference(model, q, qd, qdd), model
+
+
+def test_param_vector_order():
+    p = Params()
+    assert kernel.PARAM_ORDER[0] == "L1" and kernel.PARAM_ORDER[-1] == "g"
+    np.testing.assert_array_equal(
+        kernel.param_vector(p), [getattr(p, n) for n in kernel.PARAM_ORDER]
+    )
+    assert kernel.param_vector(p).dtype == np.float64
+
+
+def test_mass_matrix_equals_crba(case):
+    params, q, _, _, (M, _, _, _), _ = case
+    assert rel_err(kernel.mass_matrix(q, params), M) <= DERIVED
+
+
+def test_inverse_dynamics_equals_rnea(case):
+    params, q, qd, qdd, (_, tau, _, _), _ = case
+    assert rel_err(kernel.inverse_dynamics(q, qd, qdd, params), tau) <= DERIVED
+
+
+def test_nonlinear_effects_and_gravity_equal_pinocchio(case):
+    params, q, qd, _, (_, _, nle, grav), _ = case
+    assert rel_err(kernel.nonlinear_effects(q, qd, params), nle) <= DERIVED
+    g = kernel.gravity(q, params)
+    np.testing.assert_allclose(g, grav, rtol=0, atol=DERIVED * np.abs(grav).max())
+    # and the gravity parts of the seed's eq. (15), typed independently
+    expected = np.array([holding_efforts(params, qi) for qi in q])
+    np.testing.assert_allclose(g, expected, rtol=0, atol=TIGHT * np.abs(expected).max())
+
+
+def test_forward_dynamics_equals_aba(case):
+    params, q, qd, _, _, model = case
+    rng = np.random.default_rng(9)
+    tau = rng.normal(0.0, 200.0, (len(q), 3))
+    data = model.createData()
+    expected = np.array(
+        [pin.aba(model, data, qi, vi, ti) for qi, vi, ti in zip(q, qd, tau, strict=True)]
+    )
+    assert rel_err(kernel.forward_dynamics(q, qd, tau, params), expected) <= DERIVED
+
+
+def test_forward_inverts_inverse(case):
+    params, q, qd, qdd, _, _ = case
+    tau = kernel.inverse_dynamics(q, qd, qdd, params)
+    assert rel_err(kernel.forward_dynamics(q, qd, tau, params), qdd) <= DERIVED
+
+
+def test_a_wrong_parameter_is_caught(case):
+    # The comparison above has teeth: the slider's mass off by 1 % is seen.
+    params, q, qd, qdd, (_, tau, _, _), _ = case
+    wrong = params.with_overrides({"m3": params.m3 * 1.01})
+    assert rel_err(kernel.inverse_dynamics(q, qd, qdd, wrong), tau) > 1e-6
+
+
+def test_single_state_shapes():
+    p = Params()
+    q, qd, qdd = np.array(p.q0), np.array([0.1, -0.2, 0.3]), np.array([1.0, 2.0, 3.0])
+    assert kernel.mass_matrix(q, p).shape == (3, 3)
+    assert kernel.gravity(q, p).shape == (3,)
+    tau = kernel.inverse_dynamics(q, qd, qdd, p)
+    assert tau.shape == (3,)
+    np.testing.assert_allclose(kernel.forward_dynamics(q, qd, tau, p), qdd, rtol=TIGHT)
+    many = kernel.inverse_dynamics(q[None], qd[None], qdd[None], p)
+    np.testing.assert_array_equal(many[0], tau)
+
+
+def test_terms_on_floats_equal_terms_on_arrays(rng):
+    q, qd, _ = random_states(rng, 5)
+    pv = kernel.param_vector(Params())
+    arrays = kernel.terms(*q.T, *qd.T, *pv)
+    for i in range(5):
+        scalars = kernel.terms(*q[i], *qd[i], *pv)
+        for a, s in zip(arrays, scalars, strict=True):
+            assert np.broadcast_to(a, (5,))[i] == s
+
+
+@pytest.mark.parametrize(
+    "bad, match",
+    [
+        (np.zeros((4, 2)), r"q\.shape=\(4, 2\)"),
+        (np.zeros((2, 3, 3)), r"q\.shape=\(2, 3, 3\)"),
+        (np.array([[0.0, np.nan, 0.0]]), "q has non-finite"),
+        (np.array([0.0, np.inf, 0.0]), "q has non-finite"),
+    ],
+)
+def test_bad_states_are_refused(bad, match):
+    with pytest.raises(InputError, match=match):
+        kernel.mass_matrix(bad, Params())
+    with pytest.raises(InputError, match=match):
+        kernel.inverse_dynamics(bad, np.zeros(3), np.zeros(3), Params())
+
+
+def test_numba_compiles_terms_unchanged(rng):
+    numba = pytest.importorskip("numba")
+    fast = numba.njit(kernel.terms)
+    q, qd, _ = random_states(rng, 3)
+    pv = kernel.param_vector(Params())
+    for qi, vi in zip(q, qd, strict=True):
+        expected = kernel.terms(*qi, *vi, *pv)
+        got = fast(*qi, *vi, *pv)
+        np.testing.assert_allclose(got, expected, rtol=TIGHT, atol=0)
+    arrays = fast(*q.T, *qd.T, *pv)  # numba also takes the arrays
+    np.testing.assert_allclose(arrays[0], kernel.terms(*q.T, *qd.T, *pv)[0], rtol=TIGHT)
+
+
+def test_kernel_imports_no_sympy():
+    code = "import sys, rrt_pin.kernel; print('sympy' in sys.modules)"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False"
+
+
+def test_committed_kernel_is_the_generators_output():
+    pytest.importorskip("sympy")
+    from rrt_pin.symbolic.codegen import KERNEL_PATH, kernel_source
+
+    assert KERNEL_PATH.read_text(encoding="utf-8") == kernel_source(), (
+        "rrt_pin/kernel.py drifted from the derivation: run python -m rrt_pin.symbolic.codegen"
+    )
+
+
+def test_drift_check_can_fail(tmp_path):
+    pytest.importorskip("sympy")
+    from rrt_pin.symbolic.codegen import kernel_source, main
+
+    stale = tmp_path / "kernel.py"
+    stale.write_text(kernel_source().replace("x1 = cos(q2)", "x1 = sin(q2)"), encoding="utf-8")
+    assert main(["--check", "-o", str(stale)]) == 1
+    stale.write_text(kernel_source(), encoding="utf-8")
+    assert main(["--check", "-o", str(stale)]) == 0
