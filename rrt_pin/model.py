@@ -29,6 +29,7 @@ def model_from_xml(xml: str) -> pin.Model:
     """
     import pinocchio as pin
 
+    _check_xml(xml)
     try:
         model = pin.buildModelFromXML(xml)
     except (RuntimeError, ValueError) as e:
@@ -92,14 +93,50 @@ def build_geometry(
         raise UrdfError(f"URDF geometry does not load: {str(e).strip().splitlines()[0]}") from e
 
 
+def _check_xml(xml: str) -> None:
+    """Refuse what Pinocchio would accept silently: malformed XML, zero joint axes."""
+    import xml.etree.ElementTree as ET
+
+    try:
+        root = ET.fromstring(xml)
+    except ET.ParseError as e:
+        raise UrdfError(f"URDF does not parse: {e}") from e
+    if root.tag != "robot":
+        raise UrdfError(f"URDF root element is <{root.tag}>, not <robot>")
+    for joint in root.iter("joint"):
+        axis = joint.find("axis")
+        if joint.get("type") in ("fixed", "floating", "planar") or axis is None:
+            continue
+        text = axis.get("xyz", "1 0 0")
+        try:
+            xyz = [float(v) for v in text.split()]
+        except ValueError:
+            xyz = []
+        if len(xyz) != 3 or not all(math.isfinite(v) for v in xyz):
+            raise UrdfError(f"joint {joint.get('name')!r} has an invalid axis xyz={text!r}")
+        if math.hypot(*xyz) < 1e-12:
+            raise UrdfError(f"joint {joint.get('name')!r} has a zero axis xyz={text!r}")
+
+
 def _check_model(model: pin.Model) -> None:
+    import numpy as np
+
     if model.nv == 0:
         raise UrdfError("URDF has no moving joint")
     for j in range(1, model.njoints):
         inertia = model.inertias[j]
+        name = model.names[j]
         values = [inertia.mass, *inertia.lever.tolist(), *inertia.inertia.flatten().tolist()]
         if not all(math.isfinite(v) for v in values):
-            raise UrdfError(f"body of joint {model.names[j]!r} has a non-finite inertia")
+            raise UrdfError(f"body of joint {name!r} has a non-finite inertia")
+        if inertia.mass < 0.0:
+            raise UrdfError(f"body of joint {name!r} has a negative mass {inertia.mass!r} kg")
+        moments = np.linalg.eigvalsh(inertia.inertia)
+        if moments.min() < -1e-12 * max(1.0, abs(moments).max()):
+            raise UrdfError(
+                f"body of joint {name!r} has a negative principal moment of inertia "
+                f"{float(moments.min())!r} kg·m²"
+            )
     # A moving joint whose whole subtree carries no mass makes M singular.
     subtree_mass = [0.0] * model.njoints
     for j in range(model.njoints - 1, 0, -1):

@@ -98,3 +98,20 @@ def test_bad_urdfs_are_refused(tmp_path):
         model_from_xml(no_inertia)
     with pytest.raises(UrdfError, match="cannot read"):
         load_urdf_model(tmp_path / "missing.urdf")
+
+
+@pytest.mark.parametrize(
+    "old, new, words",
+    [
+        ('<axis xyz="0 1 0"/>', '<axis xyz="0 0 0"/>', "joint 'q2' has a zero axis"),
+        ('<axis xyz="0 1 0"/>', '<axis xyz="0 nan 0"/>', "invalid axis"),
+        ('<mass value="90.0"/>', '<mass value="-90.0"/>', "negative mass -90.0 kg"),
+        ('ixx="5.0"', 'ixx="-5.0"', "negative principal moment of inertia -5.0"),
+        ("</robot>", "", "does not parse"),
+    ],
+)
+def test_urdfs_pinocchio_would_accept_silently_are_refused(old, new, words):
+    xml = urdf_xml()
+    assert old in xml
+    with pytest.raises(UrdfError, match=words):
+        model_from_xml(xml.replace(old, new))
