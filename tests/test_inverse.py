@@ -8,6 +8,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
+import rrt_pin
 from rrt_pin.errors import InputError
 from rrt_pin.grid import time_grid
 from rrt_pin.inverse import inverse_dynamics
@@ -220,6 +221,7 @@ def test_symbolic_backend_matches_pinocchio_and_the_lagrangian(seed_model, seed_
 
 def test_compiled_backend_reports_when_unavailable(seed_params, monkeypatch):
     monkeypatch.setitem(sys.modules, "rrt_pin.compiled", None)  # makes the import fail
+    monkeypatch.delattr(rrt_pin, "compiled", raising=False)
     with pytest.raises(InputError, match="backend='compiled' is unavailable"):
         inverse_dynamics(
             None, np.zeros(3), np.zeros(3), np.zeros(3), backend="compiled", params=seed_params
