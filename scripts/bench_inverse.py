@@ -1,0 +1,173 @@
+#!/usr/bin/env python
+"""Inverse dynamics of the seed's run (eq. 30, 15,001 samples): speed and agreement.
+
+Times, in ONE run and interleaved round by round (so machine noise hits all
+sides alike), the medians of --repeat runs of:
+
+* loop         a Python loop calling ``pin.rnea`` once per sample (the baseline);
+* batched      ``rrt_pin.inverse_dynamics`` (``pin.rneaInParallel``, default threads);
+* batched-1t   the same on one thread;
+* symbolic     the generated numpy kernel ``rrt_pin.kernel`` (if present);
+* compiled     the numba kernel ``rrt_pin.compiled`` (if available; its first,
+               compiling call is reported apart).
+
+It prints times, speed-ups against the loop and the max relative difference of
+each side from the loop (per effort, relative to that effort's peak |value|),
+then the whole-process time of ``rrt-pin inverse --csv`` (interpreter start
+included; median of --process-runs runs).
+
+    .venv/bin/python scripts/bench_inverse.py [--repeat 7] [--process-runs 7] [--check]
+
+Targets: batched ≥ 5× faster than the loop, same values to 1e-12 relative;
+``rrt-pin inverse --csv`` < 1 s. ``--check`` exits 1 when one is missed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+
+from rrt_pin.grid import time_grid
+from rrt_pin.inverse import default_num_threads, inverse_dynamics
+from rrt_pin.model import rrt_model
+from rrt_pin.params import Params
+from rrt_pin.trajectory import rest_to_rest
+
+TARGET_SPEEDUP = 5.0
+TARGET_AGREEMENT = 1e-12
+TARGET_PROCESS_S = 1.0
+
+
+def rnea_loop(model: pin.Model, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> np.ndarray:
+    """The baseline: one ``pin.rnea`` call per sample from Python."""
+    data = model.createData()
+    out = np.empty((q.shape[0], model.nv))
+    for i in range(q.shape[0]):
+        out[i] = pin.rnea(model, data, q[i], qd[i], qdd[i])
+    return out
+
+
+def rel_diff(a: np.ndarray, ref: np.ndarray) -> float:
+    """max over efforts of max|a − ref| / max|ref|."""
+    return float((np.abs(a - ref).max(axis=0) / np.abs(ref).max(axis=0)).max())
+
+
+def sides(params: Params, model: pin.Model, traj) -> dict[str, Callable[[], np.ndarray]]:
+    q, qd, qdd = traj.q, traj.qd, traj.qdd
+    out: dict[str, Callable[[], np.ndarray]] = {
+        "loop": lambda: rnea_loop(model, q, qd, qdd),
+        f"batched ({default_num_threads()}t)": lambda: inverse_dynamics(model, q, qd, qdd),
+        "batched-1t": lambda: inverse_dynamics(model, q, qd, qdd, num_threads=1),
+    }
+    try:
+        import rrt_pin.kernel  # noqa: F401
+
+        out["symbolic"] = lambda: inverse_dynamics(
+            None, q, qd, qdd, backend="symbolic", params=params
+        )
+    except ImportError as e:
+        print(f"symbolic kernel: not present ({e})")
+    try:
+        from rrt_pin import compiled
+
+        if not getattr(compiled, "available", lambda: True)() or not hasattr(
+            compiled, "inverse_dynamics"
+        ):
+            raise ImportError("rrt_pin.compiled.inverse_dynamics unavailable")
+        start = time.perf_counter()
+        inverse_dynamics(None, q, qd, qdd, backend="compiled", params=params)
+        print(
+            f"compiled kernel: first call (JIT compile or cache load) {time.perf_counter() - start:.3f} s"
+        )
+        out["compiled"] = lambda: inverse_dynamics(
+            None, q, qd, qdd, backend="compiled", params=params
+        )
+    except ImportError as e:
+        print(f"compiled kernel: not available ({e})")
+    return out
+
+
+def time_sides(
+    funcs: dict[str, Callable[[], np.ndarray]], repeat: int
+) -> tuple[dict[str, float], dict[str, np.ndarray]]:
+    times: dict[str, list[float]] = {k: [] for k in funcs}
+    results: dict[str, np.ndarray] = {}
+    for _ in range(repeat):  # interleaved rounds
+        for name, f in funcs.items():
+            start = time.perf_counter()
+            results[name] = f()
+            times[name].append(time.perf_counter() - start)
+    return {k: statistics.median(v) for k, v in times.items()}, results
+
+
+def process_time(runs: int) -> tuple[float, list[float]]:
+    cmd = [sys.executable, "-m", "rrt_pin", "inverse", "--csv"]
+    times = []
+    with tempfile.TemporaryDirectory() as tmp:
+        out = str(Path(tmp) / "out.csv")
+        for _ in range(runs):
+            start = time.perf_counter()
+            subprocess.run([*cmd, out], check=True, capture_output=True)
+            times.append(time.perf_counter() - start)
+        rows = Path(out).read_text().count("\n") - 1
+    if rows != 15001:
+        raise SystemExit(f"rrt-pin inverse --csv wrote {rows} rows, not 15001")
+    return statistics.median(times), times
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--repeat", type=int, default=7, help="timed runs per side (median)")
+    ap.add_argument("--process-runs", type=int, default=7, help="whole-process runs (median)")
+    ap.add_argument("--check", action="store_true", help="exit 1 when a target is missed")
+    args = ap.parse_args()
+
+    params = Params()
+    model = rrt_model(params)
+    traj = rest_to_rest(params.q0, params.qf, params.Tp, time_grid(params.Tp, 0.001))
+    print(
+        f"seed run: {len(traj)} samples; pinocchio {pin.__version__}; numpy {np.__version__}; "
+        f"{default_num_threads()} CPUs available"
+    )
+    funcs = sides(params, model, traj)
+    medians, results = time_sides(funcs, args.repeat)
+    base = medians["loop"]
+    ref = results["loop"]
+    print(f"\nmedian of {args.repeat} runs, interleaved")
+    print(f"{'side':<16} {'time [ms]':>10} {'speed-up':>9} {'max rel diff':>13}")
+    for name, t in medians.items():
+        print(
+            f"{name:<16} {1e3 * t:>10.2f} {base / t:>8.1f}x {rel_diff(results[name], ref):>13.2e}"
+        )
+
+    proc, runs = process_time(args.process_runs)
+    print(
+        f"\nrrt-pin inverse --csv (whole process): median {proc:.3f} s of {len(runs)} runs "
+        f"(min {min(runs):.3f}, max {max(runs):.3f})"
+    )
+
+    batched = next(k for k in medians if k.startswith("batched ("))
+    speedup = base / medians[batched]
+    agreement = rel_diff(results[batched], ref)
+    ok = {
+        f"batched ≥ {TARGET_SPEEDUP:g}x the loop": speedup >= TARGET_SPEEDUP,
+        f"batched agrees to {TARGET_AGREEMENT:g}": agreement <= TARGET_AGREEMENT,
+        f"whole process < {TARGET_PROCESS_S:g} s": proc < TARGET_PROCESS_S,
+    }
+    print()
+    for label, good in ok.items():
+        print(f"target {label}: {'met' if good else 'MISSED'}")
+    return 1 if args.check and not all(ok.values()) else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
