@@ -99,17 +99,25 @@ class EquationsOfMotion:
 
         Args:
             collect: collect each side on q̈, products of q̇ and the efforts,
-                with factored coefficients (for display).
+                then on sin and cos of q1, q2, with factored coefficients (for
+                display; cached).
         """
-        keys = _display_keys(self)
-        out = []
-        for r in range(3):
-            lhs = sum((self.mass_matrix[r, s] * self.qdd[s] for s in range(3)), sp.S.Zero)
-            rhs = self.forcing[r]
-            if collect:
-                lhs, rhs = readable(lhs, list(self.qdd)), readable(rhs, keys)
-            out.append(sp.Eq(lhs, rhs, evaluate=False))
-        return tuple(out)
+        return _equations(self, collect)
+
+
+@lru_cache(maxsize=32)
+def _equations(eom: EquationsOfMotion, collect: bool) -> tuple[sp.Equality, ...]:
+    keys = _display_keys(eom)
+    angles = eom.q[:2]
+    out = []
+    for r in range(3):
+        lhs = sum((eom.mass_matrix[r, s] * eom.qdd[s] for s in range(3)), sp.S.Zero)
+        rhs = eom.forcing[r]
+        if collect:
+            lhs = readable(lhs, list(eom.qdd), angles)
+            rhs = readable(rhs, keys, angles)
+        out.append(sp.Eq(lhs, rhs, evaluate=False))
+    return tuple(out)
 
 
 def _display_keys(eom: EquationsOfMotion) -> list[sp.Expr]:

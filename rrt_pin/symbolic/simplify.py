@@ -36,6 +36,21 @@ def trig_normal(expr: sp.Expr, angles: tuple[sp.Symbol, ...]) -> sp.Expr:
     return sp.expand(remainder.subs(back))
 
 
-def readable(expr: sp.Expr, keys: list[sp.Expr]) -> sp.Expr:
-    """``expr`` collected on the monomials ``keys`` with factored coefficients (for display)."""
-    return sp.collect(sp.expand(expr), keys, func=sp.factor)
+def readable(expr: sp.Expr, keys: list[sp.Expr], angles: tuple[sp.Symbol, ...] = ()) -> sp.Expr:
+    """``expr`` collected for display.
+
+    Collected on the monomials ``keys`` (e.g. q̈r, q̇r·q̇s, efforts, g); each
+    coefficient is collected on the powers of sin and cos of ``angles`` with
+    factored coefficients (left unfactored when they hold floating-point numbers).
+    """
+    trig = [f(a) for a in angles for f in (sp.cos, sp.sin)]
+
+    def factor(c: sp.Expr) -> sp.Expr:
+        return c if c.has(sp.Float) else sp.factor(c)
+
+    def inner(c: sp.Expr) -> sp.Expr:
+        if not trig:
+            return factor(c)
+        return sp.collect(sp.expand(c), trig, func=factor)
+
+    return sp.collect(sp.expand(expr), keys, func=inner)

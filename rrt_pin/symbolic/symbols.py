@@ -14,6 +14,7 @@ from sympy.physics.mechanics import dynamicsymbols
 __all__ = [
     "EFFORTS",
     "F23",
+    "LATEX_NAMES",
     "LB",
     "PARAM_NAMES",
     "PARAMS",
@@ -113,3 +114,10 @@ def to_plain(expr):
     from sympy.physics.mechanics import msubs
 
     return msubs(expr, _TO_PLAIN)
+
+
+#: LaTeX for the symbols whose names sympy would not typeset well (I_{1x}, T_{01x}, …).
+LATEX_NAMES = {
+    s: f"{s.name[0]}_{{{s.name[1:]}}}"
+    for s in (LB, I1x, I1y, I1z, I2x, I2y, I2z, I3x, I3y, I3z, *T01, *T12, *F23)
+}
