@@ -181,6 +181,85 @@ def test_other_arm_moves_for_tp_without_tf(tmp_path, capsys):
     np.testing.assert_array_equal(data[-1, 1:7], np.ones(6))
 
 
+TWO_JOINTS = """<robot name="two">
+  <link name="base"/>
+  <joint name="spin" type="{kind}">
+    <parent link="base"/><child link="arm"/>
+    <origin xyz="0 0 0.1" rpy="0 0 0"/><axis xyz="0 1 0"/>{limit}
+  </joint>
+  <link name="arm">
+    <inertial><origin xyz="0.3 0 0"/><mass value="2"/>
+      <inertia ixx="0.01" ixy="0" ixz="0" iyy="0.05" iyz="0" izz="0.05"/></inertial>
+  </link>
+  <joint name="slide" type="prismatic">
+    <parent link="arm"/><child link="tip"/>
+    <origin xyz="0.6 0 0" rpy="0 0 0"/><axis xyz="1 0 0"/>
+    <limit lower="-1" upper="1" effort="100" velocity="1"/>
+  </joint>
+  <link name="tip">
+    <inertial><origin xyz="0 0 0"/><mass value="0.5"/>
+      <inertia ixx="0.001" ixy="0" ixz="0" iyy="0.001" iyz="0" izz="0.001"/></inertial>
+  </link>
+</robot>
+"""
+
+
+@pytest.mark.parametrize("kind", ["continuous", "revolute"])
+def test_continuous_joint_and_units(tmp_path, capsys, kind):
+    # A continuous joint keeps (cos θ, sin θ) in Pinocchio's q; the CSV holds θ.
+    limit = "" if kind == "continuous" else '<limit lower="-9" upper="9" effort="1" velocity="1"/>'
+    urdf = tmp_path / "two.urdf"
+    urdf.write_text(TWO_JOINTS.format(kind=kind, limit=limit))
+    path = tmp_path / "two.csv"
+    argv = ["inverse", "--urdf", str(urdf), "--q0", "0,0", "--qf", "2.5,0.3", "--tf", "1"]
+    assert run([*argv, "--dt", "0.05", "--csv", str(path)], capsys)[0] == 0
+    header, data = read_csv(path)
+    assert header == ["t", "q_spin", "q_slide", "qd_spin", "qd_slide"] + [
+        "qdd_spin",
+        "qdd_slide",
+        "tau_spin",
+        "tau_slide",
+    ]
+    model = load_urdf_model(urdf)
+    assert model.nq == (3 if kind == "continuous" else 2)
+    pin_data = model.createData()
+    for row in data:
+        theta, x = row[1:3]
+        q = np.array([np.cos(theta), np.sin(theta), x] if kind == "continuous" else [theta, x])
+        expected = pin.rnea(model, pin_data, q, row[3:5], row[5:7])
+        np.testing.assert_allclose(row[7:9], expected, rtol=TIGHT, atol=1e-12)
+    code, out, _ = run(argv, capsys)
+    assert "tau_spin" in out and "N·m" in out and "tau_slide" in out
+    assert next(x for x in out.splitlines() if x.startswith("tau_slide")).split()[2] == "N"
+
+
+def test_joint_with_several_coordinates_is_refused(tmp_path, capsys):
+    urdf = tmp_path / "planar.urdf"
+    urdf.write_text(TWO_JOINTS.format(kind="planar", limit="").replace('<axis xyz="0 1 0"/>', ""))
+    argv = ["inverse", "--urdf", str(urdf), "--q0", "0,0", "--qf", "1,1"]
+    code, out, err = run(argv, capsys)
+    assert code == 2 and "joint 'spin'" in err and "one coordinate per joint" in err
+
+
+def test_urdf_gravity_follows_g(tmp_path, capsys):
+    urdf = tmp_path / "two.urdf"
+    urdf.write_text(TWO_JOINTS.format(kind="continuous", limit=""))
+    path = tmp_path / "g0.csv"
+    argv = ["inverse", "--urdf", str(urdf), "--q0", "0.3,0.1", "--qf", "0.3,0.1"]
+    assert run([*argv, "--set", "g=0", "--dt", "0.5", "--csv", str(path)], capsys)[0] == 0
+    _, data = read_csv(path)
+    np.testing.assert_array_equal(data[:, 7:9], 0.0)  # at rest, no gravity: no effort
+
+
+def test_wrenches_summary(capsys):
+    code, out, _ = run(["inverse", "--wrenches", "--dt", "0.01"], capsys)
+    assert code == 0
+    line = next(x for x in out.splitlines() if x.startswith("|F01| at A"))
+    p = Params()
+    # The base carries at least the arm's weight.
+    assert float(line.split()[3]) >= (p.m1 + p.m2 + p.m3) * p.g
+
+
 def test_plot(tmp_path, capsys):
     png = tmp_path / "efforts.png"
     code, out, err = run(["inverse", "--dt", "0.05", "--plot", str(png)], capsys)

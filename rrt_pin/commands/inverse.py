@@ -20,6 +20,7 @@ if TYPE_CHECKING:
     import pinocchio as pin
 
     from rrt_pin.params import Params
+    from rrt_pin.wrenches import JointWrenches
 
 HELP = "inverse dynamics along the seed's rest-to-rest motion, eq. (30) (SI units)"
 
@@ -150,29 +151,35 @@ def run(args: argparse.Namespace) -> int:
 
     header = ["t", *job.q_names, *job.qd_names, *job.qdd_names, *job.effort_names]
     columns = [traj.t[:, None], traj.q, traj.qd, traj.qdd, tau]
+    wrenches = None
     if args.wrenches:
         from rrt_pin.wrenches import joint_wrenches, wrench_table
 
-        names, table = wrench_table(
-            joint_wrenches(job.require_model(params), q, traj.qd, traj.qdd), rrt=job.is_rrt
-        )
+        wrenches = joint_wrenches(job.require_model(params), q, traj.qd, traj.qdd)
+        names, table = wrench_table(wrenches, rrt=job.is_rrt)
         header += names
         columns.append(table)
-    data = np.hstack(columns)
 
+    text = None
+    if args.csv:
+        from rrt_pin.csvio import csv_text
+
+        text = csv_text(header, np.hstack(columns))  # format first: a failure writes nothing
     if args.plot:
         _plot(args.plot, job, traj.t, tau)
         print(f"wrote {args.plot}", file=sys.stderr)
-    if args.csv:
-        from rrt_pin.csvio import write_csv
+    if text is not None:
+        from rrt_pin.io import atomic_write_text
 
         try:
-            write_csv(args.csv, header, data)
+            atomic_write_text(args.csv, text)
         except OSError as e:
+            if args.plot:
+                Path(args.plot).unlink(missing_ok=True)
             raise InputError(f"cannot write --csv {args.csv!r}: {e.strerror or e}") from e
         print(f"wrote {args.csv}", file=sys.stderr)
     else:
-        sys.stdout.write(summary(job, traj.t, tau, args.backend, dt))
+        sys.stdout.write(summary(job, traj.t, tau, args.backend, dt, wrenches))
     return 0
 
 
@@ -354,8 +361,15 @@ def _check_writable(path: str, flag: str) -> None:
         raise InputError(f"cannot write {flag} {path!r}: it is a folder")
 
 
-def summary(job: _Job, t: np.ndarray, tau: np.ndarray, backend: str, dt: float) -> str:
-    """Peak |effort| of each joint and when it occurs, as text."""
+def summary(
+    job: _Job,
+    t: np.ndarray,
+    tau: np.ndarray,
+    backend: str,
+    dt: float,
+    wrenches: JointWrenches | None = None,
+) -> str:
+    """Peak |effort| of each joint and when it occurs (and of its whole load), as text."""
     import numpy as np
 
     arm = "the RRT arm" if job.is_rrt else f"{len(job.joint_names)} joints"
@@ -364,10 +378,28 @@ def summary(job: _Job, t: np.ndarray, tau: np.ndarray, backend: str, dt: float) 
         f"{t[-1]:g} s, dt = {dt:g} s, backend {backend}",
         f"{'effort':<24} {'peak |effort|':>16}  {'at t [s]':>10}",
     ]
+
+    def peak(name: str, values: np.ndarray, unit: str) -> str:
+        i = int(np.argmax(np.abs(values)))
+        return f"{name:<24} {abs(values[i]):>12.6g} {unit:<3}  {t[i]:>10.6g}"
+
     for k, (name, unit) in enumerate(zip(job.effort_names, job.effort_units, strict=True)):
-        i = int(np.argmax(np.abs(tau[:, k])))
-        lines.append(f"{name:<24} {abs(tau[i, k]):>12.6g} {unit:<3}  {t[i]:>10.6g}")
+        lines.append(peak(name, tau[:, k], unit))
+    if wrenches is not None:
+        lines.append(f"{'joint load':<24} {'peak magnitude':>16}  {'at t [s]':>10}")
+        labels = _RRT_LOADS if job.is_rrt else None
+        for j, joint in enumerate(wrenches.joint_names):
+            f_name, m_name = labels[j] if labels else (f"|f_{joint}|", f"|m_{joint}|")
+            lines.append(peak(f_name, np.linalg.norm(wrenches.force[:, j], axis=1), "N"))
+            lines.append(peak(m_name, np.linalg.norm(wrenches.moment[:, j], axis=1), "N·m"))
     return "\n".join(lines) + "\n"
+
+
+_RRT_LOADS = (
+    ("|F01| at A", "|T01| about A"),
+    ("|F12| at B", "|T12| about B"),
+    ("|F23| at C3", "|M23| about C3"),
+)
 
 
 def _plot(path: str, job: _Job, t: np.ndarray, tau: np.ndarray) -> None:
