@@ -87,7 +87,7 @@ def _substitution(params) -> dict:
 def _text(expr, fmt: str, sp) -> str:
     if fmt == "pretty":
         return sp.pretty(expr, use_unicode=True, wrap_line=False)
-    return sp.sstr(expr)
+    return sp.sstr(expr, full_prec=False)
 
 
 def _latex(expr, sp) -> str:
@@ -106,7 +106,7 @@ def _vector(step, fmt: str, sp) -> str:
             unit = _latex(u, sp)
             terms.append(f"\\left({inner}\\right) {unit}" if c.is_Add else f"{inner}\\, {unit}")
         else:
-            inner = sp.sstr(c)
+            inner = sp.sstr(c, full_prec=False)
             terms.append(f"({inner})*{u}" if c.is_Add else f"{inner}*{u}")
     if not terms:
         return "0"
@@ -156,5 +156,6 @@ def _equations(eom, fmt: str, sp) -> list[str]:
         if fmt == "pretty":
             out += [f"({r})", sp.pretty(e, use_unicode=True, wrap_line=False), ""]
         else:
-            out.append(f"({r}) {sp.sstr(e.lhs)} = {sp.sstr(e.rhs)}")
+            lhs, rhs = (sp.sstr(x, full_prec=False) for x in (e.lhs, e.rhs))
+            out.append(f"({r}) {lhs} = {rhs}")
     return out
