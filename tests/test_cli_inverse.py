@@ -394,5 +394,6 @@ def test_subprocess_bad_input(tmp_path):
 
 
 def test_wrench_help_names_match_the_library():
+    assert command.RRT_COLUMNS == tuple(HEADER.split(","))
     for name in RRT_WRENCH_COLUMNS:
         assert name in command._WRENCH_HELP

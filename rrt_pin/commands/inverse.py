@@ -40,7 +40,7 @@ RRT_COLUMNS = (
     "T12y",
     "F23z",
 )
-RRT_EFFORTS = ("T01x", "T12y", "F23z")
+RRT_EFFORTS = RRT_COLUMNS[10:13]
 RRT_EFFORT_UNITS = ("N·m", "N·m", "N")
 
 # Kept here (not imported from rrt_pin.wrenches) so that building the parser stays
@@ -91,7 +91,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--wrenches",
         action="store_true",
-        help="add each joint's whole transmitted load to the CSV (columns below)",
+        help="add each joint's whole transmitted load: CSV columns (below), or peak "
+        "magnitudes in the summary",
     )
     parser.add_argument(
         "--backend",
@@ -201,10 +202,10 @@ class _Job:
         self.prismatic = prismatic
         self.q0, self.qf = q0, qf
         if is_rrt:
-            self.q_names = ("q1", "q2", "q3")
-            self.qd_names = ("qd1", "qd2", "qd3")
-            self.qdd_names = ("qdd1", "qdd2", "qdd3")
-            self.effort_names = RRT_EFFORTS
+            self.q_names = RRT_COLUMNS[1:4]
+            self.qd_names = RRT_COLUMNS[4:7]
+            self.qdd_names = RRT_COLUMNS[7:10]
+            self.effort_names = RRT_COLUMNS[10:13]
         else:
             self.q_names = tuple(f"q_{n}" for n in names)
             self.qd_names = tuple(f"qd_{n}" for n in names)
