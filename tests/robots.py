@@ -36,6 +36,17 @@ def robots_dir() -> Path | None:
     return None
 
 
+def package_dir() -> Path | None:
+    """The folder that resolves ``package://example-robot-data/...`` mesh URIs.
+
+    Pass it as ``package_dirs=[str(package_dir())]`` to ``pin.buildGeomFromUrdf``
+    (only a viewer needs meshes; without it Pinocchio reports "Mesh ... could not
+    be found").
+    """
+    base = robots_dir()
+    return None if base is None else base.parent.parent
+
+
 def robot_urdf(name: str) -> Path:
     """Path of one robot's URDF; skips the test when example-robot-data is missing."""
     base = robots_dir()
