@@ -1,0 +1,549 @@
+"""Evidence of speed and accuracy: work-precision and inverse-dynamics benchmarks.
+
+Pure functions return rows of :class:`BenchRow`; :func:`run_bench` writes them
+(CSV + PNG) and is what ``rrt-pin bench`` calls. Times are medians of repeated
+runs [s]; errors are max |q − q_ref| over the seed's run [rad or m] for the
+direct dynamics, and max relative effort error for the inverse dynamics.
+"""
+
+from __future__ import annotations
+
+import statistics
+import sys
+import time
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import astuple, dataclass, fields
+from pathlib import Path
+from typing import TextIO
+
+import numpy as np
+
+__all__ = [
+    "BenchRow",
+    "Progress",
+    "inverse_backends",
+    "median_time",
+    "mpmath_inverse_reference",
+    "pareto_front",
+]
+
+
+@dataclass(frozen=True)
+class BenchRow:
+    """One measured configuration.
+
+    Attributes:
+        backend: ``pinocchio``, ``symbolic``, ``compiled`` (or ``pinocchio-loop`` …).
+        method: integrator or algorithm name.
+        setting: tolerance (``rtol=1e-08``) or step (``dt=0.001``) as text.
+        time_s: median wall time of one run [s].
+        n_evals: dynamics evaluations per run (0 where not counted).
+        max_error: max |q − q_ref| [rad, m] (direct) or max relative effort
+            error (inverse).
+    """
+
+    backend: str
+    method: str
+    setting: str
+    time_s: float
+    n_evals: int
+    max_error: float
+
+    @staticmethod
+    def header() -> list[str]:
+        """Column names, in order."""
+        return [f.name for f in fields(BenchRow)]
+
+    def values(self) -> tuple:
+        """The row's values, in header order."""
+        return astuple(self)
+
+
+class Progress:
+    """A counter on stderr: ``[ 3/40] DOP853 rtol=1e-08``; rewrites one line on a TTY."""
+
+    def __init__(self, total: int, stream: TextIO | None = None, enabled: bool = True) -> None:
+        self.total = total
+        self.done = 0
+        self.stream = stream if stream is not None else sys.stderr
+        self.enabled = enabled
+        self.tty = bool(getattr(self.stream, "isatty", lambda: False)())
+
+    def step(self, label: str) -> None:
+        """Count one item done and show its label."""
+        self.done += 1
+        if not self.enabled:
+            return
+        width = len(str(self.total))
+        line = f"[{self.done:>{width}}/{self.total}] {label}"
+        if self.tty:
+            self.stream.write("\r\033[K" + line + ("\n" if self.done >= self.total else ""))
+        else:
+            self.stream.write(line + "\n")
+        self.stream.flush()
+
+
+def median_time(fn: Callable[[], object], repeats: int) -> tuple[float, object]:
+    """Median wall time of ``repeats`` calls of ``fn`` [s], and the last result."""
+    times = []
+    result = None
+    for _ in range(max(1, repeats)):
+        t0 = time.perf_counter()
+        result = fn()
+        times.append(time.perf_counter() - t0)
+    return statistics.median(times), result
+
+
+def pareto_front(times: Sequence[float], errors: Sequence[float]) -> np.ndarray:
+    """Mask of the points no other point beats in both time and error.
+
+    A point is dominated when another is at least as fast and at least as
+    accurate, and strictly better in one of the two.
+    """
+    t = np.asarray(times, dtype=float)
+    e = np.asarray(errors, dtype=float)
+    keep = np.ones(t.size, dtype=bool)
+    for i in range(t.size):
+        better = (t <= t[i]) & (e <= e[i]) & ((t < t[i]) | (e < e[i]))
+        keep[i] = not better.any()
+    return keep
+
+
+def mpmath_inverse_reference(
+    q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, params, digits: int = 30
+) -> np.ndarray:
+    """Efforts τ = M(q)·q̈ − f(q, q̇, 0) in ``digits``-digit arithmetic.
+
+    Evaluates Lagrange's equations from :mod:`rrt_pin.symbolic` (sympy +
+    mpmath, imported here only) at the given float64 states, so that a
+    backend's error excludes the rounding of its inputs. Returns float64
+    (N, 3) [N·m, N·m, N].
+    """
+    import mpmath
+    import sympy as sp
+
+    from rrt_pin.symbolic import equations_of_motion
+
+    eom = equations_of_motion("lagrange")
+    zero = {u: 0 for u in eom.efforts}
+    tau_expr = eom.mass_matrix * sp.Matrix(eom.qdd) - eom.forcing.subs(zero)
+    args = (*eom.q, *eom.qd, *eom.qdd, *eom.parameters)
+    fn = sp.lambdify(args, list(tau_expr), modules="mpmath", cse=True)
+    from rrt_pin.kernel import PARAM_ORDER
+
+    out = np.empty((len(q), 3))
+    with mpmath.workdps(digits):
+        pv = [mpmath.mpf(getattr(params, n)) for n in PARAM_ORDER]
+        for i in range(len(q)):
+            state = [mpmath.mpf(float(x)) for x in (*q[i], *qd[i], *qdd[i])]
+            out[i] = [float(v) for v in fn(*state, *pv)]
+    return out
+
+
+def _relative_error(tau: np.ndarray, ref: np.ndarray) -> float:
+    scale = np.abs(ref).max(axis=0)
+    return float((np.abs(tau - ref) / scale).max())
+
+
+def inverse_backends(
+    params=None,
+    dt: float = 1e-3,
+    repeats: int = 5,
+    reference_stride: int = 1,
+    progress: Progress | None = None,
+) -> list[BenchRow]:
+    """Time each inverse-dynamics backend on the seed's trajectory (eq. 30).
+
+    Backends: a Python loop over ``pin.rnea``, the batched Pinocchio path, the
+    generated numpy kernel, and the compiled kernel when numba is available.
+    The error is the max over joints of max_t |τ − τ_ref| / max_t |τ_ref|,
+    against :func:`mpmath_inverse_reference` at every ``reference_stride``-th
+    sample.
+    """
+    import pinocchio as pin
+
+    from rrt_pin import kernel
+    from rrt_pin.grid import time_grid
+    from rrt_pin.inverse import inverse_dynamics
+    from rrt_pin.model import rrt_model
+    from rrt_pin.params import Params
+    from rrt_pin.trajectory import rest_to_rest
+
+    p = params if params is not None else Params()
+    model = rrt_model(p)
+    traj = rest_to_rest(p.q0, p.qf, p.Tp, time_grid(p.Tp, dt))
+    q, qd, qdd = traj.q, traj.qd, traj.qdd
+    sel = slice(None, None, reference_stride)
+    ref = mpmath_inverse_reference(q[sel], qd[sel], qdd[sel], p)
+
+    def loop() -> np.ndarray:
+        data = model.createData()
+        return np.array(
+            [pin.rnea(model, data, a, b, c) for a, b, c in zip(q, qd, qdd, strict=True)]
+        )
+
+    candidates: list[tuple[str, str, Callable[[], np.ndarray]]] = [
+        ("pinocchio", "rnea-loop", loop),
+        ("pinocchio", "rnea-batch", lambda: inverse_dynamics(model, q, qd, qdd)),
+        ("symbolic", "numpy-kernel", lambda: kernel.inverse_dynamics(q, qd, qdd, p)),
+    ]
+    try:
+        from rrt_pin import compiled
+
+        if getattr(compiled, "available", lambda: False)():
+            compiled.inverse_dynamics(
+                q[:2], qd[:2], qdd[:2], p
+            )  # compile (or load the cache) first
+            candidates.append(
+                ("compiled", "numba-kernel", lambda: compiled.inverse_dynamics(q, qd, qdd, p))
+            )
+    except ImportError:
+        pass
+    rows = []
+    for backend, method, fn in candidates:
+        t, tau = median_time(fn, repeats)
+        rows.append(
+            BenchRow(
+                backend,
+                method,
+                f"N={len(q)}",
+                t,
+                len(q),
+                _relative_error(np.asarray(tau)[sel], ref),
+            )
+        )
+        if progress is not None:
+            progress.step(f"inverse {backend} {method}: {t * 1e3:.3g} ms")
+    return rows
+
+
+def write_rows(path: str | Path, rows: Iterable[BenchRow]) -> Path:
+    """Write rows as CSV (``backend,method,setting,time_s,n_evals,max_error``) atomically."""
+    from rrt_pin.io import atomic_write_text
+
+    lines = [",".join(BenchRow.header())]
+    for r in rows:
+        lines.append(
+            f"{r.backend},{r.method},{r.setting},{r.time_s:.6g},{r.n_evals},{r.max_error:.6g}"
+        )
+    return atomic_write_text(path, "\n".join(lines) + "\n")
+
+
+#: Tolerances of the adaptive methods (atol = rtol / 100) and steps of the fixed-step ones.
+RTOLS = (1e-4, 1e-6, 1e-8, 1e-10, 1e-12)
+STEPS = (1e-2, 5e-3, 2e-3, 1e-3, 5e-4)
+QUICK_RTOLS = (1e-6, 1e-9, 1e-12)
+QUICK_STEPS = (1e-2, 2e-3)
+
+
+def _settings(method: str, quick: bool) -> list[tuple[str, dict]]:
+    from rrt_pin.simulate import ADAPTIVE_METHODS
+
+    if method in ADAPTIVE_METHODS:
+        return [
+            (f"rtol={r:.0e}", {"rtol": r, "atol": r * 1e-2})
+            for r in (QUICK_RTOLS if quick else RTOLS)
+        ]
+    return [(f"dt={h:g}", {"step": h}) for h in (QUICK_STEPS if quick else STEPS)]
+
+
+def direct_work_precision(
+    params=None,
+    quick: bool = False,
+    repeats: int = 5,
+    backends: Sequence[str] = ("pinocchio", "compiled"),
+    progress: Progress | None = None,
+) -> tuple[list[BenchRow], BenchRow, float]:
+    """Every method of ``simulate`` × tolerances or steps, on the seed's run (0..15 s, 1,501 outputs).
+
+    Returns:
+        The rows; the row of ``simulate``'s default settings (measured the same
+        way); and the disagreement of the reference's two methods [rad, m].
+    """
+    from rrt_pin.control import seed_controller
+    from rrt_pin.grid import time_grid
+    from rrt_pin.model import rrt_model
+    from rrt_pin.params import Params
+    from rrt_pin.reference import seed_reference
+    from rrt_pin.simulate import METHODS, simulate
+
+    p = params if params is not None else Params()
+    model = rrt_model(p)
+    ctrl = seed_controller(p)
+    t = time_grid(15.0, 0.01)
+    ref = seed_reference(p, tf=15.0, dt=0.01)
+    have_compiled = False
+    if "compiled" in backends:
+        try:
+            from rrt_pin import compiled
+
+            have_compiled = compiled.available()
+        except ImportError:
+            have_compiled = False
+    plan: list[tuple[str, str, str, dict]] = []
+    for backend in backends:
+        if backend == "compiled" and not have_compiled:
+            continue
+        for method in METHODS:
+            if backend == "compiled" and method in ("odeint", "LSODA", "Radau", "BDF"):
+                continue  # scipy's own loops: the compiled backend does not replace them
+            for setting, kw in _settings(method, quick):
+                plan.append((backend, method, setting, kw))
+    if progress is not None:
+        progress.total += len(plan) + 1
+
+    def measure(backend: str, method: str, kw: dict) -> tuple[float, int, float]:
+        def run():
+            return simulate(
+                model, ctrl, p.q0, p.qd0, t, method=method, backend=backend, params=p, **kw
+            )
+
+        if backend == "compiled":
+            run()  # compile (or load the cache) before timing
+        elapsed, res = median_time(run, repeats)
+        return elapsed, int(res.n_evals), float(np.abs(res.q - ref.q).max())
+
+    measure("pinocchio", "RK45", {"rtol": 1e-3, "atol": 1e-5})  # warm imports and caches
+    rows = []
+    for backend, method, setting, kw in plan:
+        try:
+            elapsed, n_evals, err = measure(backend, method, kw)
+        except Exception as e:  # a failing configuration is a result too
+            from rrt_pin.errors import RrtPinError
+
+            if not isinstance(e, RrtPinError):
+                raise
+            elapsed, n_evals, err = float("nan"), 0, float("inf")
+        rows.append(BenchRow(backend, method, setting, elapsed, n_evals, err))
+        if progress is not None:
+            progress.step(
+                f"direct {backend} {method} {setting}: {elapsed * 1e3:.3g} ms, error {err:.2g}"
+            )
+    from rrt_pin.simulate import DEFAULT_ATOL, DEFAULT_METHOD, DEFAULT_RTOL
+
+    e, n, er = measure("pinocchio", DEFAULT_METHOD, {"rtol": DEFAULT_RTOL, "atol": DEFAULT_ATOL})
+    default = BenchRow("pinocchio", DEFAULT_METHOD, f"default rtol={DEFAULT_RTOL:.0e}", e, n, er)
+    if progress is not None:
+        progress.step(f"direct default: {e * 1e3:.3g} ms, error {er:.2g}")
+    return rows, default, ref.difference_q
+
+
+def energy_drift(
+    params=None,
+    tf: float = 100.0,
+    quick: bool = False,
+    progress: Progress | None = None,
+) -> list[BenchRow]:
+    """Energy drift of passive motion (τ = 0, gravity on) from the seed's q(0), per method.
+
+    ``max_error`` is max_t |E(t) − E(0)| / max_t T(t) (dimensionless), with E = T + V
+    sampled every second; ``setting`` is the tolerance or step used.
+    """
+    from rrt_pin.grid import time_grid
+    from rrt_pin.model import rrt_model
+    from rrt_pin.params import Params
+    from rrt_pin.simulate import simulate
+    from rrt_pin.symplectic import leapfrog, mechanical_energy
+
+    p = params if params is not None else Params()
+    model = rrt_model(p)
+    t = time_grid(tf, 1.0)
+    zero = np.zeros(3)
+
+    def passive(q: np.ndarray, qd: np.ndarray) -> np.ndarray:
+        return zero.copy()
+
+    def kinetic(q: np.ndarray, qd: np.ndarray) -> np.ndarray:
+        import pinocchio as pin
+
+        data = model.createData()
+        return np.array(
+            [pin.computeKineticEnergy(model, data, a, b) for a, b in zip(q, qd, strict=True)]
+        )
+
+    runs: list[tuple[str, str, Callable[[], tuple[np.ndarray, np.ndarray, int]]]] = []
+    for method, rtol in (("DOP853", 1e-12), ("RK45", 1e-10), ("odepack", 1e-12), ("Radau", 1e-10)):
+
+        def run(method=method, rtol=rtol):
+            r = simulate(model, passive, p.q0, p.qd0, t, method=method, rtol=rtol, atol=rtol * 1e-2)
+            return r.q, r.qd, r.n_evals
+
+        runs.append((method, f"rtol={rtol:.0e}", run))
+    h = 0.01 if quick else 0.005
+    for method in ("rk4", "verlet", "symplectic_euler"):
+
+        def run(method=method):
+            r = simulate(model, passive, p.q0, p.qd0, t, method=method, step=h)
+            return r.q, r.qd, r.n_evals
+
+        runs.append((method, f"dt={h:g}", run))
+
+    def run_leapfrog():
+        r = leapfrog(model, p.q0, p.qd0, t, h)
+        return r.q, r.qd, r.n_evals
+
+    runs.append(("leapfrog", f"dt={h:g}", run_leapfrog))
+    if progress is not None:
+        progress.total += len(runs)
+    rows = []
+    for method, setting, run in runs:
+        t0 = time.perf_counter()
+        q, qd, n = run()
+        elapsed = time.perf_counter() - t0
+        E = mechanical_energy(model, q, qd)
+        drift = float(np.abs(E - E[0]).max() / kinetic(q, qd).max())
+        rows.append(BenchRow("pinocchio", method, setting, elapsed, int(n), drift))
+        if progress is not None:
+            progress.step(f"energy {method} {setting}: relative drift {drift:.2g}")
+    return rows
+
+
+def plot_work_precision(
+    path: str | Path, rows: Sequence[BenchRow], default: BenchRow | None = None
+) -> Path:
+    """Log-log plot of max |q error| [rad, m] against median time [s], Pareto front drawn."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from rrt_pin.io import atomic_write
+
+    ok = [r for r in rows if np.isfinite(r.time_s) and np.isfinite(r.max_error) and r.max_error > 0]
+    fig, ax = plt.subplots(figsize=(9, 6))
+    groups: dict[tuple[str, str], list[BenchRow]] = {}
+    for r in ok:
+        groups.setdefault((r.backend, r.method), []).append(r)
+    markers = "os^vD<>ph*X"
+    for i, ((backend, method), rs) in enumerate(sorted(groups.items())):
+        rs = sorted(rs, key=lambda r: r.time_s)
+        style = "-" if backend == "pinocchio" else "--"
+        ax.plot(
+            [r.time_s for r in rs],
+            [r.max_error for r in rs],
+            style,
+            marker=markers[i % len(markers)],
+            label=f"{method} ({backend})",
+            alpha=0.8,
+        )
+    front = [
+        r
+        for r, keep in zip(
+            ok, pareto_front([r.time_s for r in ok], [r.max_error for r in ok]), strict=True
+        )
+        if keep
+    ]
+    front.sort(key=lambda r: r.time_s)
+    if front:
+        ax.step(
+            [r.time_s for r in front],
+            [r.max_error for r in front],
+            where="post",
+            color="k",
+            linewidth=2.5,
+            alpha=0.35,
+            label="Pareto front",
+        )
+    if default is not None:
+        ax.plot(
+            [default.time_s], [default.max_error], "k*", markersize=16, label="simulate() default"
+        )
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("median wall time of one 15 s run [s]")
+    ax.set_ylabel("max |q − q_ref| over 0..15 s [rad, m]")
+    ax.set_title("Work–precision of the seed's direct dynamics (eq. 31)")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7, ncol=2, loc="upper right")
+    fig.tight_layout()
+    try:
+        return atomic_write(path, lambda fh: fig.savefig(fh, format="png", dpi=110))
+    finally:
+        plt.close(fig)
+
+
+@dataclass(frozen=True)
+class BenchReport:
+    """What :func:`run_bench` measured and wrote.
+
+    Attributes:
+        direct: work-precision rows of the direct dynamics.
+        default: the row of ``simulate``'s default settings.
+        default_on_front: whether that row lies on the Pareto front of ``direct`` + itself.
+        reference_disagreement: max |q_DOP853 − q_Radau| of the reference at rtol 1e-13 [rad, m].
+        inverse: rows of the inverse-dynamics backends.
+        energy: energy-drift rows of passive motion.
+        files: the files written.
+    """
+
+    direct: tuple[BenchRow, ...]
+    default: BenchRow
+    default_on_front: bool
+    reference_disagreement: float
+    inverse: tuple[BenchRow, ...]
+    energy: tuple[BenchRow, ...]
+    files: tuple[Path, ...]
+
+
+def run_bench(
+    out: str | Path, quick: bool = False, progress: Progress | None = None
+) -> BenchReport:
+    """Run every benchmark and write its CSV files and plot into ``out``.
+
+    Writes ``work_precision.csv``, ``work_precision.png``, ``inverse.csv`` and
+    ``energy_drift.csv``; ``out`` is created if missing.
+    """
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    progress = progress if progress is not None else Progress(0, enabled=False)
+    repeats = 1 if quick else 5
+    direct, default, disagreement = direct_work_precision(
+        quick=quick, repeats=repeats, progress=progress
+    )
+    every = [*direct, default]
+    mask = pareto_front(
+        [r.time_s if np.isfinite(r.time_s) else np.inf for r in every], [r.max_error for r in every]
+    )
+    inverse = inverse_backends(
+        repeats=3 if quick else 7, reference_stride=10 if quick else 1, progress=progress
+    )
+    energy = energy_drift(tf=30.0 if quick else 100.0, quick=quick, progress=progress)
+    files = (
+        write_rows(out / "work_precision.csv", every),
+        plot_work_precision(out / "work_precision.png", direct, default),
+        write_rows(out / "inverse.csv", inverse),
+        write_rows(out / "energy_drift.csv", energy),
+    )
+    return BenchReport(
+        tuple(direct), default, bool(mask[-1]), disagreement, tuple(inverse), tuple(energy), files
+    )
+
+
+def summary(report: BenchReport) -> str:
+    """A few lines for the terminal."""
+    d = report.default
+    fastest_8 = min(
+        (r for r in report.direct if r.max_error <= 1e-8 and np.isfinite(r.time_s)),
+        key=lambda r: r.time_s,
+        default=None,
+    )
+    lines = [
+        f"reference: DOP853 vs Radau at rtol 1e-13 disagree by {report.reference_disagreement:.2g}",
+        f"simulate() default ({d.method}, {d.setting}): {d.time_s * 1e3:.3g} ms, "
+        f"max |q error| {d.max_error:.2g}, {'on' if report.default_on_front else 'NOT on'} the Pareto front",
+    ]
+    if fastest_8 is not None:
+        lines.append(
+            f"fastest at ≤ 1e-8: {fastest_8.method} ({fastest_8.backend}, {fastest_8.setting}) "
+            f"{fastest_8.time_s * 1e3:.3g} ms"
+        )
+    base = next((r for r in report.inverse if r.method == "rnea-loop"), None)
+    for r in report.inverse:
+        ratio = f", {base.time_s / r.time_s:.1f}× the loop" if base else ""
+        lines.append(
+            f"inverse {r.backend}/{r.method}: {r.time_s * 1e3:.3g} ms, rel. error {r.max_error:.2g}{ratio}"
+        )
+    for r in report.energy:
+        lines.append(f"energy drift {r.method} ({r.setting}): {r.max_error:.2g} of max T")
+    lines.append("wrote " + ", ".join(str(f) for f in report.files))
+    return "\n".join(lines)

@@ -1,0 +1,29 @@
+"""``rrt-pin bench``: work-precision and inverse-dynamics benchmarks, energy drift."""
+
+from __future__ import annotations
+
+import argparse
+
+HELP = "benchmark run time against error (direct dynamics), inverse-dynamics backends, energy drift"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Options of ``rrt-pin bench``."""
+    parser.add_argument(
+        "--quick", action="store_true", help="fewer settings, one repeat: finishes within a minute"
+    )
+    parser.add_argument(
+        "--out",
+        default="bench-out",
+        metavar="DIR",
+        help="folder for work_precision.csv/.png, inverse.csv, energy_drift.csv (default bench-out/)",
+    )
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the benchmarks; progress on stderr, summary on stdout."""
+    from rrt_pin.bench import Progress, run_bench, summary
+
+    report = run_bench(args.out, quick=args.quick, progress=Progress(0))
+    print(summary(report))
+    return 0
