@@ -36,11 +36,16 @@ _MIN_SAMPLES_PER_THREAD = 256
 
 
 def default_num_threads() -> int:
-    """The CPUs this process may run on (at least 1)."""
+    """The CPUs this process may run on (at least 1), capped by ``OMP_NUM_THREADS`` if set."""
     try:
-        return max(1, len(os.sched_getaffinity(0)))
+        cpus = len(os.sched_getaffinity(0))
     except AttributeError:  # pragma: no cover - not on Linux
-        return max(1, os.cpu_count() or 1)
+        cpus = os.cpu_count() or 1
+    try:
+        cap = int(os.environ.get("OMP_NUM_THREADS", "").split(",")[0])
+    except ValueError:
+        cap = cpus
+    return max(1, min(cpus, cap if cap > 0 else cpus))
 
 
 def _array(name: str, value: object, width: int, width_name: str) -> np.ndarray:

@@ -257,3 +257,15 @@ def test_kernel_backends_refuse_other_models(seed_params):
         inverse_dynamics(
             ur5, np.zeros(3), np.zeros(3), np.zeros(3), backend="symbolic", params=seed_params
         )
+
+
+def test_default_threads_follow_omp_num_threads(monkeypatch):
+    from rrt_pin.inverse import default_num_threads
+
+    monkeypatch.delenv("OMP_NUM_THREADS", raising=False)
+    cpus = default_num_threads()
+    assert cpus >= 1
+    monkeypatch.setenv("OMP_NUM_THREADS", "1")
+    assert default_num_threads() == 1
+    monkeypatch.setenv("OMP_NUM_THREADS", "not-a-number")
+    assert default_num_threads() == cpus
