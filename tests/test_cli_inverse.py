@@ -397,3 +397,18 @@ def test_wrench_help_names_match_the_library():
     assert command.RRT_COLUMNS == tuple(HEADER.split(","))
     for name in RRT_WRENCH_COLUMNS:
         assert name in command._WRENCH_HELP
+
+
+@pytest.mark.skipif(not HAS_KERNEL, reason="rrt_pin/kernel.py not generated yet")
+def test_subprocess_symbolic_backend_needs_no_pinocchio(tmp_path):
+    out = tmp_path / "sym.csv"
+    args = ["-X", "importtime", "-m", "rrt_pin", "inverse", "--backend", "symbolic"]
+    proc = run_process([*args, "--csv", str(out)], tmp_path)
+    assert proc.returncode == 0, proc.stderr[-500:]
+    imported = {
+        line.split("|")[-1].strip().split(".")[0]
+        for line in proc.stderr.splitlines()
+        if "|" in line
+    }
+    assert "pinocchio" not in imported and "sympy" not in imported
+    assert out.read_text().count("\n") == 15002
