@@ -1,0 +1,238 @@
+"""Headless Chromium driven by selenium: load the viewer page, wait for the scene, screenshot it.
+
+Uses Debian's ``/usr/bin/chromium`` and ``/usr/bin/chromedriver`` (or the
+``RRT_PIN_CHROMIUM`` / ``RRT_PIN_CHROMEDRIVER`` environment variables, or
+``chromium``/``chromedriver`` on PATH). The browser runs with a fresh temporary
+profile and no network beyond the viewer's own address; every process it
+starts is ended on exit, Ctrl-C included. Times in seconds [s], sizes in pixels.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import shutil
+import signal
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from rrt_pin.errors import ViewerError
+
+__all__ = ["CHROMIUM_FLAGS", "Chromium", "find_chromium", "screenshot"]
+
+#: Flags for a headless, offline, throw-away Chromium (plus ``--user-data-dir``).
+CHROMIUM_FLAGS = (
+    "--headless=new",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--enable-unsafe-swiftshader",  # software WebGL; the page is our own, local
+    "--disable-quic",
+    "--no-first-run",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--disable-dev-shm-usage",
+    "--hide-scrollbars",
+)
+
+# True once meshcat's page has every object and the animation of n clips.
+_READY_JS = """
+const n = arguments[0];
+return typeof viewer !== 'undefined' && viewer.connection !== undefined
+    && viewer.connection.readyState === 1
+    && viewer.animator.actions.length >= n;
+"""
+
+# Pause the page's animation at time t [s] and draw it (after two frames).
+_SEEK_JS = """
+const t = arguments[0], done = arguments[arguments.length - 1];
+const a = viewer.animator;
+a.pause();
+a.seek(t);
+a.display_progress(t);
+viewer.set_dirty();
+requestAnimationFrame(() => requestAnimationFrame(() => done(true)));
+"""
+
+_DRAWN_JS = """
+const done = arguments[arguments.length - 1];
+viewer.set_dirty();
+requestAnimationFrame(() => requestAnimationFrame(() => done(true)));
+"""
+
+
+@dataclass(frozen=True)
+class ChromiumPaths:
+    """Where the browser and its driver are.
+
+    Attributes:
+        browser: the Chromium executable.
+        driver: the matching chromedriver executable.
+    """
+
+    browser: str
+    driver: str
+
+
+def find_chromium() -> ChromiumPaths | None:
+    """Chromium and chromedriver, or None when either is missing."""
+    candidates = {
+        "browser": [
+            os.environ.get("RRT_PIN_CHROMIUM"),
+            "/usr/bin/chromium",
+            shutil.which("chromium"),
+        ],
+        "driver": [
+            os.environ.get("RRT_PIN_CHROMEDRIVER"),
+            "/usr/bin/chromedriver",
+            shutil.which("chromedriver"),
+        ],
+    }
+    found = {}
+    for key, paths in candidates.items():
+        for p in paths:
+            if p and os.path.isfile(p) and os.access(p, os.X_OK):
+                found[key] = p
+                break
+        else:
+            return None
+    return ChromiumPaths(**found)
+
+
+class Chromium:
+    """A headless Chromium window on the viewer page (context manager).
+
+    Args:
+        size: window size (width, height) [px].
+        paths: browser and driver; :func:`find_chromium` when None.
+
+    Raises:
+        ViewerError: Chromium or chromedriver is missing or does not start.
+    """
+
+    def __init__(
+        self, size: tuple[int, int] = (1280, 800), paths: ChromiumPaths | None = None
+    ) -> None:
+        try:
+            from selenium import webdriver
+            from selenium.common.exceptions import WebDriverException
+            from selenium.webdriver.chrome.service import Service
+        except ImportError as e:
+            raise ImportError("selenium not found: pip install rrt-pin[viewer]") from e
+        paths = paths or find_chromium()
+        if paths is None:
+            raise ViewerError(
+                "headless Chromium not found: install Debian's chromium and chromium-driver "
+                "(or set RRT_PIN_CHROMIUM and RRT_PIN_CHROMEDRIVER)"
+            )
+        self._profile = tempfile.mkdtemp(prefix="rrt-pin-chromium-")
+        options = webdriver.ChromeOptions()
+        options.binary_location = paths.browser
+        for flag in (*CHROMIUM_FLAGS, f"--window-size={size[0]},{size[1]}"):
+            options.add_argument(flag)
+        options.add_argument(f"--user-data-dir={self._profile}")
+        # Its own session: a terminal's Ctrl-C reaches us, and we end the whole group.
+        self._service = Service(paths.driver, popen_kw={"start_new_session": True})
+        self.driver: Any = None
+        try:
+            self.driver = webdriver.Chrome(service=self._service, options=options)
+        except WebDriverException as e:
+            self.close()
+            first = (e.msg or str(e)).strip().splitlines()[0] if (e.msg or str(e)).strip() else ""
+            raise ViewerError(f"headless Chromium does not start: {first}") from e
+        except BaseException:
+            self.close()
+            raise
+        self.size = size
+        # the page's viewport, exactly (a window size would include the browser's frame)
+        self.driver.execute_cdp_cmd(
+            "Emulation.setDeviceMetricsOverride",
+            {"width": size[0], "height": size[1], "deviceScaleFactor": 1, "mobile": False},
+        )
+
+    def open(self, url: str, clips: int, timeout: float = 30.0) -> None:
+        """Load the viewer page at ``url`` and wait until it has the scene and ``clips`` animation clips.
+
+        Raises:
+            ViewerError: the scene is not there after ``timeout`` [s].
+        """
+        self.driver.set_script_timeout(timeout)
+        self.driver.get(url)
+        deadline = time.monotonic() + timeout
+        while not self.driver.execute_script(_READY_JS, clips):
+            if time.monotonic() > deadline:
+                raise ViewerError(
+                    f"the viewer page at {url} did not show the scene within {timeout:g} s"
+                )
+            time.sleep(0.05)
+        self.driver.execute_async_script(_DRAWN_JS)
+
+    def seek(self, t: float) -> None:
+        """Pause the page's animation at time ``t`` [s] and wait until it is drawn."""
+        self.driver.execute_async_script(_SEEK_JS, float(t))
+
+    def png(self) -> bytes:
+        """A screenshot of the window (PNG bytes)."""
+        return self.driver.get_screenshot_as_png()
+
+    def execute(self, script: str, *args: Any) -> Any:
+        """Run JavaScript in the page and return its result."""
+        return self.driver.execute_script(script, *args)
+
+    def close(self) -> None:
+        """Quit the browser and end every process it started; remove its profile."""
+        process = getattr(self._service, "process", None)
+        try:
+            if self.driver is not None:
+                with contextlib.suppress(Exception):
+                    self.driver.quit()
+            with contextlib.suppress(Exception):
+                self._service.stop()
+        finally:
+            self.driver = None
+            if process is not None:
+                # chromedriver leads its own process group; the browsers are in it
+                with contextlib.suppress(ProcessLookupError, PermissionError):
+                    os.killpg(process.pid, signal.SIGKILL)
+                with contextlib.suppress(Exception):
+                    process.wait(5)
+            shutil.rmtree(self._profile, ignore_errors=True)
+
+    def __enter__(self) -> Chromium:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def screenshot(
+    url: str,
+    path: str | Path,
+    *,
+    clips: int,
+    t: float | None = None,
+    size: tuple[int, int] = (1280, 800),
+    timeout: float = 30.0,
+) -> Path:
+    """Render the viewer page at ``url`` in headless Chromium and save a PNG atomically.
+
+    Args:
+        url: the viewer page.
+        path: where the PNG goes.
+        clips: number of animation clips the page must have before it counts
+            as drawn (the number of moving links).
+        t: animation time to show [s]; None leaves the animation as it plays.
+        size: window size (width, height) [px].
+        timeout: how long to wait for the page [s].
+    """
+    from rrt_pin.io import atomic_write_bytes
+
+    with Chromium(size) as browser:
+        browser.open(url, clips, timeout)
+        if t is not None:
+            browser.seek(t)
+        data = browser.png()
+    return atomic_write_bytes(path, data)
