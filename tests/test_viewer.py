@@ -72,6 +72,7 @@ def test_keyframe_times_keep_both_ends(duration, fps, expected):
         (math.nan, 30.0, "duration=nan"),
         (1.0, 0.0, "fps=0.0"),
         (1.0, math.inf, "fps=inf"),
+        (15.0, 1e6, "15000001 keyframes; at most 100000"),
     ],
 )
 def test_keyframe_times_refuse_bad_values(duration, fps, words):
@@ -414,6 +415,36 @@ def test_urdf_needs_its_own_configurations(tmp_path, capsys):
     assert code == 2 and "lacks column 'q_shoulder_lift_joint'" in err and err.count("\n") == 1
 
 
+URDF_WITH_A_MISSING_MESH = """<?xml version="1.0"?>
+<robot name="m">
+  <link name="base"><visual><geometry><box size="0.2 0.2 0.1"/></geometry></visual></link>
+  <joint name="j1" type="revolute"><parent link="base"/><child link="arm"/>
+    <axis xyz="0 0 1"/><limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+  <link name="arm">
+    <inertial><origin xyz="0.5 0 0"/><mass value="1"/>
+      <inertia ixx="0.01" ixy="0" ixz="0" iyy="0.1" iyz="0" izz="0.1"/></inertial>
+    <visual><origin xyz="0.5 0 0"/><geometry><box size="1 0.1 0.1"/></geometry></visual>
+    <visual><geometry><mesh filename="package://nowhere/meshes/tool.stl"/></geometry></visual>
+  </link>
+</robot>
+"""
+
+
+def test_meshes_that_cannot_be_found_are_skipped_with_a_warning(tmp_path, capsys):
+    urdf = tmp_path / "arm.urdf"
+    urdf.write_text(URDF_WITH_A_MISSING_MESH)
+    csv = _csv(tmp_path, ["t", "j1"], [[0, 0], [1, 1.5]])
+    code = main(
+        ["view", "--urdf", str(urdf), "--trajectory", csv, "--port", "0", "--serve-for", "0"]
+    )
+    out, err = capsys.readouterr()
+    assert code == 0 and out.startswith("http://127.0.0.1:")
+    assert err == (
+        "rrt-pin: warning: Mesh package://nowhere/meshes/tool.stl could not be found; "
+        "drawing the URDF without its meshes\n"
+    )
+
+
 def test_a_csv_needs_no_dynamics_and_is_resampled(tmp_path):
     """A CSV at 1 kHz of eq. (30) becomes the keyframes of eq. (30) at 30 fps."""
     from rrt_pin.cli import build_parser
@@ -633,7 +664,9 @@ def test_serve_for_ends_the_server_and_starts_no_process():
         urllib.request.urlopen(url, timeout=2)
 
 
-@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+@pytest.mark.parametrize(
+    "signum", [signal.SIGINT, signal.SIGTERM, signal.SIGHUP], ids=["SIGINT", "SIGTERM", "SIGHUP"]
+)
 def test_a_signal_ends_the_server_cleanly(signum):
     proc, url = _start_view("--serve-for", "300")
     try:

@@ -154,6 +154,22 @@ def test_two_animation_times_show_two_poses(served, browser):
     assert (middle ^ first).sum() > 300 and (middle ^ last).sum() > 300
 
 
+def test_the_page_plays_and_loops_by_itself(served, browser):
+    _, scene = served
+    browser.seek(scene.keyframes.duration - 0.2)
+    start = browser.execute("viewer.animator.play(); return viewer.animator.time;")
+    assert start == pytest.approx(scene.keyframes.duration - 0.2)
+    deadline = time.monotonic() + 10
+    # no Python in the loop: the page's clock runs the animation past the end and
+    # starts over (repetitions = Infinity)
+    while browser.execute("return viewer.animator.time;") > 1.0:
+        assert time.monotonic() < deadline, "the animation did not loop"
+        time.sleep(0.05)
+    assert browser.execute("return viewer.animator.playing;")
+    browser.seek(0.0)
+    assert not browser.execute("return viewer.animator.playing;")
+
+
 def test_two_browsers_watch_at_once(served, browser, chromium_paths):
     from rrt_pin.viewer.browser import Chromium
 

@@ -193,7 +193,8 @@ def _geometry(args: argparse.Namespace, params: Params, model: pin.Model) -> Any
     try:
         return build_geometry(model, xml, package_dirs=dirs)
     except UrdfError as e:
-        print(f"rrt-pin: warning: {e}; meshes skipped", file=sys.stderr)
+        problem = str(e).removeprefix("URDF geometry does not load: ").rstrip(".")
+        print(f"rrt-pin: warning: {problem}; drawing the URDF without its meshes", file=sys.stderr)
         return build_geometry(model, _without_meshes(xml))
 
 
@@ -370,11 +371,12 @@ def trajectory(
 # Serving
 # ---------------------------------------------------------------------------
 class _Terminated(KeyboardInterrupt):
-    """SIGTERM, handled like Ctrl-C."""
+    """SIGTERM or SIGHUP, handled like Ctrl-C."""
 
 
 @contextmanager
-def _sigterm_as_interrupt() -> Iterator[None]:
+def _termination_as_interrupt() -> Iterator[None]:
+    """Turn SIGTERM and SIGHUP into KeyboardInterrupt, so that cleanup runs (main thread only)."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
@@ -382,11 +384,13 @@ def _sigterm_as_interrupt() -> Iterator[None]:
     def handler(signum: int, frame: Any) -> None:
         raise _Terminated()
 
-    previous = signal.signal(signal.SIGTERM, handler)
+    signums = [signal.SIGTERM] + ([signal.SIGHUP] if hasattr(signal, "SIGHUP") else [])
+    previous = {s: signal.signal(s, handler) for s in signums}
     try:
         yield
     finally:
-        signal.signal(signal.SIGTERM, previous)
+        for s, h in previous.items():
+            signal.signal(s, h)
 
 
 def _check_output(path: str) -> None:
@@ -427,7 +431,7 @@ def run(args: argparse.Namespace) -> int:
     scene = build_scene(model, geometry, t, q, args.fps, ghost_q=ghost)
     commands = scene_commands(scene, play=not args.paused, loop=args.loop, ghost=not args.no_ghost)
     start = time.monotonic()
-    with _sigterm_as_interrupt(), ViewerServer(args.host, args.port) as server:
+    with _termination_as_interrupt(), ViewerServer(args.host, args.port) as server:
         for command in commands:
             server.send(command)
         if server.moved:

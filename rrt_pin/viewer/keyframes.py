@@ -19,7 +19,11 @@ from rrt_pin.errors import InputError
 if TYPE_CHECKING:
     import pinocchio as pin
 
+#: Most keyframes an animation may have (the browser holds them all).
+MAX_KEYFRAMES = 100_000
+
 __all__ = [
+    "MAX_KEYFRAMES",
     "Keyframes",
     "frame_placements",
     "keyframe_times",
@@ -70,13 +74,19 @@ def keyframe_times(duration: float, fps: float) -> np.ndarray:
     time 0.
 
     Raises:
-        InputError: ``duration`` is negative or not finite, or ``fps`` is not
-            a finite positive number.
+        InputError: ``duration`` is negative or not finite, ``fps`` is not
+            a finite positive number, or there would be more than
+            MAX_KEYFRAMES keyframes.
     """
     fps = _check_fps(fps)
     if not isinstance(duration, (int, float)) or not math.isfinite(duration) or duration < 0.0:
         raise InputError(f"duration={duration!r} must be a finite number >= 0 [s]")
     steps = duration * fps
+    if steps + 1 > MAX_KEYFRAMES:
+        raise InputError(
+            f"{duration:g} s at fps={fps:g} would be {math.ceil(steps) + 1} keyframes; "
+            f"at most {MAX_KEYFRAMES}: lower --fps"
+        )
     n = round(steps)
     if abs(steps - n) <= 1e-9 * max(1.0, steps):
         # A whole number of frames: k/fps exactly, the last one snapped to duration.
@@ -182,11 +192,9 @@ def keyframes(
         raise InputError(f"no frame {missing[0]!r} in the model; frames: {', '.join(names)}")
     ids = [model.getFrameId(f) for f in frames]
     fps = _check_fps(fps)
-    q = np.asarray(q, dtype=float)
-    return Keyframes(
-        t=t - t[0],
-        q=q,
-        frames=tuple(frames),
-        transforms=frame_placements(model, q, ids),
-        fps=fps,
-    )
+    q = np.array(q, dtype=float)
+    t = t - t[0]
+    transforms = frame_placements(model, q, ids)
+    for arr in (t, q, transforms):
+        arr.flags.writeable = False
+    return Keyframes(t=t, q=q, frames=tuple(frames), transforms=transforms, fps=fps)

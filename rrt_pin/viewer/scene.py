@@ -367,6 +367,9 @@ def build_scene(
     ground_z = min(0.0, float(lo[2]))
     lo_cam = lo.copy()
     lo_cam[2] = ground_z
+    grid = ground_grid(lo, hi, ground_z)
+    for arr in (path, grid, lo, hi):
+        arr.flags.writeable = False
     return ArmScene(
         shapes=shapes,
         static=static,
@@ -375,7 +378,7 @@ def build_scene(
         path=path,
         path_frame=path_frame,
         ground_z=ground_z,
-        grid=ground_grid(lo, hi, ground_z),
+        grid=grid,
         lo=lo,
         hi=hi,
         camera=camera_view(lo_cam, hi),
