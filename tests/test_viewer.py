@@ -353,7 +353,11 @@ def _csv(tmp_path, header, rows, name="traj.csv"):
             [[0, 0, 0, 0], [1, 0, "inf", 0]],
             ("non-finite value", "inf", "in column 'q2', row 3"),
         ),
-        (["t", "q1", "q2", "q3"], [[0, 0, 0, 0], [0, 1, 0, 0]], "times must increase strictly"),
+        (
+            ["t", "q1", "q2", "q3"],
+            [[0, 0, 0, 0], [0, 1, 0, 0]],
+            "times must increase strictly, but t=0.0 s in row 3 follows t=0.0 s",
+        ),
         (["t", "q1", "q2", "q3"], [[0, 0, 0, 0], [1, 0, "x", 0]], "could not convert"),
         (["t", "q1", "q2", "q3"], [], "no data rows"),
     ],
@@ -417,7 +421,8 @@ def test_urdf_needs_its_own_configurations(tmp_path, capsys):
 
 URDF_WITH_A_MISSING_MESH = """<?xml version="1.0"?>
 <robot name="m">
-  <link name="base"><visual><geometry><box size="0.2 0.2 0.1"/></geometry></visual></link>
+  <link name="base"><visual><geometry><box size="0.2 0.2 0.1"/></geometry></visual>
+    <visual><origin xyz="0 0 0.3"/><geometry><sphere radius="0.05"/></geometry></visual></link>
   <joint name="j1" type="revolute"><parent link="base"/><child link="arm"/>
     <axis xyz="0 0 1"/><limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
   <link name="arm">
@@ -443,6 +448,32 @@ def test_meshes_that_cannot_be_found_are_skipped_with_a_warning(tmp_path, capsys
         "rrt-pin: warning: Mesh package://nowhere/meshes/tool.stl could not be found; "
         "drawing the URDF without its meshes\n"
     )
+
+
+def test_spheres_and_boxes_of_another_urdf():
+    from rrt_pin.commands.view import _without_meshes
+    from rrt_pin.model import model_from_xml
+    from rrt_pin.viewer import visual_shapes
+    from rrt_pin.viewer.meshcat_scene import shape_object
+
+    xml = _without_meshes(URDF_WITH_A_MISSING_MESH)
+    assert "mesh" not in xml and xml.count("<visual") == 3
+    model = model_from_xml(xml)
+    shapes = visual_shapes(model, build_geometry(model, xml))
+    assert [(s.frame, s.kind) for s in shapes] == [
+        ("base", "box"),
+        ("base", "sphere"),
+        ("arm", "box"),
+    ]
+    [(_, sphere, placed)] = shape_object(shapes[1])
+    assert sphere.lower()["geometries"][0] == {
+        "uuid": sphere.geometry.uuid,
+        "type": "SphereGeometry",
+        "radius": 0.05,
+        "widthSegments": 20,
+        "heightSegments": 20,
+    }
+    assert np.allclose(placed[:3, 3], [0, 0, 0.3])
 
 
 def test_a_csv_needs_no_dynamics_and_is_resampled(tmp_path):

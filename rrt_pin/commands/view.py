@@ -290,8 +290,8 @@ def read_trajectory_csv(path: str, model: pin.Model) -> tuple[np.ndarray, np.nda
     if (steps <= 0.0).any():
         k = int(np.argmax(steps <= 0.0))
         raise InputError(
-            f"CSV {path!r}: times must increase strictly, but t={t[k + 1]!r} s in row "
-            f"{k + 3} follows t={t[k]!r} s"
+            f"CSV {path!r}: times must increase strictly, but t={float(t[k + 1])!r} s in row "
+            f"{k + 3} follows t={float(t[k])!r} s"
         )
     return t, values
 

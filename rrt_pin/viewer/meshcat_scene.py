@@ -106,7 +106,6 @@ def shape_object(shape: VisualShape, opacity: float = 1.0) -> list[tuple[str, An
         return [(name, g.Mesh(geom, material), local @ _Y_TO_Z)]
     if shape.kind == "capsule":
         r, length = shape.size
-        end = np.eye(4)
         out = [(name, g.Mesh(g.Cylinder(length, r), material), local @ _Y_TO_Z)]
         for sign, suffix in ((1.0, "top"), (-1.0, "bottom")):
             end = np.eye(4)
