@@ -59,6 +59,8 @@ def read_csv(path: str | Path, required: Sequence[str] = ()) -> tuple[list[str],
         raise InputError(
             f"CSV {str(path)!r} lacks column {missing[0]!r}; it has {','.join(header)}"
         )
+    if not rows.strip():
+        raise InputError(f"CSV {str(path)!r} has no data rows")
     try:
         data = np.loadtxt(io.StringIO(rows), delimiter=",", ndmin=2)
     except ValueError as e:
@@ -71,6 +73,6 @@ def read_csv(path: str | Path, required: Sequence[str] = ()) -> tuple[list[str],
     if bad.any():
         r, c = np.argwhere(bad)[0]
         raise InputError(
-            f"CSV {str(path)!r}: non-finite value {data[r, c]!r} in column {header[c]!r}, row {r + 2}"
+            f"CSV {str(path)!r}: non-finite value {float(data[r, c])!r} in column {header[c]!r}, row {r + 2}"
         )
     return header, data
