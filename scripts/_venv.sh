@@ -13,7 +13,12 @@ stamp=".venv/.rrt-pin-installed"
 want="$(cat pyproject.toml | sha256sum | cut -c1-16) $extras"
 if [ ! -f "$stamp" ] || ! grep -qxF "$want" "$stamp"; then
   echo "installing rrt-pin[$extras] into .venv" >&2
-  .venv/bin/python -m pip install --quiet --upgrade pip
-  .venv/bin/python -m pip install --quiet -e ".[$extras]"
+  log=.venv/pip-install.log
+  if ! { .venv/bin/python -m pip install --upgrade pip &&
+         .venv/bin/python -m pip install -e ".[$extras]"; } >"$log" 2>&1; then
+    tail -n 40 "$log" >&2
+    echo "installing rrt-pin[$extras] failed; the whole log is in $log" >&2
+    exit 1
+  fi
   echo "$want" >> "$stamp"
 fi
