@@ -1,0 +1,186 @@
+"""Compiled fast path for the RRT arm: the generated closed-form kernel and integrators under numba.
+
+``numba`` is an optional extra (``pip install rrt-pin[fast]``); importing this
+package does not import it. The first call that needs machine code imports
+numba and compiles every function (about 15–30 s once), or loads them from
+the disk cache (about 1 s per process, most of it importing numba); see
+:func:`ensure_compiled` and :mod:`rrt_pin.compiled._cache` for where the cache
+lives. :func:`is_compiled` says, without importing numba or compiling, whether
+that first call will be cheap — the CLI uses it to pick a backend.
+
+Public API (SI units throughout):
+
+* dynamics of one state (3,) or N states (N, 3): :func:`mass_matrix`,
+  :func:`nonlinear_effects`, :func:`coriolis`, :func:`gravity`,
+  :func:`inverse_dynamics`, :func:`forward_dynamics`;
+* whole simulations: :func:`simulate_compiled` (the ``backend="compiled"`` of
+  :func:`rrt_pin.simulate.simulate`) and :func:`simulate_batch_compiled` (many
+  seed variants: gains, targets, initial states and masses per variant);
+* :data:`METHODS`: ``DOP853``, ``RK45`` (adaptive, step by step as SciPy's
+  ``solve_ivp``), ``symplectic_euler``, ``rk4``, ``verlet`` (fixed steps, as
+  :mod:`rrt_pin.integrators`).
+"""
+
+from __future__ import annotations
+
+import importlib
+import importlib.util
+import logging
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+__all__ = [
+    "METHODS",
+    "CompileReport",
+    "available",
+    "compile_report",
+    "coriolis",
+    "ensure_compiled",
+    "forward_dynamics",
+    "gravity",
+    "inverse_dynamics",
+    "is_compiled",
+    "mass_matrix",
+    "nonlinear_effects",
+    "simulate_batch_compiled",
+    "simulate_compiled",
+]
+
+#: Integration methods of the compiled backend.
+METHODS = ("DOP853", "RK45", "symplectic_euler", "rk4", "verlet")
+
+_LAZY = {
+    "mass_matrix": "rrt_pin.compiled.dynamics",
+    "nonlinear_effects": "rrt_pin.compiled.dynamics",
+    "coriolis": "rrt_pin.compiled.dynamics",
+    "gravity": "rrt_pin.compiled.dynamics",
+    "inverse_dynamics": "rrt_pin.compiled.dynamics",
+    "forward_dynamics": "rrt_pin.compiled.dynamics",
+    "simulate_compiled": "rrt_pin.compiled.integrate",
+    "simulate_batch_compiled": "rrt_pin.compiled.integrate",
+}
+_JIT = "rrt_pin.compiled._jit_integrators"
+_logger = logging.getLogger("rrt_pin")
+_available: bool | None = None
+_report: CompileReport | None = None
+
+
+@dataclass(frozen=True)
+class CompileReport:
+    """What the first use of the compiled backend in this process cost.
+
+    Attributes:
+        numba_import: seconds to import numba [s].
+        compile: seconds to compile or load all functions, numba's import excluded [s].
+        from_cache: every function came from the disk cache (nothing compiled).
+        cache_dir: where the machine code is cached, or None (memory only).
+        functions: seconds per function [s].
+    """
+
+    numba_import: float
+    compile: float
+    from_cache: bool
+    cache_dir: Path | None
+    functions: dict[str, float] = field(default_factory=dict)
+
+    def describe(self) -> str:
+        """One line: how long, from where."""
+        how = "loaded from the cache" if self.from_cache else "compiled"
+        where = str(self.cache_dir) if self.cache_dir is not None else "memory only, no cache"
+        return (
+            f"compiled backend {how} in {self.compile:.2f} s "
+            f"(+ {self.numba_import:.2f} s importing numba; {where})"
+        )
+
+
+def available() -> bool:
+    """Whether numba imports (the first call imports it: about 0.5 s; the answer is kept)."""
+    global _available
+    if _available is None:
+        if importlib.util.find_spec("numba") is None:
+            _available = False
+        else:
+            try:
+                import numba  # noqa: F401
+            except Exception:  # numba present but broken (e.g. an unsupported numpy)
+                _available = False
+            else:
+                _available = True
+    return _available
+
+
+def is_compiled() -> bool:
+    """Whether the compiled backend is ready without compiling: loaded, or complete on disk.
+
+    Cheap (no numba import, no compilation): true when this process has
+    already loaded the machine code, or when the disk cache holds all of it
+    for the current sources, Python, numba and llvmlite. Using the backend then
+    costs about 1 s (importing numba and loading), not a compilation.
+    """
+    if _JIT in sys.modules:
+        return True
+    if importlib.util.find_spec("numba") is None:
+        return False
+    from rrt_pin.compiled._cache import is_cached
+
+    return is_cached()
+
+
+def ensure_compiled() -> CompileReport:
+    """Import numba and compile (or load from the cache) every function, once per process.
+
+    Returns:
+        The cost of doing so (the first call's report on later calls).
+
+    Raises:
+        ImportError: numba is not installed or does not import.
+    """
+    global _report
+    if _report is not None:
+        return _report
+    start = time.perf_counter()
+    try:
+        import numba  # noqa: F401
+    except ImportError as e:
+        raise ImportError("numba not found: pip install rrt-pin[fast]") from e
+    imported = time.perf_counter()
+    jit = importlib.import_module(_JIT)
+    done = time.perf_counter()
+    from rrt_pin.compiled import _jit_dynamics as dyn
+    from rrt_pin.compiled._cache import mark_ready
+
+    misses = sum(sum(d.stats.cache_misses.values()) for d in dyn.DISPATCHERS.values())
+    cache_dir = dyn._CACHE_DIR
+    if cache_dir is not None:
+        mark_ready(cache_dir, {"signatures": dict(dyn.SIGNATURES)})
+    _report = CompileReport(
+        numba_import=imported - start,
+        compile=done - imported,
+        from_cache=misses == 0 and cache_dir is not None,
+        cache_dir=cache_dir,
+        functions=dict(dyn.SECONDS),
+    )
+    del jit
+    _logger.info(_report.describe())
+    return _report
+
+
+def compile_report() -> CompileReport | None:
+    """The report of :func:`ensure_compiled` in this process, or None if not yet loaded."""
+    return _report
+
+
+def __getattr__(name: str) -> Any:
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module 'rrt_pin.compiled' has no attribute {name!r}")
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(__all__)

@@ -1,0 +1,299 @@
+"""Machine-code dynamics of the RRT arm: the generated closed-form kernel under numba.
+
+Importing this module imports numba and compiles (or loads from the disk cache
+of :mod:`rrt_pin.compiled._cache`) every entry point below, each for one fixed
+signature: float64 scalars, tuples and C-contiguous float64 arrays. Helpers
+marked ``inline`` are inlined into their callers at numba's IR level and never
+compiled on their own. The public, validated wrappers are in
+:mod:`rrt_pin.compiled.dynamics`.
+
+Layouts shared with the integrators:
+
+* ``p``: the 15 physical parameters in ``rrt_pin.kernel.PARAM_ORDER`` (SI units);
+* a controller: ``kind`` 0 = no effort, 1 = eq. (31) of the seed, 2 = PD plus
+  the gravity G(q) of another parameter set, 3 = PD plus the plant's own G(q)
+  (one kernel evaluation serves both); ``c`` = (kp1, kp2, kp3, kd1, kd2, kd3,
+  q1f, q2f, q3f, *p_comp) with p_comp the 15 parameters of the model whose
+  gravity is compensated (eq. (31) reads g, m2, m3 and L2 from it).
+
+The hot path, :func:`closed_loop`, takes ``p`` and ``c`` as tuples: calls
+between separately compiled numba functions are not inlined by LLVM, and an
+array argument costs two atomic reference-count updates per call, more than
+the dynamics themselves; tuples are passed by value.
+
+Numba's "numpy" error model is used: a division by zero gives inf or nan, which
+the callers detect (no exception inside machine code). No fast-math: the
+results must agree with Pinocchio to round-off, and nan must stay nan.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numba
+from numba import float64, int64, types
+
+from rrt_pin import kernel
+from rrt_pin.compiled._cache import cache_dir
+
+__all__ = ["SIGNATURES", "jit"]
+
+_CACHE_DIR = cache_dir()
+#: Name -> signature of every function compiled here (for the cache record).
+SIGNATURES: dict[str, str] = {}
+#: Dispatchers compiled here, by name.
+DISPATCHERS: dict[str, object] = {}
+#: Seconds spent compiling (or loading from the cache) each function, by name.
+SECONDS: dict[str, float] = {}
+
+#: Number of physical parameters, of controller parameters, of state components.
+NP = 15
+NC = 9 + NP
+KIND_NONE = 0
+KIND_SEED = 1
+KIND_PD_GRAVITY = 2
+KIND_PD_PLANT_GRAVITY = 3
+# Indices of the parameters eq. (31) needs, in kernel.PARAM_ORDER.
+_L2 = kernel.PARAM_ORDER.index("L2")
+_M2 = kernel.PARAM_ORDER.index("m2")
+_M3 = kernel.PARAM_ORDER.index("m3")
+_G = kernel.PARAM_ORDER.index("g")
+_INF = math.inf
+
+
+def jit(signature: object, inline: bool = False):
+    """``numba.njit(signature, cache=True)`` with this package's cache directory.
+
+    numba reads its cache directory when a function is decorated, so the
+    setting is changed only for the decoration and then restored. With a
+    signature the function is compiled (or loaded) now; ``inline`` functions
+    (``signature=None``) are inlined into their jitted callers at numba's IR
+    level and compiled only as part of them.
+    """
+
+    def wrap(fn):
+        start = time.perf_counter()
+        previous = numba.config.CACHE_DIR
+        if _CACHE_DIR is not None:
+            numba.config.CACHE_DIR = str(_CACHE_DIR)
+        try:
+            dispatcher = numba.njit(
+                *([signature] if signature is not None else []),
+                cache=_CACHE_DIR is not None,
+                nogil=True,
+                error_model="numpy",
+                inline="always" if inline else "never",
+            )(fn)
+        finally:
+            numba.config.CACHE_DIR = previous
+        if signature is not None:
+            SIGNATURES[fn.__name__] = str(signature)
+            DISPATCHERS[fn.__name__] = dispatcher
+            SECONDS[fn.__name__] = time.perf_counter() - start
+        return dispatcher
+
+    return wrap
+
+
+_f8 = float64
+_vec = float64[::1]
+_mat = float64[:, ::1]
+_cube = float64[:, :, ::1]
+_PT = types.UniTuple(float64, NP)
+_CT = types.UniTuple(float64, NC)
+
+#: The generated kernel, unchanged (inlined into every caller).
+terms = jit(None, inline=True)(kernel.terms)
+
+
+@jit(None, inline=True)
+def kernel_terms(q1, q2, q3, qd1, qd2, qd3, p):
+    """(M11, M12, M13, M22, M23, M33, c1, c2, c3, G1, G2, G3) with parameters ``p``."""
+    return terms(
+        q1, q2, q3, qd1, qd2, qd3,
+        p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7], p[8], p[9], p[10], p[11], p[12],
+        p[13], p[14],
+    )  # fmt: skip
+
+
+@jit(None, inline=True)
+def as_tuple_p(p):
+    """The 15 physical parameters as a tuple."""
+    return (
+        p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7], p[8], p[9], p[10], p[11], p[12],
+        p[13], p[14],
+    )  # fmt: skip
+
+
+@jit(None, inline=True)
+def as_tuple_c(c):
+    """The 24 controller parameters as a tuple."""
+    return (
+        c[0], c[1], c[2], c[3], c[4], c[5], c[6], c[7], c[8], c[9], c[10], c[11], c[12],
+        c[13], c[14], c[15], c[16], c[17], c[18], c[19], c[20], c[21], c[22], c[23],
+    )  # fmt: skip
+
+
+@jit(None, inline=True)
+def ldl_solve(m11, m12, m13, m22, m23, m33, b1, b2, b3):
+    """Solve M x = b for a symmetric 3×3 M by LDLᵀ (closed form, no pivoting).
+
+    Returns:
+        (x1, x2, x3, bad): ``bad`` is 0 when M is positive definite and well
+        conditioned (every pivot d_i > 1e-13 · Σ|M_jj|, all finite), else
+        1 + the index of the first failing pivot (x is then meaningless).
+    """
+    tiny = 1e-13 * (abs(m11) + abs(m22) + abs(m33))  # nan if any entry is nan
+    d1 = m11
+    if not (tiny < d1 < _INF):
+        return 0.0, 0.0, 0.0, 1
+    r1 = 1.0 / d1
+    l21 = m12 * r1
+    l31 = m13 * r1
+    d2 = m22 - l21 * m12
+    if not (tiny < d2 < _INF):
+        return 0.0, 0.0, 0.0, 2
+    r2 = 1.0 / d2
+    l32 = (m23 - l31 * m12) * r2
+    d3 = m33 - l31 * m13 - l32 * l32 * d2
+    if not (tiny < d3 < _INF):
+        return 0.0, 0.0, 0.0, 3
+    z2 = b2 - l21 * b1
+    z3 = b3 - l31 * b1 - l32 * z2
+    x3 = z3 / d3
+    x2 = z2 * r2 - l32 * x3
+    x1 = b1 * r1 - l21 * x2 - l31 * x3
+    return x1, x2, x3, 0
+
+
+@jit(None, inline=True)
+def control(kind, c, q1, q2, q3, qd1, qd2, qd3, G1, G2, G3):
+    """Joint efforts (T01x [N·m], T12y [N·m], F23z [N]) of controller ``kind``.
+
+    (G1, G2, G3) is the plant's gravity vector at q, used by
+    ``KIND_PD_PLANT_GRAVITY`` (other kinds ignore it).
+    """
+    if kind == KIND_NONE:
+        return 0.0, 0.0, 0.0
+    u1 = -c[3] * qd1 - c[0] * (q1 - c[6])
+    u2 = -c[4] * qd2 - c[1] * (q2 - c[7])
+    u3 = -c[5] * qd3 - c[2] * (q3 - c[8])
+    if kind == KIND_SEED:
+        # Eq. (31): the gravity compensation written out with the seed's symbols.
+        g = c[9 + _G]
+        m2 = c[9 + _M2]
+        m3 = c[9 + _M3]
+        L2 = c[9 + _L2]
+        c2 = math.cos(q2)
+        s2 = math.sin(q2)
+        return u1, u2 + g * m2 * L2 * c2 + g * m3 * c2 * (L2 + q3), u3 + g * m3 * s2
+    if kind == KIND_PD_PLANT_GRAVITY:
+        return u1 + G1, u2 + G2, u3 + G3
+    h = terms(
+        q1, q2, q3, 0.0, 0.0, 0.0,
+        c[9], c[10], c[11], c[12], c[13], c[14], c[15], c[16], c[17], c[18], c[19], c[20],
+        c[21], c[22], c[23],
+    )  # fmt: skip
+    return u1 + h[9], u2 + h[10], u3 + h[11]
+
+
+@jit(None, inline=True)
+def effort(kind, c, p, q1, q2, q3, qd1, qd2, qd3):
+    """The controller's efforts at one state, evaluating the plant's gravity only if needed."""
+    if kind == KIND_PD_PLANT_GRAVITY:
+        r = kernel_terms(q1, q2, q3, 0.0, 0.0, 0.0, p)
+        return control(kind, c, q1, q2, q3, qd1, qd2, qd3, r[9], r[10], r[11])
+    return control(kind, c, q1, q2, q3, qd1, qd2, qd3, 0.0, 0.0, 0.0)
+
+
+@jit(
+    types.Tuple((_f8, _f8, _f8, _f8, _f8, _f8, int64))(
+        int64, _CT, _PT, _f8, _f8, _f8, _f8, _f8, _f8
+    )
+)
+def closed_loop(kind, c, p, q1, q2, q3, qd1, qd2, qd3):
+    """(q̈1, q̈2, q̈3, τ1, τ2, τ3, bad): forward dynamics under controller ``kind``.
+
+    q̈ [rad/s², m/s²] solves M(q)·q̈ = τ − c(q, q̇) − G(q) with τ = the
+    controller's efforts [N·m, N·m, N]; ``bad`` is ldl_solve's flag. One kernel
+    evaluation serves the dynamics and, for ``KIND_PD_PLANT_GRAVITY``, the
+    gravity compensation.
+    """
+    r = kernel_terms(q1, q2, q3, qd1, qd2, qd3, p)
+    u1, u2, u3 = control(kind, c, q1, q2, q3, qd1, qd2, qd3, r[9], r[10], r[11])
+    a1, a2, a3, bad = ldl_solve(
+        r[0], r[1], r[2], r[3], r[4], r[5],
+        u1 - r[6] - r[9], u2 - r[7] - r[10], u3 - r[8] - r[11],
+    )  # fmt: skip
+    return a1, a2, a3, u1, u2, u3, bad
+
+
+@jit(types.void(_mat, _vec, _cube))
+def mass_matrix_batch(q, p, out):
+    """M(q) [kg·m², kg·m, kg] of every row of q (N, 3) into out (N, 3, 3)."""
+    for i in range(q.shape[0]):
+        r = kernel_terms(q[i, 0], q[i, 1], q[i, 2], 0.0, 0.0, 0.0, p)
+        out[i, 0, 0] = r[0]
+        out[i, 0, 1] = r[1]
+        out[i, 0, 2] = r[2]
+        out[i, 1, 0] = r[1]
+        out[i, 1, 1] = r[3]
+        out[i, 1, 2] = r[4]
+        out[i, 2, 0] = r[2]
+        out[i, 2, 1] = r[4]
+        out[i, 2, 2] = r[5]
+
+
+@jit(types.void(_mat, _mat, _vec, int64, _mat))
+def bias_batch(q, qd, p, which, out):
+    """Per row [N·m, N·m, N]: which = 0 c + G (nonlinear effects), 1 c (Coriolis), 2 G."""
+    for i in range(q.shape[0]):
+        r = kernel_terms(q[i, 0], q[i, 1], q[i, 2], qd[i, 0], qd[i, 1], qd[i, 2], p)
+        for k in range(3):
+            if which == 0:
+                out[i, k] = r[6 + k] + r[9 + k]
+            elif which == 1:
+                out[i, k] = r[6 + k]
+            else:
+                out[i, k] = r[9 + k]
+
+
+@jit(types.void(_mat, _mat, _mat, _vec, _mat))
+def inverse_batch(q, qd, qdd, p, out):
+    """τ = M(q) q̈ + c(q, q̇) + G(q) [N·m, N·m, N] of every row into out (N, 3)."""
+    for i in range(q.shape[0]):
+        r = kernel_terms(q[i, 0], q[i, 1], q[i, 2], qd[i, 0], qd[i, 1], qd[i, 2], p)
+        a1 = qdd[i, 0]
+        a2 = qdd[i, 1]
+        a3 = qdd[i, 2]
+        out[i, 0] = r[0] * a1 + r[1] * a2 + r[2] * a3 + r[6] + r[9]
+        out[i, 1] = r[1] * a1 + r[3] * a2 + r[4] * a3 + r[7] + r[10]
+        out[i, 2] = r[2] * a1 + r[4] * a2 + r[5] * a3 + r[8] + r[11]
+
+
+@jit(int64(_mat, _mat, _mat, _vec, _mat))
+def forward_batch(q, qd, tau, p, out):
+    """q̈ [rad/s², m/s²] of every row into out (N, 3); -1, or the first row whose M is singular."""
+    for i in range(q.shape[0]):
+        r = kernel_terms(q[i, 0], q[i, 1], q[i, 2], qd[i, 0], qd[i, 1], qd[i, 2], p)
+        a1, a2, a3, bad = ldl_solve(
+            r[0], r[1], r[2], r[3], r[4], r[5],
+            tau[i, 0] - r[6] - r[9], tau[i, 1] - r[7] - r[10], tau[i, 2] - r[8] - r[11],
+        )  # fmt: skip
+        if bad != 0:
+            return i
+        out[i, 0] = a1
+        out[i, 1] = a2
+        out[i, 2] = a3
+    return -1
+
+
+@jit(types.void(int64, _vec, _vec, _mat, _mat, _mat))
+def control_batch(kind, c, p, q, qd, out):
+    """Controller efforts [N·m, N·m, N] of every row into out (N, 3)."""
+    for i in range(q.shape[0]):
+        u = effort(kind, c, p, q[i, 0], q[i, 1], q[i, 2], qd[i, 0], qd[i, 1], qd[i, 2])
+        out[i, 0] = u[0]
+        out[i, 1] = u[1]
+        out[i, 2] = u[2]

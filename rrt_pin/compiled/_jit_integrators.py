@@ -1,0 +1,603 @@
+"""Machine-code integrators over the compiled RRT dynamics: whole runs, no Python per step.
+
+The state is y = (q1, q2, q3, q̇1, q̇2, q̇3) [rad, rad, m, rad/s, rad/s, m/s];
+the right-hand side is ẏ = (q̇, M⁻¹(τ − c − G)) with τ from the compiled
+controller (see :mod:`rrt_pin.compiled._jit_dynamics` for the layouts of the
+parameter vector ``p`` and of the controller ``kind``/``c``).
+
+Adaptive methods replicate SciPy's ``solve_ivp`` step by step: the same
+initial-step selection, error norms, step-size controller (safety 0.9, factors
+0.2…10) and dense output at ``t_eval`` (DOP853: the 7th-order interpolant with
+three extra stages; RK45: Shampine's quartic). With the same right-hand side
+they take the same steps as SciPy, up to round-off.
+
+Fixed-step methods step from sample to sample of ``t_eval``, each interval cut
+into ``ceil(Δt / dt)`` equal substeps (one substep when ``dt <= 0``).
+
+Every run returns a status instead of raising (machine code cannot raise a
+Python exception cheaply): see the ``STATUS_*`` codes.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import float64, int64, types
+
+from rrt_pin.compiled import _dop853_coefficients as dop
+from rrt_pin.compiled._jit_dynamics import as_tuple_c, as_tuple_p, closed_loop, effort, jit
+
+__all__ = ["METHOD_CODES", "integrate", "integrate_batch"]
+
+# Status codes of a run.
+STATUS_OK = 0
+STATUS_NONFINITE = 1  # a non-finite state or derivative; coordinate = its index 0..5
+STATUS_STEP_UNDERFLOW = 2  # the step size fell below 10 ulp of t
+STATUS_SINGULAR_MASS = 3  # M(q) not positive definite; coordinate = pivot 0..2
+STATUS_MAX_STEPS = 4  # step budget exhausted; coordinate = component limiting the step
+STATUS_NO_CONVERGENCE = 5  # Verlet's implicit half kick diverged; coordinate = its index 0..5
+
+#: Verlet's fixed-point iterations stop at this relative change (as rrt_pin.integrators) …
+VERLET_TOL = 1e-14
+#: … or fail after this many iterations.
+VERLET_MAX_ITER = 50
+
+#: Method name -> code understood by :func:`integrate`.
+METHOD_CODES = {"RK45": 0, "DOP853": 1, "symplectic_euler": 10, "rk4": 11, "verlet": 12}
+
+SAFETY = 0.9
+MIN_FACTOR = 0.2
+MAX_FACTOR = 10.0
+N = 6
+
+# RK45 (Dormand–Prince 5(4)), as in scipy.integrate._ivp.rk.RK45.
+RK45_C = np.array([0, 1 / 5, 3 / 10, 4 / 5, 8 / 9, 1])
+RK45_A = np.array(
+    [
+        [0, 0, 0, 0, 0],
+        [1 / 5, 0, 0, 0, 0],
+        [3 / 40, 9 / 40, 0, 0, 0],
+        [44 / 45, -56 / 15, 32 / 9, 0, 0],
+        [19372 / 6561, -25360 / 2187, 64448 / 6561, -212 / 729, 0],
+        [9017 / 3168, -355 / 33, 46732 / 5247, 49 / 176, -5103 / 18656],
+    ]
+)
+RK45_B = np.array([35 / 384, 0, 500 / 1113, 125 / 192, -2187 / 6784, 11 / 84])
+#: RK45_A with B as its last row: the stage loop computes y_new as a 7th "stage".
+RK45_AB = np.vstack([np.hstack([RK45_A, np.zeros((6, 1))]), RK45_B])
+RK45_E = np.array([-71 / 57600, 0, 71 / 16695, -71 / 1920, 17253 / 339200, -22 / 525, 1 / 40])
+RK45_P = np.array(
+    [
+        [1, -8048581381 / 2820520608, 8663915743 / 2820520608, -12715105075 / 11282082432],
+        [0, 0, 0, 0],
+        [0, 131558114200 / 32700410799, -68118460800 / 10900136933, 87487479700 / 32700410799],
+        [0, -1754552775 / 470086768, 14199869525 / 1410260304, -10690763975 / 1880347072],
+        [
+            0,
+            127303824393 / 49829197408,
+            -318862633887 / 49829197408,
+            701980252875 / 199316789632,
+        ],
+        [0, -282668133 / 205662961, 2019193451 / 616988883, -1453857185 / 822651844],
+        [0, 40617522 / 29380423, -110615467 / 29380423, 69997945 / 29380423],
+    ]
+)
+
+# DOP853, as in scipy.integrate._ivp.rk.DOP853 (row 12 of A is B; rows 13-15 are
+# the extra stages of the dense output).
+D8_NS = dop.N_STAGES
+D8_A = np.ascontiguousarray(dop.A)
+D8_C = np.ascontiguousarray(dop.C)
+D8_E3 = np.ascontiguousarray(dop.E3)
+D8_E5 = np.ascontiguousarray(dop.E5)
+D8_D = np.ascontiguousarray(dop.D)
+
+_vec = float64[::1]
+_mat = float64[:, ::1]
+_ivec = int64[::1]
+_RESULT = types.Tuple((int64, int64, int64, int64, int64, int64, float64))
+# RK4's stages evaluate f at y + RK4_C[s]·h·k_{s-1}.
+RK4_C = np.array([0.0, 0.5, 0.5, 1.0])
+
+
+@jit(None, inline=True)
+def rhs(y, p, c, kind, out):
+    """ẏ of the closed loop into ``out`` (6,); returns 0 or 1 + the singular pivot.
+
+    ``p`` and ``c`` are tuples (see ``closed_loop``).
+    """
+    a1, a2, a3, _, _, _, bad = closed_loop(kind, c, p, y[0], y[1], y[2], y[3], y[4], y[5])
+    out[0] = y[3]
+    out[1] = y[4]
+    out[2] = y[5]
+    out[3] = a1
+    out[4] = a2
+    out[5] = a3
+    return bad
+
+
+@jit(None, inline=True)
+def first_nonfinite(v):
+    """Index of the first non-finite entry of ``v``, or -1."""
+    for i in range(v.shape[0]):
+        if not math.isfinite(v[i]):
+            return i
+    return -1
+
+
+@jit(None, inline=True)
+def rms_scaled(v, scale):
+    """RMS norm of v / scale (SciPy's ``norm``)."""
+    s = 0.0
+    for i in range(v.shape[0]):
+        x = v[i] / scale[i]
+        s += x * x
+    return math.sqrt(s / v.shape[0])
+
+
+@jit(types.void(int64, _vec, _vec, _mat, _mat, int64))
+def fill_efforts(kind, cvec, p, out_y, out_tau, n):
+    """The controller's efforts at the first ``n`` output states, into out_tau."""
+    for i in range(n):
+        u1, u2, u3 = effort(
+            kind, cvec, p, out_y[i, 0], out_y[i, 1], out_y[i, 2], out_y[i, 3], out_y[i, 4],
+            out_y[i, 5],
+        )  # fmt: skip
+        out_tau[i, 0] = u1
+        out_tau[i, 1] = u2
+        out_tau[i, 2] = u3
+
+
+@jit(None, inline=True)
+def combine(y, K, A, s, h, out):
+    """Write y + h · Σ_{j<s} A[s, j] K[j] into ``out`` (SciPy's order: the sum, then · h)."""
+    a0 = a1 = a2 = a3 = a4 = a5 = 0.0
+    for j in range(s):
+        aj = A[s, j]
+        if aj != 0.0:
+            a0 += aj * K[j, 0]
+            a1 += aj * K[j, 1]
+            a2 += aj * K[j, 2]
+            a3 += aj * K[j, 3]
+            a4 += aj * K[j, 4]
+            a5 += aj * K[j, 5]
+    out[0] = y[0] + a0 * h
+    out[1] = y[1] + a1 * h
+    out[2] = y[2] + a2 * h
+    out[3] = y[3] + a3 * h
+    out[4] = y[4] + a4 * h
+    out[5] = y[5] + a5 * h
+
+
+@jit(_RESULT(int64, _vec, _vec, _vec, float64, float64, int64, _vec, int64, _vec, _mat))
+def adaptive(method, y0, t_eval, atol, rtol, max_step, max_steps, p_arr, kind, c_arr, out_y):
+    """RK45 (method 0) or DOP853 (method 1) with SciPy's error control; see ``integrate``.
+
+    Needs len(t_eval) >= 2.
+    """
+    p = as_tuple_p(p_arr)
+    c = as_tuple_c(c_arr)
+    dop853 = method == 1
+    if dop853:
+        n_stages = D8_NS
+        exponent = -1.0 / 8.0
+        order = 7.0
+        A = D8_A
+    else:
+        n_stages = 6
+        exponent = -1.0 / 5.0
+        order = 4.0
+        A = RK45_AB
+    n_out = t_eval.shape[0]
+    K = np.empty((16, N))
+    F = np.empty((7, N))
+    y = y0.copy()
+    y_new = np.empty(N)
+    ytmp = np.empty(N)
+    f = np.empty(N)
+    err = np.empty(N)
+    err3 = np.empty(N)
+    scale = np.empty(N)
+    t = t_eval[0]
+    t_bound = t_eval[n_out - 1]
+    interval = t_bound - t
+    n_evals = 0
+    n_steps = 0
+    n_rejected = 0
+    i_out = 0
+
+    # f(t0, y0), then SciPy's select_initial_step, which evaluates f(t0 + h0, y0 + h0 f0).
+    h0 = 0.0
+    for stage in range(2):
+        bad = rhs(ytmp if stage else y, p, c, kind, err if stage else f)
+        n_evals += 1
+        if bad != 0:
+            return STATUS_SINGULAR_MASS, bad - 1, n_evals, 0, 0, 0, t + h0
+        k = first_nonfinite(err if stage else f)
+        if k >= 0:
+            return STATUS_NONFINITE, k, n_evals, 0, 0, 0, t + h0
+        if stage == 0:
+            for i in range(N):
+                scale[i] = atol[i] + abs(y[i]) * rtol
+            d0 = rms_scaled(y, scale)
+            d1 = rms_scaled(f, scale)
+            if d0 < 1e-5 or d1 < 1e-5:
+                h0 = 1e-6
+            else:
+                h0 = 0.01 * d0 / d1
+            h0 = min(h0, interval)
+            for i in range(N):
+                ytmp[i] = y[i] + h0 * f[i]
+    for i in range(N):
+        err[i] = err[i] - f[i]
+    d2 = rms_scaled(err, scale) / h0
+    if d1 <= 1e-15 and d2 <= 1e-15:
+        h1 = max(1e-6, h0 * 1e-3)
+    else:
+        h1 = (0.01 / max(d1, d2)) ** (1.0 / (order + 1.0))
+    h_abs = min(100.0 * h0, h1, interval, max_step)
+
+    limiting = 0
+    while True:
+        min_step = 10.0 * abs(np.nextafter(t, np.inf) - t)
+        if h_abs > max_step:
+            h_abs = max_step
+        elif h_abs < min_step:
+            h_abs = min_step
+        accepted = False
+        rejected = False
+        h = 0.0
+        t_new = t
+        while not accepted:
+            if h_abs < min_step:
+                return STATUS_STEP_UNDERFLOW, limiting, n_evals, n_steps, n_rejected, i_out, t
+            if n_steps + n_rejected >= max_steps:
+                return STATUS_MAX_STEPS, limiting, n_evals, n_steps, n_rejected, i_out, t
+            t_new = t + h_abs
+            if t_new - t_bound > 0.0:
+                t_new = t_bound
+            h = t_new - t
+            h_abs = abs(h)
+
+            for i in range(N):
+                K[0, i] = f[i]
+            # Stages 1 … n_stages - 1, then y_new (row n_stages of A is B) and f(y_new).
+            for s in range(1, n_stages + 1):
+                target = y_new if s == n_stages else ytmp
+                combine(y, K, A, s, h, target)
+                bad = rhs(target, p, c, kind, K[s])
+                if bad != 0:
+                    return (
+                        STATUS_SINGULAR_MASS, bad - 1, n_evals + s, n_steps, n_rejected, i_out,
+                        t + h * (D8_C[s] if dop853 else RK45_C[min(s, 5)]),
+                    )  # fmt: skip
+            n_evals += n_stages
+
+            for i in range(N):
+                scale[i] = atol[i] + max(abs(y[i]), abs(y_new[i])) * rtol
+            if dop853:
+                for i in range(N):
+                    err[i] = 0.0
+                    err3[i] = 0.0
+                for j in range(n_stages + 1):
+                    e5j = D8_E5[j]
+                    e3j = D8_E3[j]
+                    for i in range(N):
+                        err[i] += K[j, i] * e5j
+                        err3[i] += K[j, i] * e3j
+                e5 = 0.0
+                e3 = 0.0
+                for i in range(N):
+                    a5 = err[i] / scale[i]
+                    a3 = err3[i] / scale[i]
+                    err[i] = a5
+                    e5 += a5 * a5
+                    e3 += a3 * a3
+                if e5 == 0.0 and e3 == 0.0:
+                    error_norm = 0.0
+                else:
+                    error_norm = abs(h) * e5 / math.sqrt((e5 + 0.01 * e3) * N)
+            else:
+                for i in range(N):
+                    err[i] = 0.0
+                for j in range(n_stages + 1):
+                    ej = RK45_E[j]
+                    for i in range(N):
+                        err[i] += K[j, i] * ej
+                e = 0.0
+                for i in range(N):
+                    a = err[i] * h / scale[i]
+                    err[i] = a
+                    e += a * a
+                error_norm = math.sqrt(e / N)
+            k = first_nonfinite(y_new)
+            if k < 0:
+                k = first_nonfinite(K[n_stages])
+            if k >= 0 or not math.isfinite(error_norm):
+                # Overflow or nan: a smaller step may help; SciPy shrinks by MIN_FACTOR too.
+                if k < 0:
+                    for s in range(n_stages):
+                        k = first_nonfinite(K[s])
+                        if k >= 0:
+                            break
+                limiting = max(k, 0)
+                h_abs *= MIN_FACTOR
+                rejected = True
+                n_rejected += 1
+                continue
+            worst = 0.0
+            for i in range(N):
+                if abs(err[i]) > worst:
+                    worst = abs(err[i])
+                    limiting = i
+            if error_norm < 1.0:
+                if error_norm == 0.0:
+                    factor = MAX_FACTOR
+                else:
+                    factor = min(MAX_FACTOR, SAFETY * error_norm**exponent)
+                if rejected:
+                    factor = min(1.0, factor)
+                h_abs *= factor
+                accepted = True
+            else:
+                h_abs *= max(MIN_FACTOR, SAFETY * error_norm**exponent)
+                rejected = True
+                n_rejected += 1
+        n_steps += 1
+
+        # Dense output at the t_eval points of (t, t_new] (t_eval[0] in the first step).
+        if i_out < n_out and t_eval[i_out] <= t_new:
+            if dop853:
+                for s in range(n_stages + 1, 16):
+                    combine(y, K, D8_A, s, h, ytmp)
+                    bad = rhs(ytmp, p, c, kind, K[s])
+                    if bad != 0:
+                        return (
+                            STATUS_SINGULAR_MASS, bad - 1, n_evals, n_steps, n_rejected, i_out,
+                            t + D8_C[s] * h,
+                        )  # fmt: skip
+                n_evals += 16 - (n_stages + 1)
+                for i in range(N):
+                    dy = y_new[i] - y[i]
+                    F[0, i] = dy
+                    F[1, i] = h * K[0, i] - dy
+                    F[2, i] = 2.0 * dy - h * (K[n_stages, i] + K[0, i])
+                for r in range(4):
+                    for i in range(N):
+                        F[3 + r, i] = 0.0
+                    for j in range(16):
+                        drj = D8_D[r, j]
+                        if drj != 0.0:
+                            for i in range(N):
+                                F[3 + r, i] += drj * K[j, i]
+                    for i in range(N):
+                        F[3 + r, i] *= h
+            else:
+                for r in range(4):
+                    for i in range(N):
+                        F[r, i] = 0.0
+                    for j in range(n_stages + 1):
+                        pjr = RK45_P[j, r]
+                        if pjr != 0.0:
+                            for i in range(N):
+                                F[r, i] += K[j, i] * pjr
+            while i_out < n_out and t_eval[i_out] <= t_new:
+                x = (t_eval[i_out] - t) / h
+                if dop853:
+                    # SciPy's Dop853DenseOutput: nested in x and (1 - x), alternately.
+                    omx = 1.0 - x
+                    v0 = v1 = v2 = v3 = v4 = v5 = 0.0
+                    for r in range(7):
+                        w = x if r % 2 == 0 else omx
+                        v0 = (v0 + F[6 - r, 0]) * w
+                        v1 = (v1 + F[6 - r, 1]) * w
+                        v2 = (v2 + F[6 - r, 2]) * w
+                        v3 = (v3 + F[6 - r, 3]) * w
+                        v4 = (v4 + F[6 - r, 4]) * w
+                        v5 = (v5 + F[6 - r, 5]) * w
+                    v0 += y[0]
+                    v1 += y[1]
+                    v2 += y[2]
+                    v3 += y[3]
+                    v4 += y[4]
+                    v5 += y[5]
+                else:
+                    # SciPy's RkDenseOutput: y_old + h · Q · (x, x², x³, x⁴).
+                    x2 = x * x
+                    x3 = x2 * x
+                    x4 = x3 * x
+                    v0 = h * (F[0, 0] * x + F[1, 0] * x2 + F[2, 0] * x3 + F[3, 0] * x4) + y[0]
+                    v1 = h * (F[0, 1] * x + F[1, 1] * x2 + F[2, 1] * x3 + F[3, 1] * x4) + y[1]
+                    v2 = h * (F[0, 2] * x + F[1, 2] * x2 + F[2, 2] * x3 + F[3, 2] * x4) + y[2]
+                    v3 = h * (F[0, 3] * x + F[1, 3] * x2 + F[2, 3] * x3 + F[3, 3] * x4) + y[3]
+                    v4 = h * (F[0, 4] * x + F[1, 4] * x2 + F[2, 4] * x3 + F[3, 4] * x4) + y[4]
+                    v5 = h * (F[0, 5] * x + F[1, 5] * x2 + F[2, 5] * x3 + F[3, 5] * x4) + y[5]
+                out_y[i_out, 0] = v0
+                out_y[i_out, 1] = v1
+                out_y[i_out, 2] = v2
+                out_y[i_out, 3] = v3
+                out_y[i_out, 4] = v4
+                out_y[i_out, 5] = v5
+                i_out += 1
+
+        t = t_new
+        for i in range(N):
+            y[i] = y_new[i]
+            f[i] = K[n_stages, i]
+        if t - t_bound >= 0.0:
+            return STATUS_OK, -1, n_evals, n_steps, n_rejected, i_out, t
+
+
+@jit(_RESULT(int64, _vec, _vec, float64, int64, _vec, int64, _vec, _mat))
+def fixed(method, y0, t_eval, dt, max_steps, p_arr, kind, c_arr, out_y):
+    """Symplectic Euler (10), RK4 (11) or velocity Verlet (12); see ``integrate``.
+
+    The same formulas as :mod:`rrt_pin.integrators`:
+
+    * symplectic (semi-implicit) Euler: q̇₁ = q̇₀ + h·a(q₀, q̇₀); q₁ = q₀ + h·q̇₁;
+    * classic RK4 on (q, q̇);
+    * velocity Verlet: q̇½ = q̇₀ + h/2·a₀; q₁ = q₀ + h·q̇½; q̇₁ = q̇½ + h/2·a(q₁, q̇₁),
+      the implicit half kick solved by fixed-point iteration (relative change
+      <= VERLET_TOL, at most VERLET_MAX_ITER evaluations); its last evaluation
+      is reused as the next step's a₀.
+    """
+    p = as_tuple_p(p_arr)
+    c = as_tuple_c(c_arr)
+    n_out = t_eval.shape[0]
+    y = y0.copy()
+    k = np.empty((4, N))
+    ytmp = np.empty(N)
+    acc = np.empty(N)
+    n_evals = 0
+    n_steps = 0
+    have_a = False
+    for i in range(N):
+        out_y[0, i] = y[i]
+    for n in range(1, n_out):
+        ta = t_eval[n - 1]
+        span = t_eval[n] - ta
+        m = 1
+        if dt > 0.0:
+            m = max(1, int(math.ceil(span / dt * (1.0 - 1e-12))))
+        h = span / m
+        for sub in range(m):
+            t = ta + sub * h
+            if n_steps >= max_steps:
+                return STATUS_MAX_STEPS, 0, n_evals, n_steps, 0, n, t
+            if method == 11:
+                for s in range(4):
+                    if s == 0:
+                        for i in range(N):
+                            ytmp[i] = y[i]
+                    else:
+                        ch = RK4_C[s] * h
+                        for i in range(N):
+                            ytmp[i] = y[i] + ch * k[s - 1, i]
+                    bad = rhs(ytmp, p, c, kind, k[s])
+                    n_evals += 1
+                    if bad != 0:
+                        return STATUS_SINGULAR_MASS, bad - 1, n_evals, n_steps, 0, n, t
+                for i in range(N):
+                    y[i] += h / 6.0 * (k[0, i] + 2.0 * k[1, i] + 2.0 * k[2, i] + k[3, i])
+            elif method == 10:
+                bad = rhs(y, p, c, kind, acc)
+                n_evals += 1
+                if bad != 0:
+                    return STATUS_SINGULAR_MASS, bad - 1, n_evals, n_steps, 0, n, t
+                for i in range(3):
+                    y[3 + i] += h * acc[3 + i]
+                    y[i] += h * y[3 + i]
+            else:
+                # acc[3:] holds a₀; ytmp = (q₁, q̇₁ iterate); y[3:] becomes q̇½.
+                for it in range(VERLET_MAX_ITER + 1):
+                    if it == 0 and have_a:
+                        for i in range(3):
+                            y[3 + i] += 0.5 * h * acc[3 + i]
+                            ytmp[i] = y[i] + h * y[3 + i]
+                            ytmp[3 + i] = y[3 + i]
+                        continue
+                    bad = rhs(ytmp if it > 0 else y, p, c, kind, acc)
+                    n_evals += 1
+                    if bad != 0:
+                        return STATUS_SINGULAR_MASS, bad - 1, n_evals, n_steps, 0, n, t + h
+                    if it == 0:
+                        for i in range(3):
+                            y[3 + i] += 0.5 * h * acc[3 + i]
+                            ytmp[i] = y[i] + h * y[3 + i]
+                            ytmp[3 + i] = y[3 + i]
+                        have_a = True
+                        continue
+                    change = 0.0
+                    vmax = 0.0
+                    for i in range(3):
+                        v_new = y[3 + i] + 0.5 * h * acc[3 + i]
+                        change = max(change, abs(v_new - ytmp[3 + i]))
+                        ytmp[3 + i] = v_new
+                        vmax = max(vmax, abs(v_new))
+                    if change <= VERLET_TOL * (1.0 + vmax):
+                        break
+                    if not math.isfinite(change) or it == VERLET_MAX_ITER:
+                        worst = 0
+                        for i in range(3):
+                            if not abs(ytmp[3 + i] - y[3 + i]) <= abs(
+                                ytmp[3 + worst] - y[3 + worst]
+                            ):
+                                worst = i
+                        return STATUS_NO_CONVERGENCE, 3 + worst, n_evals, n_steps, 0, n, t + h
+                for i in range(N):
+                    y[i] = ytmp[i]
+            n_steps += 1
+            bad_k = first_nonfinite(y)
+            if bad_k >= 0:
+                return STATUS_NONFINITE, bad_k, n_evals, n_steps, 0, n, t + h
+        for i in range(N):
+            out_y[n, i] = y[i]
+    return STATUS_OK, -1, n_evals, n_steps, 0, n_out, t_eval[n_out - 1]
+
+
+@jit(
+    _RESULT(
+        int64, _vec, _vec, float64, _vec, float64, float64, int64, _vec, int64, _vec, _mat, _mat
+    )
+)
+def integrate(
+    method, y0, t_eval, dt, atol, rtol, max_step, max_steps, p, kind, cvec, out_y, out_tau
+):
+    """Integrate one run from (t_eval[0], y0) and fill out_y (N, 6) and out_tau (N, 3).
+
+    Args:
+        method: a code of ``METHOD_CODES``.
+        y0: initial state (6,).
+        t_eval: strictly increasing output times (N,) [s]; the run starts at t_eval[0].
+        dt: fixed-step methods' largest step [s] (<= 0: one step per interval).
+        atol: absolute tolerances (6,) (adaptive methods).
+        rtol: relative tolerance (adaptive methods).
+        max_step: largest step of the adaptive methods [s].
+        max_steps: step budget (accepted plus rejected steps).
+        p: physical parameters (15,).
+        kind: controller kind.
+        cvec: controller parameters.
+        out_y: output states (N, 6).
+        out_tau: output efforts (N, 3).
+
+    Returns:
+        (status, coordinate, n_evals, n_steps, n_rejected, n_out, t): ``t`` is the
+        time reached, or the failure time when status != 0 [s]; n_out the number
+        of output rows filled.
+    """
+    if method < 10:
+        r = adaptive(method, y0, t_eval, atol, rtol, max_step, max_steps, p, kind, cvec, out_y)
+    else:
+        r = fixed(method, y0, t_eval, dt, max_steps, p, kind, cvec, out_y)
+    fill_efforts(kind, cvec, p, out_y, out_tau, r[5])
+    return r
+
+
+@jit(
+    types.void(
+        int64, _mat, _vec, float64, _vec, float64, float64, int64, _mat, _ivec, _mat,
+        float64[:, :, ::1], float64[:, :, ::1], int64[:, ::1], _vec,
+    )
+)  # fmt: skip
+def integrate_batch(
+    method, y0, t_eval, dt, atol, rtol, max_step, max_steps, p, kind, cvec, out_y, out_tau,
+    info, t_reached,
+):  # fmt: skip
+    """Run ``integrate`` for every variant b (rows of y0, p, kind, cvec), one after the other.
+
+    ``info[b]`` receives (status, coordinate, n_evals, n_steps, n_rejected, n_out)
+    and ``t_reached[b]`` the time reached [s].
+    """
+    for b in range(y0.shape[0]):
+        r = integrate(
+            method, y0[b], t_eval, dt, atol, rtol, max_step, max_steps, p[b], kind[b], cvec[b],
+            out_y[b], out_tau[b],
+        )  # fmt: skip
+        info[b, 0] = r[0]
+        info[b, 1] = r[1]
+        info[b, 2] = r[2]
+        info[b, 3] = r[3]
+        info[b, 4] = r[4]
+        info[b, 5] = r[5]
+        t_reached[b] = r[6]

@@ -1,0 +1,469 @@
+"""Whole simulations of the RRT arm in machine code: ``simulate(..., backend="compiled")``.
+
+The integration loop, the controller, the dense output at the requested times
+and the efforts at those times all run in compiled code (see
+:mod:`rrt_pin.compiled._jit_integrators`); Python only validates the inputs
+and wraps the arrays. Results are the same types as :mod:`rrt_pin.simulate`'s
+(:class:`~rrt_pin.simulate.SimulationResult`, :class:`~rrt_pin.simulate.BatchResult`).
+
+Methods (:data:`rrt_pin.compiled.METHODS`):
+
+* ``DOP853`` (default) and ``RK45``: SciPy's ``solve_ivp`` algorithms step for
+  step (same initial step, error norm, step-size control and dense output), so
+  with the same tolerances they take the same steps as the Pinocchio backend's
+  ``solve_ivp`` runs, up to round-off;
+* ``symplectic_euler``, ``rk4``, ``verlet``: the formulas of
+  :mod:`rrt_pin.integrators`, at most ``step`` [s] per step, landing on every
+  output time.
+
+Controllers: :func:`~rrt_pin.control.seed_controller` (eq. (31), with its own
+parameters, which may differ from the plant's), :func:`~rrt_pin.control.pd_gravity_controller`
+on the RRT arm built from the plant's parameters, or None (no effort: passive
+motion). A batch runs its variants one after the other, each with its own step
+control, so every variant is held to the tolerance, and each may have its own
+parameters (masses, lengths, inertias), gains, target and initial state.
+
+Failures never return NaN: a non-finite state, a step size below 10 ulp of t,
+a singular mass matrix, a diverging Verlet half kick or an exhausted step
+budget raise :class:`~rrt_pin.errors.DivergenceError` with the time and the
+coordinate, as reported by the compiled loop.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import time
+import warnings
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from rrt_pin.compiled import METHODS, ensure_compiled
+from rrt_pin.compiled.dynamics import param_array
+from rrt_pin.errors import DivergenceError, InputError
+from rrt_pin.params import Params
+
+if TYPE_CHECKING:
+    import pinocchio as pin
+
+    from rrt_pin.simulate import BatchResult, SimulationResult
+
+__all__ = ["DEFAULT_METHOD", "MAX_STEPS", "simulate_batch_compiled", "simulate_compiled"]
+
+#: Method used when none is given.
+DEFAULT_METHOD = "DOP853"
+#: Step budget of one run (accepted plus rejected steps); machine code cannot be interrupted.
+MAX_STEPS = 10_000_000
+#: SciPy's floor on the relative tolerance (100 machine epsilons).
+RTOL_FLOOR = 100 * np.finfo(float).eps
+_ADAPTIVE = ("DOP853", "RK45")
+_NAMES = ("q1", "q2", "q3", "qd1", "qd2", "qd3")
+_EFFORTS = ("T01x", "T12y", "F23z")
+_KIND_NONE, _KIND_SEED, _KIND_PD_PLANT = 0, 1, 3
+_CODES = {"RK45": 0, "DOP853": 1, "symplectic_euler": 10, "rk4": 11, "verlet": 12}
+
+
+# --------------------------------------------------------------------------
+# Validation
+# --------------------------------------------------------------------------
+def _times(t_eval: Any) -> np.ndarray:
+    try:
+        t = np.array(t_eval, dtype=np.float64)
+    except (TypeError, ValueError) as e:
+        raise InputError("t_eval is not an array of numbers [s]") from e
+    if t.ndim != 1 or t.size < 2:
+        raise InputError(f"t_eval has shape {t.shape}; it needs at least 2 times [s]")
+    bad = np.flatnonzero(~np.isfinite(t))
+    if bad.size:
+        raise InputError(f"t_eval[{bad[0]}]={float(t[bad[0]])!r} must be finite [s]")
+    steps = np.diff(t)
+    if (steps <= 0).any():
+        i = int(np.flatnonzero(steps <= 0)[0])
+        raise InputError(
+            f"t_eval must increase: t_eval[{i + 1}]={float(t[i + 1])!r} <= {float(t[i])!r} [s]"
+        )
+    return np.ascontiguousarray(t)
+
+
+def _rows(name: str, value: Any, unit: str, batch: bool) -> np.ndarray:
+    try:
+        a = np.array(value, dtype=np.float64)
+    except (TypeError, ValueError) as e:
+        raise InputError(f"{name}={value!r} is not an array of numbers [{unit}]") from e
+    want = "(B, 3)" if batch else "(3,)"
+    if (batch and (a.ndim != 2 or a.shape[1] != 3 or a.shape[0] < 1)) or (
+        not batch and a.shape != (3,)
+    ):
+        raise InputError(f"{name} has shape {a.shape} but the RRT arm needs {want} [{unit}]")
+    bad = np.argwhere(~np.isfinite(a))
+    if bad.size:
+        where = ", ".join(str(int(i)) for i in bad[0])
+        raise InputError(f"{name}[{where}]={float(a[tuple(bad[0])])!r} must be finite [{unit}]")
+    return a
+
+
+def _options(
+    method: str | None,
+    rtol: float | None,
+    atol: float | None,
+    step: float | None,
+    t: np.ndarray,
+) -> tuple[str, float | None, float | None, float | None]:
+    from rrt_pin.simulate import DEFAULT_ATOL, DEFAULT_RTOL
+
+    method = DEFAULT_METHOD if method is None else method
+    if method not in METHODS:
+        raise InputError(
+            f"method={method!r} is not available with backend 'compiled'; "
+            f"valid: {', '.join(METHODS)} (odepack, LSODA, Radau and BDF are "
+            "backend 'pinocchio' only)"
+        )
+    for name, value in (("rtol", rtol), ("atol", atol), ("step", step)):
+        if value is not None and not (
+            isinstance(value, (int, float))
+            and not isinstance(value, bool)
+            and math.isfinite(value)
+            and value > 0
+        ):
+            raise InputError(f"{name}={value!r} must be a finite number > 0")
+    if method not in _ADAPTIVE:
+        return method, None, None, float(step) if step is not None else float(np.diff(t).min())
+    rtol = float(rtol) if rtol is not None else DEFAULT_RTOL
+    if rtol < RTOL_FLOOR:
+        warnings.warn(
+            f"rtol={rtol!r} is below 100 machine epsilons; using {RTOL_FLOOR!r} (as SciPy)",
+            stacklevel=3,
+        )
+        rtol = float(RTOL_FLOOR)
+    return method, rtol, float(atol) if atol is not None else DEFAULT_ATOL, None
+
+
+@functools.lru_cache(maxsize=16)
+def _rrt_model(params: Params) -> pin.Model:
+    from rrt_pin.model import rrt_model
+
+    return rrt_model(params)
+
+
+def _controller_arrays(controller: Any, plant: Params, p: np.ndarray) -> tuple[int, np.ndarray]:
+    """(kind, c): the compiled form of ``controller`` on the arm of ``plant`` (parameters ``p``)."""
+    c = np.zeros(24)
+    if controller is None:
+        return _KIND_NONE, c
+    from rrt_pin.control import PDGravityController, SeedController
+
+    if isinstance(controller, SeedController):
+        c[:3], c[3:6], c[6:9] = controller.kp, controller.kd, controller.qf
+        c[9:] = p if controller.params == plant else param_array(controller.params)
+        return _KIND_SEED, c
+    if isinstance(controller, PDGravityController):
+        if controller.nv != 3 or not controller.compensates_gravity_of(_rrt_model(plant)):
+            raise InputError(
+                "backend 'compiled' compensates the gravity of the RRT arm only: the "
+                "pd_gravity controller's model must be rrt_model(params) of the simulated arm"
+            )
+        c[:3], c[3:6], c[6:9] = controller.kp, controller.kd, controller.qf
+        c[9:] = p
+        return _KIND_PD_PLANT, c
+    raise InputError(
+        "backend 'compiled' runs seed_controller(...), pd_gravity_controller(...) on the RRT "
+        f"arm, or None (no effort), not {type(controller).__name__}"
+    )
+
+
+def _params(params: Any) -> Params:
+    if not isinstance(params, Params):
+        raise InputError(f"params must be a Params, not {type(params).__name__}")
+    return params
+
+
+def _check_model(model: Any, params: Params) -> None:
+    """Refuse a ``model`` that is not the RRT arm of ``params`` (the kernel's arm)."""
+    if model is not None and not bool(model == _rrt_model(params)):
+        raise InputError(
+            "backend 'compiled' simulates rrt_model(params); the model given differs "
+            "(another URDF, or other parameters): use backend 'pinocchio'"
+        )
+
+
+# --------------------------------------------------------------------------
+# Status codes of the compiled loop -> DivergenceError
+# --------------------------------------------------------------------------
+def _raise_status(
+    info: Sequence[int],
+    t_fail: float,
+    method: str,
+    step: float | None,
+    max_steps: int,
+    variant: int | None,
+) -> None:
+    status, coordinate = int(info[0]), int(info[1])
+    if status == 0:
+        return
+    name = _NAMES[coordinate] if 0 <= coordinate < 6 else "q1"
+    if variant is not None:
+        name = f"{name} (variant {variant})"
+    if status == 1:
+        problem = "the state or its derivative became non-finite"
+    elif status == 2:
+        problem = (
+            f"the integrator {method} failed: step size underflow (below 10 ulp of t); "
+            "the dynamics diverge or are too stiff for an explicit method"
+        )
+    elif status == 3:
+        name = f"q{coordinate + 1}" + (f" (variant {variant})" if variant is not None else "")
+        problem = (
+            "the mass matrix is singular or ill-conditioned (an LDLᵀ pivot <= 1e-13·trace): "
+            "the state left any sensible range, or the parameters are degenerate"
+        )
+    elif status == 4:
+        problem = (
+            f"the integrator {method} took max_steps={max_steps} steps without finishing; "
+            "the step size is limited by this coordinate"
+        )
+    elif status == 5:
+        problem = (
+            "the implicit half kick of 'verlet' did not converge in 50 iterations; "
+            f"use a step shorter than {step!r} s"
+        )
+    else:  # pragma: no cover - a status the loop does not produce
+        problem = f"the compiled integrator returned status {status}"
+    raise DivergenceError(float(t_fail), name, problem)
+
+
+def _check_efforts(t: np.ndarray, tau: np.ndarray, variant: int | None = None) -> None:
+    bad = np.argwhere(~np.isfinite(tau))
+    if bad.size:
+        *v, i, k = (int(x) for x in bad[0])
+        where = f" (variant {v[0]})" if v else ""
+        raise DivergenceError(
+            float(t[i]),
+            f"{_EFFORTS[k]}{where}",
+            f"the controller returned {float(tau[tuple(bad[0])])!r}",
+        )
+
+
+# --------------------------------------------------------------------------
+# Public API
+# --------------------------------------------------------------------------
+def simulate_compiled(
+    params: Params,
+    controller: Any,
+    q0: Any,
+    qd0: Any,
+    t_eval: Any,
+    method: str | None = DEFAULT_METHOD,
+    rtol: float | None = None,
+    atol: float | None = None,
+    step: float | None = None,
+    *,
+    model: pin.Model | None = None,
+    max_steps: int = MAX_STEPS,
+) -> SimulationResult:
+    """Simulate the RRT arm of ``params`` under ``controller``, sampled at ``t_eval``.
+
+    Args:
+        params: the arm (the plant) [SI units].
+        controller: ``seed_controller(...)``, ``pd_gravity_controller(rrt_model(params), ...)``
+            or None (no effort).
+        q0: initial positions (3,) [rad, rad, m].
+        qd0: initial velocities (3,) [rad/s, rad/s, m/s].
+        t_eval: increasing output times [s]; the run starts at ``t_eval[0]``.
+        method: one of :data:`rrt_pin.compiled.METHODS` (default DOP853).
+        rtol: relative tolerance of DOP853/RK45 (default that of
+            :func:`rrt_pin.simulate.simulate`, 1e-9).
+        atol: absolute tolerance [rad, m, rad/s, m/s] (default 1e-11).
+        step: longest step of the fixed-step methods [s]; default the shortest
+            interval of ``t_eval``.
+        model: if given, checked to be ``rrt_model(params)`` (the arm this backend simulates).
+        max_steps: step budget (accepted and rejected steps).
+
+    Returns:
+        States and applied efforts at ``t_eval``; ``wall_time`` excludes the
+        one-time compilation (see :func:`rrt_pin.compiled.compile_report`).
+
+    Raises:
+        InputError: a bad parameter set, state, time grid, method, option or controller.
+        DivergenceError: the compiled loop reported a failure (time, coordinate).
+        ImportError: numba is not installed.
+    """
+    from rrt_pin.simulate import SimulationResult
+
+    ensure_compiled()
+    start = time.perf_counter()
+    params = _params(params)
+    _check_model(model, params)
+    y0 = np.concatenate(
+        (_rows("q0", q0, "rad, rad, m", False), _rows("qd0", qd0, "rad/s, rad/s, m/s", False))
+    )
+    t = _times(t_eval)
+    method, rtol, atol, step = _options(method, rtol, atol, step, t)
+    max_steps = _max_steps(max_steps)
+    p = param_array(params)
+    kind, c = _controller_arrays(controller, params, p)
+
+    from rrt_pin.compiled import _jit_integrators as jit
+
+    out_y = np.empty((t.size, 6))
+    out_tau = np.empty((t.size, 3))
+    atol_v = np.full(6, atol if atol is not None else 0.0)
+    status, coordinate, n_evals, _, _, _, t_reached = jit.integrate(
+        _CODES[method],
+        y0,
+        t,
+        step if step is not None else 0.0,
+        atol_v,
+        rtol if rtol is not None else 0.0,
+        math.inf,
+        max_steps,
+        p,
+        kind,
+        c,
+        out_y,
+        out_tau,
+    )
+    _raise_status((status, coordinate), t_reached, method, step, max_steps, None)
+    _check_efforts(t, out_tau)
+    return SimulationResult(
+        t=t,
+        q=out_y[:, :3],
+        qd=out_y[:, 3:],
+        tau=out_tau,
+        n_evals=int(n_evals),
+        wall_time=time.perf_counter() - start,
+        method=method,
+        backend="compiled",
+        rtol=rtol,
+        atol=atol,
+        step=step,
+    )
+
+
+def _max_steps(value: Any) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+        raise InputError(f"max_steps={value!r} must be an integer >= 1")
+    return int(value)
+
+
+def _per_variant(name: str, value: Any, count: int) -> list[Any]:
+    if isinstance(value, (list, tuple)):
+        if len(value) != count:
+            raise InputError(f"{len(value)} {name} for {count} variants")
+        return list(value)
+    return [value] * count
+
+
+def simulate_batch_compiled(
+    params: Params | Sequence[Params],
+    controllers: Any,
+    q0s: Any,
+    qd0s: Any,
+    t_eval: Any,
+    method: str | None = DEFAULT_METHOD,
+    rtol: float | None = None,
+    atol: float | None = None,
+    step: float | None = None,
+    efforts: bool = True,
+    *,
+    max_steps: int = MAX_STEPS,
+) -> BatchResult:
+    """Simulate B variants of the RRT arm, one after the other in one compiled loop.
+
+    Args:
+        params: one :class:`~rrt_pin.params.Params` for all variants, or one per
+            variant (masses, lengths, inertias, g may differ) [SI units].
+        controllers: one controller for all, or a list of B (see
+            :func:`simulate_compiled`; a pd_gravity controller must be built on
+            its own variant's ``rrt_model``).
+        q0s: initial positions (B, 3) [rad, rad, m].
+        qd0s: initial velocities (B, 3) [rad/s, rad/s, m/s].
+        t_eval: increasing output times [s], shared by the variants.
+        method: one of :data:`rrt_pin.compiled.METHODS` (default DOP853).
+        rtol: relative tolerance (default 1e-9; each variant has its own steps).
+        atol: absolute tolerance [rad, m, rad/s, m/s] (default 1e-11).
+        step: longest step of the fixed-step methods [s].
+        efforts: return the applied efforts (they are computed in any case).
+        max_steps: step budget of each variant.
+
+    Returns:
+        A :class:`~rrt_pin.simulate.BatchResult`: q, qd, tau of shape (B, N, 3);
+        ``n_evals`` is the total over the variants.
+
+    Raises:
+        InputError: bad shapes, values, controllers or options.
+        DivergenceError: a variant failed (the message names it and the coordinate).
+    """
+    from rrt_pin.simulate import BatchResult
+
+    ensure_compiled()
+    start = time.perf_counter()
+    q0s = _rows("q0s", q0s, "rad, rad, m", True)
+    qd0s = _rows("qd0s", qd0s, "rad/s, rad/s, m/s", True)
+    if q0s.shape[0] != qd0s.shape[0]:
+        raise InputError(f"q0s has {q0s.shape[0]} rows but qd0s has {qd0s.shape[0]}")
+    count = q0s.shape[0]
+    plants = [_params(v) for v in _per_variant("params", params, count)]
+    laws = _per_variant("controllers", controllers, count)
+    t = _times(t_eval)
+    method, rtol, atol, step = _options(method, rtol, atol, step, t)
+    max_steps = _max_steps(max_steps)
+
+    arrays: dict[int, np.ndarray] = {}
+    P = np.empty((count, 15))
+    C = np.empty((count, 24))
+    kinds = np.empty(count, dtype=np.int64)
+    for b, (plant, law) in enumerate(zip(plants, laws, strict=True)):
+        p = arrays.get(id(plant))
+        if p is None:
+            p = arrays[id(plant)] = param_array(plant)
+        P[b] = p
+        try:
+            kinds[b], C[b] = _controller_arrays(law, plant, p)
+        except InputError as e:
+            raise InputError(f"controllers[{b}]: {e}") from e
+
+    from rrt_pin.compiled import _jit_integrators as jit
+
+    Y0 = np.ascontiguousarray(np.concatenate((q0s, qd0s), axis=1))
+    out_y = np.empty((count, t.size, 6))
+    out_tau = np.empty((count, t.size, 3))
+    info = np.zeros((count, 6), dtype=np.int64)
+    t_reached = np.zeros(count)
+    jit.integrate_batch(
+        _CODES[method],
+        Y0,
+        t,
+        step if step is not None else 0.0,
+        np.full(6, atol if atol is not None else 0.0),
+        rtol if rtol is not None else 0.0,
+        math.inf,
+        max_steps,
+        P,
+        kinds,
+        C,
+        out_y,
+        out_tau,
+        info,
+        t_reached,
+    )
+    failed = np.flatnonzero(info[:, 0] != 0)
+    if failed.size:
+        b = int(failed[0])
+        _raise_status(info[b], t_reached[b], method, step, max_steps, b)
+    _check_efforts(t, out_tau)
+    return BatchResult(
+        t=t,
+        q=out_y[:, :, :3],
+        qd=out_y[:, :, 3:],
+        tau=out_tau if efforts else None,
+        n_evals=int(info[:, 2].sum()),
+        wall_time=time.perf_counter() - start,
+        method=method,
+        backend="compiled",
+        rtol=rtol,
+        atol=atol,
+        step=step,
+        threads=1,
+    )
