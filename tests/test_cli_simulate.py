@@ -1,0 +1,185 @@
+"""``rrt-pin simulate``: the CSV contract, the summary, the plot, bad input and divergence."""
+
+import numpy as np
+import pytest
+
+from rrt_pin.cli import main
+from rrt_pin.commands import simulate as command
+from rrt_pin.control import pd_gravity_controller, seed_controller
+from rrt_pin.csvio import read_csv
+from rrt_pin.grid import time_grid
+from rrt_pin.model import load_urdf_model, rrt_model
+from rrt_pin.params import Params
+from rrt_pin.simulate import METHODS, simulate
+from tests.robots import robot_urdf
+
+HEADER = ["t", "q1", "q2", "q3", "qd1", "qd2", "qd3", "T01x", "T12y", "F23z"]
+
+
+def run(argv, capsys):
+    code = main(argv)
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_csv_contract(tmp_path, capsys):
+    target = tmp_path / "run.csv"
+    code, out, err = run(["simulate", "--csv", str(target)], capsys)
+    assert code == 0 and out == "" and err == f"wrote {target}\n"
+    assert target.read_text().splitlines()[0] == ",".join(HEADER)
+    header, data = read_csv(target, HEADER)
+    assert header == HEADER and data.shape == (1501, 10)
+    assert data[0, 0] == 0.0 and data[-1, 0] == 15.0
+    p = Params()
+    expected = simulate(rrt_model(p), seed_controller(p), p.q0, p.qd0, time_grid(15.0, 0.01))
+    # %.17g round-trips: the file holds the simulation's numbers exactly.
+    np.testing.assert_array_equal(data, expected.table())
+
+
+def test_summary_without_csv(capsys):
+    code, out, err = run(["simulate"], capsys)
+    assert code == 0 and err == ""
+    lines = out.splitlines()
+    assert lines[0].startswith("simulated the RRT arm under eq. (31): 1501 samples")
+    assert "method odepack" in lines[0]
+    rows = {line.split()[0]: line for line in lines[2:]}
+    for name in ("q1", "q2", "q3"):
+        assert "settled" not in rows[name] and " s" in rows[name]
+    assert rows["q3"].split()[4] == "m" and rows["q1"].split()[4] == "rad"
+    distance = float(rows["q3"].split()[3])
+    assert 0.0 < distance < 1e-3
+    for name, unit in (("T01x", "N·m"), ("T12y", "N·m"), ("F23z", "N")):
+        assert rows[name].split()[2] == unit
+
+
+def test_settling_times():
+    t = np.linspace(0.0, 4.0, 5)
+    q = np.array([[0.0, 1.0], [0.5, 1.0], [0.99, 1.0], [0.985, 1.0], [1.0, 1.0]])
+    assert command.settling_times(t, q, [0.0, 1.0], [1.0, 1.0]) == [2.0, 0.0]
+    q[-1, 0] = 0.9
+    assert command.settling_times(t, q, [0.0, 1.0], [1.0, 1.0])[0] is None
+
+
+def test_options_reach_the_simulation(tmp_path, capsys):
+    target = tmp_path / "run.csv"
+    argv = ["simulate", "--tf", "2", "--dt", "0.05", "--method", "rk4", "--csv", str(target)]
+    argv += ["--q0", "0.1,0.2,0.3", "--kp", "100", "--kd", "50,60,70", "--set", "m3=30"]
+    code, _, _ = run(argv, capsys)
+    assert code == 0
+    _, data = read_csv(target, HEADER)
+    p = Params(m3=30.0, q10=0.1, q20=0.2, q30=0.3, gamma01=100.0, gamma12=100.0, gamma23=100.0)
+    p = p.with_overrides({"beta01": 50.0, "beta12": 60.0, "beta23": 70.0})
+    expected = simulate(
+        rrt_model(p), seed_controller(p), p.q0, p.qd0, time_grid(2.0, 0.05), method="rk4"
+    )
+    np.testing.assert_array_equal(data, expected.table())
+
+
+def test_plot(tmp_path, capsys):
+    target = tmp_path / "run.png"
+    code, out, err = run(["simulate", "--tf", "1", "--plot", str(target)], capsys)
+    assert code == 0 and out.startswith("simulated") and f"wrote {target}" in err
+    assert target.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_any_urdf(tmp_path, capsys):
+    urdf = robot_urdf("ur5")
+    target = tmp_path / "ur5.csv"
+    qf = [0.5, -1.0, 1.0, 0.0, 0.3, 0.0]
+    argv = ["simulate", "--urdf", str(urdf), "--q0", "0,0,0,0,0,0", "--qf", ",".join(map(str, qf))]
+    argv += ["--kp", "100", "--kd", "20", "--tf", "2", "--csv", str(target)]
+    code, _, err = run(argv, capsys)
+    assert code == 0, err
+    header, data = read_csv(target)
+    assert header[:2] == ["t", "q_shoulder_pan_joint"]
+    assert header[7] == "qd_shoulder_pan_joint" and header[-1] == "tau_wrist_3_joint"
+    model = load_urdf_model(urdf)
+    c = pd_gravity_controller(model, 100.0, 20.0, qf)
+    expected = simulate(model, c, np.zeros(6), np.zeros(6), time_grid(2.0, 0.01))
+    np.testing.assert_array_equal(data, expected.table())
+
+
+def test_methods_listed_by_the_command_are_the_librarys():
+    assert command.METHODS == METHODS
+    assert set(command.FIXED_STEP) <= set(METHODS)
+
+
+@pytest.mark.parametrize(
+    "argv, words",
+    [
+        (["--set", "gamma01=-1"], "gamma01=-1.0: gain must be >= 0"),
+        (["--set", "beta23=nan"], "beta23=nan: must be finite"),
+        (["--kp=-1,1,1"], "--kp[0]=-1.0: gain must be >= 0"),
+        (["--kd", "1,inf,1"], "must be finite: 'inf'"),
+        (["--kp", "1,2"], "--kp has 2 values but the arm has 3 joints"),
+        (["--q0", "nan,0,0"], "must be finite: 'nan'"),
+        (["--set", "q20=inf"], "q20=inf: must be finite"),
+        (["--method", "euler"], "method='euler' is not one of odepack"),
+        (["--rtol", "0"], "must be > 0"),
+        (["--dt", "-0.01"], "argument --dt: must be > 0: '-0.01'"),
+        (["--dt", "20"], "dt=20.0 is larger than tf - t0"),
+        (["--backend", "gpu"], "invalid choice"),
+        (["--urdf", "nowhere.urdf", "--q0", "0"], "cannot read URDF"),
+        (["--csv", "/nonexistent/folder/x.csv"], "folder '/nonexistent/folder' does not exist"),
+    ],
+)
+def test_bad_input_is_one_line_exit_2_nothing_written(tmp_path, capsys, argv, words):
+    full = ["simulate", *argv]
+    if "--csv" not in argv:
+        full += ["--csv", str(tmp_path / "out.csv"), "--plot", str(tmp_path / "out.png")]
+    code, out, err = run(full, capsys)
+    assert code == 2
+    assert out == ""
+    assert err.count("\n") == 1 and words in err, err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_urdf_needs_its_own_values(tmp_path, capsys):
+    urdf = str(robot_urdf("ur5"))
+    cases = [
+        ([], "needs --q0, --qf, --kp, --kd (6 joints)"),
+        (["--q0", "0,0,0,0,0,0", "--qf", "0,0,0,0,0,0", "--kp", "1", "--kd", "1,1"], "--kd has 2"),
+        (
+            [
+                "--q0",
+                "0,0,0,0,0,0",
+                "--qf",
+                "0,0,0,0,0,0",
+                "--kp",
+                "1",
+                "--kd",
+                "1",
+                "--set",
+                "m3=2",
+            ],
+            "parameter m3 describes the RRT arm",
+        ),
+        (
+            ["--q0", "0,0,0,0,0,0", "--qf", "0,0,0,0,0,0", "--kp", "1", "--kd", "1"]
+            + ["--backend", "compiled"],
+            "--urdf needs --backend pinocchio",
+        ),
+    ]
+    for extra, words in cases:
+        code, out, err = run(["simulate", "--urdf", urdf, *extra], capsys)
+        assert code == 2 and out == "" and words in err, err
+
+
+def test_divergence_is_one_line_exit_2_nothing_written(tmp_path, capsys):
+    """A 1 g slider on a 1e7 N/m spring with explicit Euler at 10 ms diverges."""
+    target = tmp_path / "out.csv"
+    argv = ["simulate", "--method", "symplectic_euler", "--set", "m3=0.001"]
+    argv += ["--set", "gamma23=1e7", "--set", "beta23=0", "--csv", str(target)]
+    code, out, err = run(argv, capsys)
+    assert code == 2 and out == ""
+    assert err.startswith("rrt-pin: error: simulation diverged at t=") and " in qd3: " in err
+    assert err.count("\n") == 1
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_scene_options(tmp_path, capsys):
+    scene = tmp_path / "scene.toml"
+    scene.write_text('[params]\nm3 = 35.0\n\n[options]\ntf = 3.0\nmethod = "DOP853"\n')
+    code, out, _ = run(["simulate", "--scene", str(scene)], capsys)
+    assert code == 0
+    assert "t = 0 .. 3 s, method DOP853" in out.splitlines()[0]
