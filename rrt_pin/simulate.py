@@ -198,8 +198,14 @@ class BatchResult:
         return int(self.q.shape[0])
 
     def variant(self, i: int) -> SimulationResult:
-        """Variant ``i`` as a :class:`SimulationResult` (sharing the batch's cost figures)."""
-        tau = self.tau[i] if self.tau is not None else np.full_like(self.q[i], np.nan)
+        """Variant ``i`` as a :class:`SimulationResult` (sharing the batch's cost figures).
+
+        Raises:
+            InputError: the batch ran with ``efforts=False`` (no efforts to hand over).
+        """
+        if self.tau is None:
+            raise InputError("this batch ran with efforts=False: rerun with efforts=True")
+        tau = self.tau[i]
         return SimulationResult(
             t=self.t,
             q=self.q[i],
@@ -577,7 +583,7 @@ def simulate(
     q0: Sequence[float] | np.ndarray,
     qd0: Sequence[float] | np.ndarray,
     t_eval: Sequence[float] | np.ndarray,
-    method: str = DEFAULT_METHOD,
+    method: str | None = None,
     rtol: float | None = None,
     atol: float | None = None,
     backend: str = "pinocchio",
@@ -593,7 +599,8 @@ def simulate(
         q0: initial positions (nq,) [rad or m].
         qd0: initial velocities (nv,) [rad/s or m/s].
         t_eval: increasing output times [s]; the run starts at ``t_eval[0]``.
-        method: one of :data:`METHODS` (default ``"odepack"``).
+        method: one of :data:`METHODS` (default ``"odepack"``; with the compiled
+            backend, that backend's default).
         rtol: relative tolerance (adaptive methods; default 1e-9).
         atol: absolute tolerance (adaptive methods; default 1e-11) [SI units of each state].
         backend: ``"pinocchio"`` or ``"compiled"`` (numba kernel of the RRT arm,
@@ -619,15 +626,17 @@ def simulate(
     q0 = _check_vector("q0", q0, model.nq, "rad or m")
     qd0 = _check_vector("qd0", qd0, model.nv, "rad/s or m/s")
     t = _check_times(t_eval)
-    rtol, atol, step = _check_options(method, rtol, atol, step, t)
     if not callable(controller):
         raise InputError(f"controller must be callable, not {type(controller).__name__}")
     if jacobian not in JACOBIANS:
         raise InputError(f"jacobian={jacobian!r} is not one of {', '.join(JACOBIANS)}")
     if backend == "compiled":
-        return _simulate_compiled(params, controller, q0, qd0, t, method, rtol, atol)
+        _check_options(method or DEFAULT_METHOD, rtol, atol, step, t)  # values only
+        return _simulate_compiled(model, params, controller, q0, qd0, t, method, rtol, atol, step)
     if backend != "pinocchio":
         raise InputError(f"backend={backend!r} is not one of {', '.join(BACKENDS)}")
+    method = method or DEFAULT_METHOD
+    rtol, atol, step = _check_options(method, rtol, atol, step, t)
 
     n = model.nv
     q_names, qd_names = coordinate_names(model)
@@ -706,15 +715,18 @@ def _efforts(controller: Controller, Q: np.ndarray, V: np.ndarray) -> np.ndarray
 
 
 def _simulate_compiled(
+    model: pin.Model,
     params: Params | None,
     controller: Controller,
     q0: np.ndarray,
     qd0: np.ndarray,
     t: np.ndarray,
-    method: str,
+    method: str | None,
     rtol: float | None,
     atol: float | None,
+    step: float | None,
 ) -> SimulationResult:
+    """Hand over to :func:`rrt_pin.compiled.simulate_compiled` (imported only now)."""
     params = params if params is not None else getattr(controller, "params", None)
     if params is None:
         raise InputError(
@@ -729,7 +741,14 @@ def _simulate_compiled(
         raise InputError(
             "backend 'compiled' is not available: numba not found (pip install rrt-pin[fast])"
         )
-    return compiled.simulate_compiled(params, controller, q0, qd0, t, method, rtol, atol)
+    kwargs: dict[str, Any] = {"model": model}
+    if step is not None:
+        kwargs["step"] = step
+    if method is None:
+        return compiled.simulate_compiled(
+            params, controller, q0, qd0, t, rtol=rtol, atol=atol, **kwargs
+        )
+    return compiled.simulate_compiled(params, controller, q0, qd0, t, method, rtol, atol, **kwargs)
 
 
 # --------------------------------------------------------------------------
@@ -858,7 +877,7 @@ def simulate_batch(
     q0s: np.ndarray,
     qd0s: np.ndarray,
     t_eval: Sequence[float] | np.ndarray,
-    method: str = DEFAULT_METHOD,
+    method: str | None = None,
     rtol: float | None = None,
     atol: float | None = None,
     step: float | None = None,
@@ -913,6 +932,7 @@ def simulate_batch(
     if len(controllers) != B:
         raise InputError(f"{len(controllers)} controllers for {B} initial states")
     t = _check_times(t_eval)
+    method = method or DEFAULT_METHOD
     if method not in BATCH_METHODS:
         raise InputError(f"method={method!r} is not one of {', '.join(BATCH_METHODS)} for a batch")
     rtol, atol, step = _check_options(method, rtol, atol, step, t, (BATCH_RTOL, BATCH_ATOL))

@@ -352,8 +352,10 @@ def test_a_law_that_returns_nan_at_an_output_time_is_caught(seed_model, seed_par
 def test_compiled_backend_is_dispatched_lazily(monkeypatch, seed_model, seed_params, seed_run):
     calls = []
 
-    def simulate_compiled(params, controller, q0, qd0, t_eval, method, rtol, atol):
-        calls.append((params, method, rtol, atol))
+    def simulate_compiled(
+        params, controller, q0, qd0, t_eval, method="DOP853", rtol=None, atol=None, **kw
+    ):
+        calls.append((params, method, rtol, atol, kw))
         return seed_run
 
     fake = types.ModuleType("rrt_pin.compiled")
@@ -363,7 +365,18 @@ def test_compiled_backend_is_dispatched_lazily(monkeypatch, seed_model, seed_par
     c = seed_controller(seed_params)
     r = simulate(seed_model, c, seed_params.q0, seed_params.qd0, seed_run.t, backend="compiled")
     assert r is seed_run
-    assert calls == [(seed_params, "odepack", 1e-9, 1e-11)]
+    assert calls == [(seed_params, "DOP853", None, None, {"model": seed_model})]
+    simulate(
+        seed_model,
+        c,
+        seed_params.q0,
+        seed_params.qd0,
+        seed_run.t,
+        "rk4",
+        backend="compiled",
+        step=0.1,
+    )
+    assert calls[-1] == (seed_params, "rk4", None, None, {"model": seed_model, "step": 0.1})
     fake.available = lambda: False
     with pytest.raises(InputError, match="numba not found"):
         simulate(seed_model, c, seed_params.q0, seed_params.qd0, seed_run.t, backend="compiled")

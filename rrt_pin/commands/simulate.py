@@ -77,9 +77,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--method",
-        default="odepack",
+        default=None,
         metavar="NAME",
-        help=f"integration method: {', '.join(METHODS)} (default odepack)",
+        help=f"integration method: {', '.join(METHODS)} (default odepack; with "
+        "--backend compiled, that backend's default and methods)",
     )
     parser.add_argument(
         "--rtol",
