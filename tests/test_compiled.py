@@ -146,6 +146,70 @@ def test_bad_states_are_refused(compiled, seed_params, args, match):
         compiled.gravity(*args, seed_params)
 
 
+def test_nonfinite_anywhere_in_a_batch_is_refused(compiled, seed_params, rng):
+    q, qd, qdd = random_states(rng, 40)
+    q[17, 0] = np.nan  # q1 does not enter the equations: only the check can catch it
+    with pytest.raises(InputError, match=r"q\[17, 0\]=nan must be finite"):
+        compiled.inverse_dynamics(q, qd, qdd, seed_params)
+    with pytest.raises(InputError, match=r"q\[17, 0\]=nan must be finite"):
+        compiled.mass_matrix(q, seed_params)
+    qdd[3, 2] = -np.inf
+    q[17, 0] = 0.0
+    with pytest.raises(InputError, match=r"qdd\[3, 2\]=-inf must be finite"):
+        compiled.inverse_dynamics(q, qd, qdd, seed_params)
+    with pytest.raises(InputError, match=r"tau\[3, 2\]=-inf must be finite"):
+        compiled.forward_dynamics(q, qd, qdd, seed_params)
+
+
+def test_overflowing_results_are_refused(compiled, seed_params):
+    q, qd, qdd = np.zeros((5, 3)), np.zeros((5, 3)), np.zeros((5, 3))
+    qd[2] = 1e200  # finite, but q̇² overflows
+    with pytest.raises(InputError, match="result of sample 2 is not finite"):
+        compiled.inverse_dynamics(q, qd, qdd, seed_params)
+
+
+def test_vectorized_sine_and_cosine_match_libm():
+    import numba
+
+    from rrt_pin.compiled import _jit_dynamics as jd
+
+    @numba.njit
+    def both(x, s, c):
+        for i in range(x.shape[0]):
+            s[i] = jd.vsin(x[i])
+            c[i] = jd.vcos(x[i])
+
+    rng = np.random.default_rng(5)
+    x = np.concatenate(
+        [
+            rng.uniform(-4.0, 4.0, 200_000),
+            rng.uniform(-1e3, 1e3, 100_000),
+            rng.uniform(-jd.SINCOS_LIMIT, jd.SINCOS_LIMIT, 100_000),
+            np.arange(-64, 65) * np.pi / 4,  # octant boundaries
+            [0.0, -0.0, 5e-324, 1e-300, -1e-8],
+        ]
+    )
+    s, c = np.empty_like(x), np.empty_like(x)
+    both(x, s, c)
+    assert np.abs(s - np.sin(x)).max() <= 2.3e-16
+    assert np.abs(c - np.cos(x)).max() <= 2.3e-16
+
+
+def test_large_angles_use_libm(compiled, seed_params, rng):
+    """Blocks holding |q2| >= SINCOS_LIMIT take the libm path; both agree with the numpy kernel."""
+    from rrt_pin import kernel
+    from rrt_pin.compiled._jit_dynamics import SINCOS_LIMIT
+
+    q, qd, qdd = random_states(rng, 1200)
+    q[700, 1] = 3.0 * SINCOS_LIMIT
+    np.testing.assert_allclose(
+        compiled.inverse_dynamics(q, qd, qdd, seed_params),
+        kernel.inverse_dynamics(q, qd, qdd, seed_params),
+        rtol=1e-13,
+        atol=1e-11,
+    )
+
+
 def test_mismatched_rows_and_bad_params_are_refused(compiled, seed_params):
     with pytest.raises(InputError, match="qd has 2 rows but q has 3"):
         compiled.nonlinear_effects(np.zeros((3, 3)), np.zeros((2, 3)), seed_params)

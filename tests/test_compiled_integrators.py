@@ -127,6 +127,23 @@ def test_same_trajectories_as_the_pinocchio_backend(compiled, seed_params, seed_
     np.testing.assert_allclose(ours.tau, pin_run.tau, rtol=1e-12, atol=1e-9)
 
 
+def test_controller_built_for_another_arm(compiled, seed_params, seed_model):
+    """Eq. (31) with wrong masses (model mismatch): the plant is not fully compensated."""
+    from rrt_pin.simulate import simulate
+
+    wrong = seed_controller(seed_params.with_overrides({"m2": 50.0, "m3": 45.0}))
+    args = (wrong, seed_params.q0, seed_params.qd0, SEED_GRID)
+    pin_run = simulate(seed_model, *args, method="DOP853")
+    ours = simulate(seed_model, *args, method="DOP853", backend="compiled", params=seed_params)
+    assert ours.n_evals == pin_run.n_evals
+    assert np.abs(ours.q - pin_run.q).max() <= 1e-10
+    np.testing.assert_allclose(ours.tau, pin_run.tau, rtol=1e-12, atol=1e-9)
+    exact = compiled.simulate_compiled(
+        seed_params, seed_controller(seed_params), seed_params.q0, seed_params.qd0, SEED_GRID
+    )
+    assert np.abs(ours.q[-1] - exact.q[-1]).max() > 1e-4  # the mismatch shows
+
+
 def test_pd_gravity_controller_equals_eq31_on_the_arm(compiled, seed_params, seed_model):
     seed = compiled.simulate_compiled(
         seed_params, seed_controller(seed_params), seed_params.q0, seed_params.qd0, SEED_GRID

@@ -12,7 +12,10 @@ Layouts shared with the integrators:
 * ``p``: the 15 physical parameters in ``rrt_pin.kernel.PARAM_ORDER`` (SI units);
 * a controller: ``kind`` 0 = no effort, 1 = eq. (31) of the seed, 2 = PD plus
   the gravity G(q) of another parameter set, 3 = PD plus the plant's own G(q)
-  (one kernel evaluation serves both); ``c`` = (kp1, kp2, kp3, kd1, kd2, kd3,
+  (one kernel evaluation serves both), 4 = eq. (31) with the plant's own
+  parameters: its gravity terms are exactly the plant's G(q) (the seed's eq. (15)),
+  so the dynamics fold them like kind 3, while the efforts reported at the output
+  times are eq. (31) as printed; ``c`` = (kp1, kp2, kp3, kd1, kd2, kd3,
   q1f, q2f, q3f, *p_comp) with p_comp the 15 parameters of the model whose
   gravity is compensated (eq. (31) reads g, m2, m3 and L2 from it).
 
@@ -30,8 +33,10 @@ from __future__ import annotations
 
 import math
 import time
+import types as pytypes
 
 import numba
+import numpy as np
 from numba import float64, int64, types
 
 from rrt_pin import kernel
@@ -54,6 +59,7 @@ KIND_NONE = 0
 KIND_SEED = 1
 KIND_PD_GRAVITY = 2
 KIND_PD_PLANT_GRAVITY = 3
+KIND_SEED_FOLDED = 4
 # Indices of the parameters eq. (31) needs, in kernel.PARAM_ORDER.
 _L2 = kernel.PARAM_ORDER.index("L2")
 _M2 = kernel.PARAM_ORDER.index("m2")
@@ -100,11 +106,73 @@ _f8 = float64
 _vec = float64[::1]
 _mat = float64[:, ::1]
 _cube = float64[:, :, ::1]
+# Inputs are typed read-only: writable arrays convert to them, read-only ones
+# (e.g. a frozen Trajectory's) are accepted without a copy.
+_rvec = types.Array(float64, 1, "C", readonly=True)
+_rmat = types.Array(float64, 2, "C", readonly=True)
 _PT = types.UniTuple(float64, NP)
 _CT = types.UniTuple(float64, NC)
 
 #: The generated kernel, unchanged (inlined into every caller).
 terms = jit(None, inline=True)(kernel.terms)
+
+# Vectorizable sine and cosine: Cephes' sin.c (S. L. Moshier), reduction by π/4 in
+# three parts and degree-13/14 polynomials, with no call and no branch, so that a
+# loop over samples vectorizes (libm's sin/cos are calls, which do not). Absolute
+# error <= 2.3e-16 for |x| < SINCOS_LIMIT (tests/test_compiled.py checks it against
+# numpy); callers use libm beyond.
+SINCOS_LIMIT = 1e8
+_FOPI = 1.27323954473516268615  # 4/π
+_DP1 = 7.85398125648498535156e-1  # π/4 = DP1 + DP2 + DP3, DP1·j and DP2·j exact
+_DP2 = 3.77489470793079817668e-8
+_DP3 = 2.69515142907905952645e-15
+_S = (
+    1.58962301576546568060e-10, -2.50507477628578072866e-8, 2.75573136213857245213e-6,
+    -1.98412698295895385996e-4, 8.33333333332211858878e-3, -1.66666666666666307295e-1,
+)  # fmt: skip
+_C = (
+    -1.13585365213876817300e-11, 2.08757008419747316778e-9, -2.75573141792967388112e-7,
+    2.48015872888517045348e-5, -1.38888888888730564116e-3, 4.16666666666665929218e-2,
+)  # fmt: skip
+
+
+@jit(None, inline=True)
+def _octant(x):
+    """(j, sin-polynomial, cos-polynomial) of |x| reduced to [-π/4, π/4], j the even octant."""
+    ax = abs(x)
+    j = np.int64(ax * _FOPI)
+    j += j & 1
+    y = float(j)
+    z = ((ax - y * _DP1) - y * _DP2) - y * _DP3
+    zz = z * z
+    ps = z + z * zz * (((((_S[0] * zz + _S[1]) * zz + _S[2]) * zz + _S[3]) * zz + _S[4]) * zz + _S[5])  # fmt: skip
+    pc = 1.0 - 0.5 * zz + zz * zz * (((((_C[0] * zz + _C[1]) * zz + _C[2]) * zz + _C[3]) * zz + _C[4]) * zz + _C[5])  # fmt: skip
+    return j & 7, ps, pc
+
+
+@jit(None, inline=True)
+def vsin(x):
+    """sin(x) for |x| < SINCOS_LIMIT (vectorizable)."""
+    j, ps, pc = _octant(x)
+    v = pc if j & 2 else ps
+    v = -v if j & 4 else v
+    return -v if x < 0.0 else v
+
+
+@jit(None, inline=True)
+def vcos(x):
+    """cos(x) for |x| < SINCOS_LIMIT (vectorizable)."""
+    j, ps, pc = _octant(x)
+    v = ps if j & 2 else pc
+    return -v if (j + 2) & 4 else v
+
+
+#: The same generated code, its ``sin``/``cos`` bound to vsin/vcos (|q2| < SINCOS_LIMIT).
+terms_v = jit(None, inline=True)(
+    pytypes.FunctionType(
+        kernel.terms.__code__, {**kernel.terms.__globals__, "sin": vsin, "cos": vcos}, "terms_v"
+    )
+)
 
 
 @jit(None, inline=True)
@@ -172,7 +240,7 @@ def control(kind, c, q1, q2, q3, qd1, qd2, qd3, G1, G2, G3):
     """Joint efforts (T01x [N·m], T12y [N·m], F23z [N]) of controller ``kind``.
 
     (G1, G2, G3) is the plant's gravity vector at q, used by
-    ``KIND_PD_PLANT_GRAVITY`` (other kinds ignore it).
+    ``KIND_PD_PLANT_GRAVITY`` and ``KIND_SEED_FOLDED`` (other kinds ignore it).
     """
     if kind == KIND_NONE:
         return 0.0, 0.0, 0.0
@@ -188,7 +256,7 @@ def control(kind, c, q1, q2, q3, qd1, qd2, qd3, G1, G2, G3):
         c2 = math.cos(q2)
         s2 = math.sin(q2)
         return u1, u2 + g * m2 * L2 * c2 + g * m3 * c2 * (L2 + q3), u3 + g * m3 * s2
-    if kind == KIND_PD_PLANT_GRAVITY:
+    if kind == KIND_PD_PLANT_GRAVITY or kind == KIND_SEED_FOLDED:
         return u1 + G1, u2 + G2, u3 + G3
     h = terms(
         q1, q2, q3, 0.0, 0.0, 0.0,
@@ -200,10 +268,12 @@ def control(kind, c, q1, q2, q3, qd1, qd2, qd3, G1, G2, G3):
 
 @jit(None, inline=True)
 def effort(kind, c, p, q1, q2, q3, qd1, qd2, qd3):
-    """The controller's efforts at one state, evaluating the plant's gravity only if needed."""
+    """The efforts the controller reports at one state (eq. (31) as printed for kinds 1 and 4)."""
     if kind == KIND_PD_PLANT_GRAVITY:
         r = kernel_terms(q1, q2, q3, 0.0, 0.0, 0.0, p)
         return control(kind, c, q1, q2, q3, qd1, qd2, qd3, r[9], r[10], r[11])
+    if kind == KIND_SEED_FOLDED:
+        return control(KIND_SEED, c, q1, q2, q3, qd1, qd2, qd3, 0.0, 0.0, 0.0)
     return control(kind, c, q1, q2, q3, qd1, qd2, qd3, 0.0, 0.0, 0.0)
 
 
@@ -217,10 +287,18 @@ def closed_loop(kind, c, p, q1, q2, q3, qd1, qd2, qd3):
 
     q̈ [rad/s², m/s²] solves M(q)·q̈ = τ − c(q, q̇) − G(q) with τ = the
     controller's efforts [N·m, N·m, N]; ``bad`` is ldl_solve's flag. One kernel
-    evaluation serves the dynamics and, for ``KIND_PD_PLANT_GRAVITY``, the
-    gravity compensation.
+    evaluation serves the dynamics and, for kinds 3 and 4, the gravity
+    compensation. The kernel's sine and cosine are the inlined vsin/vcos (no
+    libm call) unless |q2| >= SINCOS_LIMIT.
     """
-    r = kernel_terms(q1, q2, q3, qd1, qd2, qd3, p)
+    if abs(q2) < SINCOS_LIMIT:
+        r = terms_v(
+            q1, q2, q3, qd1, qd2, qd3,
+            p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7], p[8], p[9], p[10], p[11], p[12],
+            p[13], p[14],
+        )  # fmt: skip
+    else:
+        r = kernel_terms(q1, q2, q3, qd1, qd2, qd3, p)
     u1, u2, u3 = control(kind, c, q1, q2, q3, qd1, qd2, qd3, r[9], r[10], r[11])
     a1, a2, a3, bad = ldl_solve(
         r[0], r[1], r[2], r[3], r[4], r[5],
@@ -229,10 +307,22 @@ def closed_loop(kind, c, p, q1, q2, q3, qd1, qd2, qd3):
     return a1, a2, a3, u1, u2, u3, bad
 
 
-@jit(types.void(_mat, _vec, _cube))
+@jit(None, inline=True)
+def poison(a, i):
+    """0.0 if row ``i`` of the (N, 3) array ``a`` is finite, else nan (no branch: vectorizes)."""
+    return 0.0 * a[i, 0] + 0.0 * a[i, 1] + 0.0 * a[i, 2]
+
+
+# The batch functions check their inputs as they read them, for free: they
+# return the sum of 0·x over every input x, which is 0.0 when all are finite and
+# nan otherwise (the caller then locates the value). A branch per row instead
+# would cost more than the dynamics.
+@jit(float64(_rmat, _rvec, _cube))
 def mass_matrix_batch(q, p, out):
     """M(q) [kg·m², kg·m, kg] of every row of q (N, 3) into out (N, 3, 3)."""
+    check = 0.0
     for i in range(q.shape[0]):
+        check += poison(q, i)
         r = kernel_terms(q[i, 0], q[i, 1], q[i, 2], 0.0, 0.0, 0.0, p)
         out[i, 0, 0] = r[0]
         out[i, 0, 1] = r[1]
@@ -243,12 +333,15 @@ def mass_matrix_batch(q, p, out):
         out[i, 2, 0] = r[2]
         out[i, 2, 1] = r[4]
         out[i, 2, 2] = r[5]
+    return check
 
 
-@jit(types.void(_mat, _mat, _vec, int64, _mat))
+@jit(float64(_rmat, _rmat, _rvec, int64, _mat))
 def bias_batch(q, qd, p, which, out):
     """Per row [N·m, N·m, N]: which = 0 c + G (nonlinear effects), 1 c (Coriolis), 2 G."""
+    check = 0.0
     for i in range(q.shape[0]):
+        check += poison(q, i) + poison(qd, i)
         r = kernel_terms(q[i, 0], q[i, 1], q[i, 2], qd[i, 0], qd[i, 1], qd[i, 2], p)
         for k in range(3):
             if which == 0:
@@ -257,43 +350,113 @@ def bias_batch(q, qd, p, which, out):
                 out[i, k] = r[6 + k]
             else:
                 out[i, k] = r[9 + k]
+    return check
 
 
-@jit(types.void(_mat, _mat, _mat, _vec, _mat))
+@jit(None, inline=True)
+def _inverse_column(r, b, k):
+    """τ of column k of the buffer b from the kernel's terms r; 1 if a value is not finite.
+
+    0·x is 0 for every finite x and nan for ±inf and nan: z is nan exactly when an
+    input or an output of the column is not finite (no branch: vectorizes).
+    """
+    a1, a2, a3 = b[6, k], b[7, k], b[8, k]
+    t1 = r[0] * a1 + r[1] * a2 + r[2] * a3 + r[6] + r[9]
+    t2 = r[1] * a1 + r[3] * a2 + r[4] * a3 + r[7] + r[10]
+    t3 = r[2] * a1 + r[4] * a2 + r[5] * a3 + r[8] + r[11]
+    b[9, k] = t1
+    b[10, k] = t2
+    b[11, k] = t3
+    z = 0.0 * b[0, k] + 0.0 * b[1, k] + 0.0 * b[2, k] + 0.0 * b[3, k]
+    z += 0.0 * b[4, k] + 0.0 * b[5, k] + 0.0 * a1 + 0.0 * a2 + 0.0 * a3
+    z += 0.0 * t1 + 0.0 * t2 + 0.0 * t3
+    return z != z
+
+
+@jit(float64(_rmat, _rmat, _rmat, _rvec, _mat))
 def inverse_batch(q, qd, qdd, p, out):
-    """τ = M(q) q̈ + c(q, q̇) + G(q) [N·m, N·m, N] of every row into out (N, 3)."""
-    for i in range(q.shape[0]):
-        r = kernel_terms(q[i, 0], q[i, 1], q[i, 2], qd[i, 0], qd[i, 1], qd[i, 2], p)
-        a1 = qdd[i, 0]
-        a2 = qdd[i, 1]
-        a3 = qdd[i, 2]
-        out[i, 0] = r[0] * a1 + r[1] * a2 + r[2] * a3 + r[6] + r[9]
-        out[i, 1] = r[1] * a1 + r[3] * a2 + r[4] * a3 + r[7] + r[10]
-        out[i, 2] = r[2] * a1 + r[4] * a2 + r[5] * a3 + r[8] + r[11]
+    """τ = M(q) q̈ + c(q, q̇) + G(q) [N·m, N·m, N] of every row into out (N, 3).
+
+    Blocks of rows are copied to a column-major buffer so that the kernel, with
+    the vectorizable sine and cosine, runs several samples per instruction
+    (blocks holding some |q2| >= SINCOS_LIMIT use libm). The returned check is
+    nan if an input or an output is not finite.
+    """
+    p0, p1, p2, p3, p4 = p[0], p[1], p[2], p[3], p[4]
+    p5, p6, p7, p8, p9 = p[5], p[6], p[7], p[8], p[9]
+    p10, p11, p12, p13, p14 = p[10], p[11], p[12], p[13], p[14]
+    n = q.shape[0]
+    block = 512
+    b = np.empty((12, block))
+    bad = 0
+    for start in range(0, n, block):
+        m = min(block, n - start)
+        small = 0
+        for k in range(m):
+            i = start + k
+            b[0, k] = q[i, 0]
+            b[1, k] = q[i, 1]
+            b[2, k] = q[i, 2]
+            b[3, k] = qd[i, 0]
+            b[4, k] = qd[i, 1]
+            b[5, k] = qd[i, 2]
+            b[6, k] = qdd[i, 0]
+            b[7, k] = qdd[i, 1]
+            b[8, k] = qdd[i, 2]
+            small += abs(q[i, 1]) < SINCOS_LIMIT
+        if small == m:
+            for k in range(m):
+                r = terms_v(
+                    b[0, k], b[1, k], b[2, k], b[3, k], b[4, k], b[5, k],
+                    p0, p1, p2, p3, p4, p5, p6, p7, p8, p9, p10, p11, p12, p13, p14,
+                )  # fmt: skip
+                bad += _inverse_column(r, b, k)
+        else:
+            for k in range(m):
+                r = terms(
+                    b[0, k], b[1, k], b[2, k], b[3, k], b[4, k], b[5, k],
+                    p0, p1, p2, p3, p4, p5, p6, p7, p8, p9, p10, p11, p12, p13, p14,
+                )  # fmt: skip
+                bad += _inverse_column(r, b, k)
+        for k in range(m):
+            i = start + k
+            out[i, 0] = b[9, k]
+            out[i, 1] = b[10, k]
+            out[i, 2] = b[11, k]
+    return math.nan if bad else 0.0
 
 
-@jit(int64(_mat, _mat, _mat, _vec, _mat))
+@jit(types.Tuple((float64, int64))(_rmat, _rmat, _rmat, _rvec, _mat))
 def forward_batch(q, qd, tau, p, out):
-    """q̈ [rad/s², m/s²] of every row into out (N, 3); -1, or the first row whose M is singular."""
+    """q̈ [rad/s², m/s²] of every row into out (N, 3).
+
+    Returns (check, row): ``check`` as the other batch functions; ``row`` -1,
+    or the first row whose mass matrix is singular or ill-conditioned.
+    """
+    check = 0.0
     for i in range(q.shape[0]):
+        check += poison(q, i) + poison(qd, i) + poison(tau, i)
         r = kernel_terms(q[i, 0], q[i, 1], q[i, 2], qd[i, 0], qd[i, 1], qd[i, 2], p)
         a1, a2, a3, bad = ldl_solve(
             r[0], r[1], r[2], r[3], r[4], r[5],
             tau[i, 0] - r[6] - r[9], tau[i, 1] - r[7] - r[10], tau[i, 2] - r[8] - r[11],
         )  # fmt: skip
-        if bad != 0:
-            return i
+        if bad != 0 and math.isfinite(check):
+            return check, i
         out[i, 0] = a1
         out[i, 1] = a2
         out[i, 2] = a3
-    return -1
+    return check, -1
 
 
-@jit(types.void(int64, _vec, _vec, _mat, _mat, _mat))
+@jit(float64(int64, _rvec, _rvec, _rmat, _rmat, _mat))
 def control_batch(kind, c, p, q, qd, out):
     """Controller efforts [N·m, N·m, N] of every row into out (N, 3)."""
+    check = 0.0
     for i in range(q.shape[0]):
+        check += poison(q, i) + poison(qd, i)
         u = effort(kind, c, p, q[i, 0], q[i, 1], q[i, 2], qd[i, 0], qd[i, 1], qd[i, 2])
         out[i, 0] = u[0]
         out[i, 1] = u[1]
         out[i, 2] = u[2]
+    return check

@@ -95,7 +95,9 @@ D8_D = np.ascontiguousarray(dop.D)
 
 _vec = float64[::1]
 _mat = float64[:, ::1]
-_ivec = int64[::1]
+_rvec = types.Array(float64, 1, "C", readonly=True)  # inputs: read-only accepted, no copy
+_rmat = types.Array(float64, 2, "C", readonly=True)
+_rivec = types.Array(int64, 1, "C", readonly=True)
 _RESULT = types.Tuple((int64, int64, int64, int64, int64, int64, float64))
 # RK4's stages evaluate f at y + RK4_C[s]·h·k_{s-1}.
 RK4_C = np.array([0.0, 0.5, 0.5, 1.0])
@@ -136,7 +138,7 @@ def rms_scaled(v, scale):
     return math.sqrt(s / v.shape[0])
 
 
-@jit(types.void(int64, _vec, _vec, _mat, _mat, int64))
+@jit(types.void(int64, _rvec, _rvec, _mat, _mat, int64))
 def fill_efforts(kind, cvec, p, out_y, out_tau, n):
     """The controller's efforts at the first ``n`` output states, into out_tau."""
     for i in range(n):
@@ -170,7 +172,7 @@ def combine(y, K, A, s, h, out):
     out[5] = y[5] + a5 * h
 
 
-@jit(_RESULT(int64, _vec, _vec, _vec, float64, float64, int64, _vec, int64, _vec, _mat))
+@jit(_RESULT(int64, _rvec, _rvec, _rvec, float64, float64, int64, _rvec, int64, _rvec, _mat))
 def adaptive(method, y0, t_eval, atol, rtol, max_step, max_steps, p_arr, kind, c_arr, out_y):
     """RK45 (method 0) or DOP853 (method 1) with SciPy's error control; see ``integrate``.
 
@@ -429,7 +431,7 @@ def adaptive(method, y0, t_eval, atol, rtol, max_step, max_steps, p_arr, kind, c
             return STATUS_OK, -1, n_evals, n_steps, n_rejected, i_out, t
 
 
-@jit(_RESULT(int64, _vec, _vec, float64, int64, _vec, int64, _vec, _mat))
+@jit(_RESULT(int64, _rvec, _rvec, float64, int64, _rvec, int64, _rvec, _mat))
 def fixed(method, y0, t_eval, dt, max_steps, p_arr, kind, c_arr, out_y):
     """Symplectic Euler (10), RK4 (11) or velocity Verlet (12); see ``integrate``.
 
@@ -538,7 +540,19 @@ def fixed(method, y0, t_eval, dt, max_steps, p_arr, kind, c_arr, out_y):
 
 @jit(
     _RESULT(
-        int64, _vec, _vec, float64, _vec, float64, float64, int64, _vec, int64, _vec, _mat, _mat
+        int64,
+        _rvec,
+        _rvec,
+        float64,
+        _rvec,
+        float64,
+        float64,
+        int64,
+        _rvec,
+        int64,
+        _rvec,
+        _mat,
+        _mat,
     )
 )
 def integrate(
@@ -576,7 +590,7 @@ def integrate(
 
 @jit(
     types.void(
-        int64, _mat, _vec, float64, _vec, float64, float64, int64, _mat, _ivec, _mat,
+        int64, _rmat, _rvec, float64, _rvec, float64, float64, int64, _rmat, _rivec, _rmat,
         float64[:, :, ::1], float64[:, :, ::1], int64[:, ::1], _vec,
     )
 )  # fmt: skip

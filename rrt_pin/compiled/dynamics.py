@@ -13,6 +13,7 @@ code (see :func:`rrt_pin.compiled.ensure_compiled`).
 
 from __future__ import annotations
 
+import functools
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -42,21 +43,34 @@ _UNITS = {
 
 
 def param_array(params: Params) -> np.ndarray:
-    """The 15 physical parameters in ``rrt_pin.kernel.PARAM_ORDER`` (float64, SI units).
+    """The 15 physical parameters in ``rrt_pin.kernel.PARAM_ORDER`` (float64, SI units, read-only).
 
     Raises:
         InputError: ``params`` is not a :class:`~rrt_pin.params.Params`.
     """
-    from rrt_pin.kernel import param_vector
     from rrt_pin.params import Params
 
     if not isinstance(params, Params):
         raise InputError(f"params must be a Params, not {type(params).__name__}")
-    return np.ascontiguousarray(param_vector(params), dtype=np.float64)
+    return _param_array(params)
+
+
+@functools.lru_cache(maxsize=256)
+def _param_array(params: Params) -> np.ndarray:
+    from rrt_pin.kernel import param_vector
+
+    p = np.ascontiguousarray(param_vector(params), dtype=np.float64)
+    p.setflags(write=False)
+    return p
 
 
 def _states(*named: tuple[str, Any]) -> tuple[tuple[np.ndarray, ...], bool]:
-    """Finite C-contiguous (N, 3) float64 arrays of one length; True if given as (3,)."""
+    """C-contiguous (N, 3) float64 arrays of one length; True if given as (3,).
+
+    Finiteness is checked by the compiled loops as they read the values (see
+    :func:`_refuse_nonfinite`), not here: a pass over the arrays in numpy would
+    cost about as much as the dynamics.
+    """
     arrays = []
     single = None
     for name, value in named:
@@ -71,19 +85,38 @@ def _states(*named: tuple[str, Any]) -> tuple[tuple[np.ndarray, ...], bool]:
             single = one
         elif single != one:
             raise InputError(f"{name}.shape={a.shape} does not match {named[0][0]}'s shape")
-        bad = np.argwhere(~np.isfinite(a))
-        if bad.size:
-            where = tuple(int(i) for i in bad[0])
-            raise InputError(
-                f"{name}[{', '.join(map(str, where))}]={float(a[where])!r} must be finite "
-                f"[{_UNITS[name]}]"
-            )
         arrays.append(np.ascontiguousarray(a.reshape(-1, 3)))
     n = arrays[0].shape[0]
     for (name, _), a in zip(named, arrays, strict=True):
         if a.shape[0] != n:
             raise InputError(f"{name} has {a.shape[0]} rows but {named[0][0]} has {n}")
     return tuple(arrays), bool(single)
+
+
+def _refuse_nonfinite(
+    check: float, named: tuple[tuple[str, np.ndarray], ...], single: bool
+) -> None:
+    """Raise for the first non-finite input if a compiled loop flagged one (``check`` is nan)."""
+    if np.isfinite(check):
+        return
+    for name, a in named:
+        bad = np.argwhere(~np.isfinite(a))
+        if bad.size:
+            row, k = (int(i) for i in bad[0])
+            where = f"{k}" if single else f"{row}, {k}"
+            raise InputError(
+                f"{name}[{where}]={float(a[row, k])!r} must be finite [{_UNITS[name]}]"
+            )
+
+
+def _refuse_overflow(check: float, out: np.ndarray) -> None:
+    """Raise if a result is not finite although every input is (values out of range)."""
+    if not np.isfinite(check):
+        rows = np.flatnonzero(~np.isfinite(out).all(axis=1))
+        if rows.size:
+            raise InputError(
+                f"the result of sample {int(rows[0])} is not finite: the inputs are out of range"
+            )
 
 
 def _jit():
@@ -102,7 +135,7 @@ def mass_matrix(q: Any, params: Params) -> np.ndarray:
     (q,), one = _states(("q", q))
     p = param_array(params)
     out = np.empty((q.shape[0], 3, 3))
-    _jit().mass_matrix_batch(q, p, out)
+    _refuse_nonfinite(_jit().mass_matrix_batch(q, p, out), (("q", q),), one)
     return out[0] if one else out
 
 
@@ -110,7 +143,7 @@ def _bias(q: Any, qd: Any, params: Params, which: int) -> np.ndarray:
     (q, qd), one = _states(("q", q), ("qd", qd))
     p = param_array(params)
     out = np.empty(q.shape)
-    _jit().bias_batch(q, qd, p, which, out)
+    _refuse_nonfinite(_jit().bias_batch(q, qd, p, which, out), (("q", q), ("qd", qd)), one)
     return out[0] if one else out
 
 
@@ -129,7 +162,7 @@ def gravity(q: Any, params: Params) -> np.ndarray:
     (q,), one = _states(("q", q))
     p = param_array(params)
     out = np.empty(q.shape)
-    _jit().bias_batch(q, q, p, 2, out)
+    _refuse_nonfinite(_jit().bias_batch(q, q, p, 2, out), (("q", q),), one)
     return out[0] if one else out
 
 
@@ -142,7 +175,9 @@ def inverse_dynamics(q: Any, qd: Any, qdd: Any, params: Params) -> np.ndarray:
     (q, qd, qdd), one = _states(("q", q), ("qd", qd), ("qdd", qdd))
     p = param_array(params)
     out = np.empty(q.shape)
-    _jit().inverse_batch(q, qd, qdd, p, out)
+    check = _jit().inverse_batch(q, qd, qdd, p, out)
+    _refuse_nonfinite(check, (("q", q), ("qd", qd), ("qdd", qdd)), one)
+    _refuse_overflow(check, out)
     return out[0] if one else out
 
 
@@ -156,7 +191,10 @@ def forward_dynamics(q: Any, qd: Any, tau: Any, params: Params) -> np.ndarray:
     (q, qd, tau), one = _states(("q", q), ("qd", qd), ("tau", tau))
     p = param_array(params)
     out = np.empty(q.shape)
-    bad = _jit().forward_batch(q, qd, tau, p, out)
+    check, bad = _jit().forward_batch(q, qd, tau, p, out)
+    _refuse_nonfinite(check, (("q", q), ("qd", qd), ("tau", tau)), one)
     if bad >= 0:
-        raise InputError(f"the mass matrix is singular at q[{bad}]={q[bad].tolist()!r}")
+        raise InputError(
+            f"the mass matrix is singular or ill-conditioned at q[{bad}]={q[bad].tolist()!r}"
+        )
     return out[0] if one else out

@@ -61,7 +61,7 @@ RTOL_FLOOR = 100 * np.finfo(float).eps
 _ADAPTIVE = ("DOP853", "RK45")
 _NAMES = ("q1", "q2", "q3", "qd1", "qd2", "qd3")
 _EFFORTS = ("T01x", "T12y", "F23z")
-_KIND_NONE, _KIND_SEED, _KIND_PD_PLANT = 0, 1, 3
+_KIND_NONE, _KIND_SEED, _KIND_PD_PLANT, _KIND_SEED_FOLDED = 0, 1, 3, 4
 _CODES = {"RK45": 0, "DOP853": 1, "symplectic_euler": 10, "rk4": 11, "verlet": 12}
 
 
@@ -75,16 +75,15 @@ def _times(t_eval: Any) -> np.ndarray:
         raise InputError("t_eval is not an array of numbers [s]") from e
     if t.ndim != 1 or t.size < 2:
         raise InputError(f"t_eval has shape {t.shape}; it needs at least 2 times [s]")
-    bad = np.flatnonzero(~np.isfinite(t))
-    if bad.size:
-        raise InputError(f"t_eval[{bad[0]}]={float(t[bad[0]])!r} must be finite [s]")
-    steps = np.diff(t)
-    if (steps <= 0).any():
-        i = int(np.flatnonzero(steps <= 0)[0])
+    if not np.isfinite(t).all():
+        i = int(np.flatnonzero(~np.isfinite(t))[0])
+        raise InputError(f"t_eval[{i}]={float(t[i])!r} must be finite [s]")
+    if not (t[1:] > t[:-1]).all():
+        i = int(np.flatnonzero(t[1:] <= t[:-1])[0])
         raise InputError(
             f"t_eval must increase: t_eval[{i + 1}]={float(t[i + 1])!r} <= {float(t[i])!r} [s]"
         )
-    return np.ascontiguousarray(t)
+    return t
 
 
 def _rows(name: str, value: Any, unit: str, batch: bool) -> np.ndarray:
@@ -97,8 +96,8 @@ def _rows(name: str, value: Any, unit: str, batch: bool) -> np.ndarray:
         not batch and a.shape != (3,)
     ):
         raise InputError(f"{name} has shape {a.shape} but the RRT arm needs {want} [{unit}]")
-    bad = np.argwhere(~np.isfinite(a))
-    if bad.size:
+    if not np.isfinite(a).all():
+        bad = np.argwhere(~np.isfinite(a))
         where = ", ".join(str(int(i)) for i in bad[0])
         raise InputError(f"{name}[{where}]={float(a[tuple(bad[0])])!r} must be finite [{unit}]")
     return a
@@ -129,7 +128,12 @@ def _options(
         ):
             raise InputError(f"{name}={value!r} must be a finite number > 0")
     if method not in _ADAPTIVE:
-        return method, None, None, float(step) if step is not None else float(np.diff(t).min())
+        return (
+            method,
+            None,
+            None,
+            float(step) if step is not None else float((t[1:] - t[:-1]).min()),
+        )
     rtol = float(rtol) if rtol is not None else DEFAULT_RTOL
     if rtol < RTOL_FLOOR:
         warnings.warn(
@@ -156,7 +160,11 @@ def _controller_arrays(controller: Any, plant: Params, p: np.ndarray) -> tuple[i
 
     if isinstance(controller, SeedController):
         c[:3], c[3:6], c[6:9] = controller.kp, controller.kd, controller.qf
-        c[9:] = p if controller.params == plant else param_array(controller.params)
+        if controller.params == plant:
+            # Eq. (31)'s gravity terms are then exactly the plant's G(q): fold them.
+            c[9:] = p
+            return _KIND_SEED_FOLDED, c
+        c[9:] = param_array(controller.params)
         return _KIND_SEED, c
     if isinstance(controller, PDGravityController):
         if controller.nv != 3 or not controller.compensates_gravity_of(_rrt_model(plant)):
@@ -233,9 +241,9 @@ def _raise_status(
     raise DivergenceError(float(t_fail), name, problem)
 
 
-def _check_efforts(t: np.ndarray, tau: np.ndarray, variant: int | None = None) -> None:
-    bad = np.argwhere(~np.isfinite(tau))
-    if bad.size:
+def _check_efforts(t: np.ndarray, tau: np.ndarray) -> None:
+    if not np.isfinite(tau).all():
+        bad = np.argwhere(~np.isfinite(tau))
         *v, i, k = (int(x) for x in bad[0])
         where = f" (variant {v[0]})" if v else ""
         raise DivergenceError(

@@ -1,0 +1,430 @@
+#!/usr/bin/env python
+"""The compiled backend (issue 8) against its baselines, side by side in one run.
+
+Sections (medians over --repeat rounds; each round runs every side a few times
+back to back, see :func:`interleaved`):
+
+1. compile: numba's import and the compilation or cache load, apart from run times;
+2. direct: the seed's run (0..15 s, 1,501 outputs) — baseline ``solve_ivp(DOP853,
+   rtol=1e-10, atol=1e-12)`` on a Python right-hand side calling ``pin.aba`` — against
+   ``simulate(..., backend="compiled")``; error = max |q − reference| with the
+   reference of ``rrt_pin.reference.seed_reference`` (DOP853 at rtol 1e-13,
+   cross-checked with Radau). Targets: error <= 1e-8, <= 0.5 ms, >= 40x;
+3. inverse: the seed's 15,001 samples — a Python loop over ``pin.rnea`` against
+   ``rrt_pin.compiled.inverse_dynamics``. Targets: <= 1 ms, >= 50x, same values to 1e-12;
+4. batch: --batch seed variants (gains, q0 and masses varied) with
+   ``simulate_batch_compiled``. Target: >= 2,000 simulations per second on one core;
+5. physics: the compiled M, c + G, G, RNEA and ABA against Pinocchio at 1,000
+   seeded random states (target <= 1e-12 relative), and the compiled trajectories
+   against the Pinocchio backend's with the same method and tolerance;
+6. process: whole-process ``rrt-pin inverse --csv`` with ``--backend pinocchio`` and
+   ``--backend compiled``, and ``import numba`` alone (budget 1 s).
+
+``scripts/bench_direct.py`` and ``scripts/bench_inverse.py`` import
+:func:`direct_rows`, :func:`batch_rows` and :func:`inverse_verdict` from here for
+their compiled rows.
+
+    .venv/bin/python scripts/bench_compiled.py [--repeat 21] [--batch 2000] [--check]
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+TARGET_ERROR = 1e-8  # [rad, m]
+TARGET_DIRECT_S = 0.5e-3
+TARGET_DIRECT_SPEEDUP = 40.0
+TARGET_INVERSE_S = 1e-3
+TARGET_INVERSE_SPEEDUP = 50.0
+TARGET_BATCH_RATE = 2000.0  # simulations per second
+TARGET_AGREEMENT = 1e-12
+TARGET_PROCESS_S = 1.0
+
+Run = Callable[[], tuple[np.ndarray, int]]
+
+
+def interleaved(
+    funcs: dict[str, Callable[[], object]], repeat: int, inner: int = 5
+) -> dict[str, float]:
+    """Median wall time [s] of each callable over ``repeat`` rounds of ``inner`` back-to-back calls.
+
+    Rounds alternate the sides, so that machine noise hits them alike; within a
+    round a side runs several times in a row and its first call is not counted,
+    so that each is timed in its steady state, not just after another side has
+    evicted its caches (which penalizes sub-millisecond sides the most).
+    """
+    times: dict[str, list[float]] = {k: [] for k in funcs}
+    for _ in range(repeat):
+        for name, f in funcs.items():
+            for i in range(inner + 1):
+                start = time.perf_counter()
+                f()
+                if i:
+                    times[name].append(time.perf_counter() - start)
+    return {k: statistics.median(v) for k, v in times.items()}
+
+
+def verdict(ok: bool) -> str:
+    return "met" if ok else "MISSED"
+
+
+# --------------------------------------------------------------------------------------------
+# Pieces used by scripts/bench_direct.py and scripts/bench_inverse.py
+# --------------------------------------------------------------------------------------------
+def compile_line() -> str:
+    """Compile (or load) the backend and describe what it cost."""
+    from rrt_pin import compiled
+
+    cached = compiled.is_compiled()
+    report = compiled.ensure_compiled()
+    return f"{report.describe()}; is_compiled() before: {cached}"
+
+
+def direct_rows(model, controller, p, t: np.ndarray) -> list[tuple[str, Run]]:
+    """(label, run) rows of the compiled backend on the seed's run; ``run()`` -> (q, evals)."""
+    from rrt_pin.simulate import simulate
+
+    print(f"compiled: {compile_line()}")
+
+    def sim(method: str, **kw) -> Run:
+        def run():
+            r = simulate(
+                model, controller, p.q0, p.qd0, t, method=method, backend="compiled", params=p,
+                **kw,
+            )  # fmt: skip
+            return r.q, r.n_evals
+
+        return run
+
+    return [
+        ("compiled DOP853 (simulate defaults)", sim("DOP853")),
+        ("compiled DOP853 1e-10 (baseline tol)", sim("DOP853", rtol=1e-10, atol=1e-12)),
+        ("compiled RK45 1e-10", sim("RK45", rtol=1e-10, atol=1e-12)),
+        ("compiled rk4 step 2.5 ms", sim("rk4", step=0.0025)),
+        ("compiled verlet step 1 ms", sim("verlet", step=0.001)),
+    ]
+
+
+def batch_rows(model, controllers, q0s, qd0s, t: np.ndarray) -> list[tuple[str, Run]]:
+    """(label, run) batch rows of the compiled backend; ``run()`` -> (q (B, N, 3), evals)."""
+    from rrt_pin import compiled
+
+    compiled.ensure_compiled()
+    p = controllers[0].params
+
+    def run(method: str, efforts: bool) -> Run:
+        def go():
+            r = compiled.simulate_batch_compiled(
+                p, controllers, q0s, qd0s, t, method=method, efforts=efforts
+            )
+            return r.q, r.n_evals
+
+        return go
+
+    return [
+        ("compiled batch DOP853, states only", run("DOP853", False)),
+        ("compiled batch DOP853 + efforts", run("DOP853", True)),
+    ]
+
+
+def inverse_verdict(medians: dict[str, float], results: dict[str, np.ndarray]) -> dict[str, bool]:
+    """The compiled inverse-dynamics targets from bench_inverse's medians and results."""
+    if "compiled" not in medians:
+        return {}
+    base, mine = medians["loop"], medians["compiled"]
+    ref = results["loop"]
+    rel = float((np.abs(results["compiled"] - ref).max(axis=0) / np.abs(ref).max(axis=0)).max())
+    return {
+        f"compiled <= {TARGET_INVERSE_S * 1e3:g} ms ({mine * 1e3:.3f} ms)": mine
+        <= TARGET_INVERSE_S,
+        f"compiled >= {TARGET_INVERSE_SPEEDUP:g}x the loop ({base / mine:.0f}x)": base / mine
+        >= TARGET_INVERSE_SPEEDUP,
+        f"compiled agrees to {TARGET_AGREEMENT:g} ({rel:.1e})": rel <= TARGET_AGREEMENT,
+    }
+
+
+# --------------------------------------------------------------------------------------------
+# The standalone benchmark
+# --------------------------------------------------------------------------------------------
+def baseline_direct(model, controller, q0, qd0, t) -> tuple[np.ndarray, int]:
+    """solve_ivp DOP853 at rtol 1e-10, atol 1e-12 on a Python rhs calling pin.aba."""
+    import pinocchio as pin
+    from scipy.integrate import solve_ivp
+
+    data = model.createData()
+
+    def rhs(_t, y):
+        q, v = y[:3], y[3:]
+        return np.concatenate((v, pin.aba(model, data, q, v, controller(q, v))))
+
+    sol = solve_ivp(
+        rhs, (t[0], t[-1]), np.concatenate((q0, qd0)), method="DOP853", t_eval=t, rtol=1e-10,
+        atol=1e-12,
+    )  # fmt: skip
+    return sol.y[:3].T, sol.nfev
+
+
+def section_direct(repeat: int) -> dict[str, bool]:
+    from rrt_pin import compiled
+    from rrt_pin.control import seed_controller
+    from rrt_pin.model import rrt_model
+    from rrt_pin.params import Params
+    from rrt_pin.reference import seed_reference
+
+    p = Params()
+    model, ctrl = rrt_model(p), seed_controller(p)
+    ref = seed_reference()
+    t = ref.t
+    print(
+        f"\n2. direct dynamics, the seed's run: {t.size} outputs over {t[0]:g}..{t[-1]:g} s; "
+        f"reference {ref.methods[0]} vs {ref.methods[1]} at rtol {ref.rtol:g} differ by "
+        f"{ref.difference_q:.1e}"
+    )
+    rows: dict[str, Run] = {"baseline solve_ivp DOP853 + pin.aba": lambda: baseline_direct(
+        model, ctrl, p.q0, p.qd0, t
+    )}  # fmt: skip
+    rows.update(direct_rows(model, ctrl, p, t))
+    rows["compiled.simulate_compiled (no simulate())"] = lambda: _raw(compiled, p, ctrl, t)
+    t15 = np.linspace(0.0, 15.0, 15001)
+    rows["compiled DOP853, 15,001 outputs"] = lambda: _raw(compiled, p, ctrl, t15)
+    out = {name: run() for name, run in rows.items()}  # warm
+    medians = interleaved(rows, repeat)
+    base = medians["baseline solve_ivp DOP853 + pin.aba"]
+    print(f"{'side':<44} {'time [ms]':>10} {'evals':>6} {'max|q err|':>11} {'speed-up':>9}")
+    for name, (q, evals) in out.items():
+        err = np.abs(q - ref.q).max() if q.shape == ref.q.shape else np.nan
+        print(
+            f"{name:<44} {medians[name] * 1e3:>10.3f} {evals:>6d} {err:>11.2e} "
+            f"{base / medians[name]:>8.1f}x"
+        )
+    name = "compiled DOP853 (simulate defaults)"
+    err = np.abs(out[name][0] - ref.q).max()
+    return {
+        f"direct error <= {TARGET_ERROR:g} ({err:.1e})": err <= TARGET_ERROR,
+        f"direct <= {TARGET_DIRECT_S * 1e3:g} ms ({medians[name] * 1e3:.3f} ms)": medians[name]
+        <= TARGET_DIRECT_S,
+        f"direct >= {TARGET_DIRECT_SPEEDUP:g}x the baseline ({base / medians[name]:.0f}x)": (
+            base / medians[name] >= TARGET_DIRECT_SPEEDUP
+        ),
+    }
+
+
+def _raw(compiled, p, ctrl, t):
+    r = compiled.simulate_compiled(p, ctrl, p.q0, p.qd0, t)
+    return r.q, r.n_evals
+
+
+def section_inverse(repeat: int) -> dict[str, bool]:
+    import pinocchio as pin
+
+    from rrt_pin import compiled
+    from rrt_pin.grid import time_grid
+    from rrt_pin.model import rrt_model
+    from rrt_pin.params import Params
+    from rrt_pin.trajectory import rest_to_rest
+
+    p = Params()
+    model = rrt_model(p)
+    traj = rest_to_rest(p.q0, p.qf, p.Tp, time_grid(p.Tp, 0.001))
+    q, qd, qdd = traj.q, traj.qd, traj.qdd
+    data = model.createData()
+
+    def loop():
+        out = np.empty((q.shape[0], 3))
+        for i in range(q.shape[0]):
+            out[i] = pin.rnea(model, data, q[i], qd[i], qdd[i])
+        return out
+
+    funcs = {"loop": loop, "compiled": lambda: compiled.inverse_dynamics(q, qd, qdd, p)}
+    results = {k: f() for k, f in funcs.items()}
+    medians = interleaved(funcs, max(3, repeat // 3), inner=2)
+    print(f"\n3. inverse dynamics, the seed's {q.shape[0]} samples")
+    for k, v in medians.items():
+        print(f"{k:<44} {v * 1e3:>10.3f} ms {medians['loop'] / v:>8.1f}x")
+    return inverse_verdict(medians, results)
+
+
+def seed_variants(count: int, seed: int = 7):
+    """``count`` seed variants: gains x0.8..1.25, q0 +-0.1, masses x0.8..1.25 (own Params each)."""
+    from rrt_pin.control import SeedController
+    from rrt_pin.params import Params
+
+    rng = np.random.default_rng(seed)
+    base = Params()
+    plants, controllers = [], []
+    for _ in range(count):
+        m = np.array([base.m1, base.m2, base.m3]) * rng.uniform(0.8, 1.25, 3)
+        plant = base.with_overrides({"m1": m[0], "m2": m[1], "m3": m[2]})
+        plants.append(plant)
+        controllers.append(
+            SeedController(
+                kp=tuple(np.array(base.kp) * rng.uniform(0.8, 1.25, 3)),
+                kd=tuple(np.array(base.kd) * rng.uniform(0.8, 1.25, 3)),
+                qf=base.qf,
+                params=plant,
+            )
+        )
+    q0s = np.array(base.q0) + rng.uniform(-0.1, 0.1, (count, 3))
+    return plants, controllers, q0s, np.zeros((count, 3))
+
+
+def section_batch(count: int, repeat: int) -> dict[str, bool]:
+    from rrt_pin import compiled
+    from rrt_pin.model import rrt_model
+    from rrt_pin.reference import reference_run
+
+    plants, controllers, q0s, qd0s = seed_variants(count)
+    t = np.linspace(0.0, 15.0, 1501)
+
+    def run():
+        return compiled.simulate_batch_compiled(plants, controllers, q0s, qd0s, t)
+
+    result = run()
+    medians = interleaved({"batch": run}, max(3, repeat // 5), inner=1)
+    rate = count / medians["batch"]
+    checked = sorted({0, count // 2, count - 1})
+    err = max(
+        np.abs(
+            result.q[i] - reference_run(rrt_model(plants[i]), controllers[i], q0s[i], qd0s[i], t).q
+        ).max()
+        for i in checked
+    )
+    print(
+        f"\n4. batch: {count} seed variants (gains, q0, masses), 1,501 outputs each, DOP853 "
+        f"rtol 1e-9: {medians['batch']:.3f} s -> {rate:,.0f} simulations/s; "
+        f"{result.n_evals / count:.0f} evaluations per variant; max |q err| on variants "
+        f"{checked}: {err:.1e}"
+    )
+    return {
+        f"batch >= {TARGET_BATCH_RATE:,.0f} simulations/s ({rate:,.0f})": rate >= TARGET_BATCH_RATE,
+        f"batch error <= {TARGET_ERROR:g} ({err:.1e})": err <= TARGET_ERROR,
+    }
+
+
+def section_physics() -> dict[str, bool]:
+    import pinocchio as pin
+
+    from rrt_pin import compiled
+    from rrt_pin.control import seed_controller
+    from rrt_pin.model import rrt_model
+    from rrt_pin.params import Params
+    from rrt_pin.simulate import simulate
+
+    p = Params(I1z=0.3, I2z=0.2)  # every term of the kernel non-zero
+    model = rrt_model(p)
+    data = model.createData()
+    rng = np.random.default_rng(20261122)
+    n = 1000
+    q = np.column_stack(
+        [rng.uniform(-np.pi, np.pi, n), rng.uniform(-np.pi, np.pi, n), rng.uniform(-0.5, 1.0, n)]
+    )
+    qd, qdd, tau = rng.normal(0, 2, (n, 3)), rng.normal(0, 5, (n, 3)), rng.normal(0, 200, (n, 3))
+    ref = {k: [] for k in ("M", "nle", "G", "rnea", "aba")}
+    for i in range(n):
+        M = pin.crba(model, data, q[i])
+        ref["M"].append(np.triu(M) + np.triu(M, 1).T)
+        ref["nle"].append(pin.nonLinearEffects(model, data, q[i], qd[i]).copy())
+        ref["G"].append(pin.computeGeneralizedGravity(model, data, q[i]).copy())
+        ref["rnea"].append(pin.rnea(model, data, q[i], qd[i], qdd[i]).copy())
+        ref["aba"].append(pin.aba(model, data, q[i], qd[i], tau[i]).copy())
+    got = {
+        "M": compiled.mass_matrix(q, p),
+        "nle": compiled.nonlinear_effects(q, qd, p),
+        "G": compiled.gravity(q, p),
+        "rnea": compiled.inverse_dynamics(q, qd, qdd, p),
+        "aba": compiled.forward_dynamics(q, qd, tau, p),
+    }
+    worst = {}
+    for k, v in got.items():
+        r = np.array(ref[k])
+        axes = tuple(range(1, r.ndim))
+        worst[k] = float((np.abs(v - r).max(axis=axes) / np.abs(r).max(axis=axes)).max())
+    print(
+        f"\n5. physics at {n} random states, max relative difference from Pinocchio: "
+        + ", ".join(f"{k} {v:.1e}" for k, v in worst.items())
+    )
+    ok = {f"physics agrees to {TARGET_AGREEMENT:g} ({max(worst.values()):.1e})": max(
+        worst.values()
+    ) <= TARGET_AGREEMENT}  # fmt: skip
+    seed = Params()
+    ctrl, smodel = seed_controller(seed), rrt_model(seed)
+    t = np.linspace(0.0, 15.0, 1501)
+    for method, tol in (("DOP853", 1e-10), ("RK45", 1e-10), ("rk4", 1e-12), ("verlet", 1e-12)):
+        a = simulate(smodel, ctrl, seed.q0, seed.qd0, t, method=method)
+        b = simulate(smodel, ctrl, seed.q0, seed.qd0, t, method=method, backend="compiled", params=seed)  # fmt: skip
+        diff = np.abs(a.q - b.q).max()
+        print(
+            f"   {method:<7} compiled vs pinocchio backend: max |dq| {diff:.1e}, evaluations "
+            f"{b.n_evals} vs {a.n_evals}"
+        )
+        ok[f"{method} trajectories agree ({diff:.0e} <= {tol:g})"] = diff <= tol
+    return ok
+
+
+def process_time(argv: list[str], runs: int) -> float:
+    times = []
+    for _ in range(runs):
+        start = time.perf_counter()
+        subprocess.run(argv, check=True, capture_output=True)
+        times.append(time.perf_counter() - start)
+    return statistics.median(times)
+
+
+def section_process(runs: int) -> dict[str, bool]:
+    print(f"\n6. whole processes (median of {runs})")
+    out = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        csv = str(Path(tmp) / "out.csv")
+        for backend in ("pinocchio", "compiled"):
+            argv = [sys.executable, "-m", "rrt_pin", "inverse", "--csv", csv, "--backend", backend]
+            seconds = process_time(argv, runs)
+            print(f"   rrt-pin inverse --csv --backend {backend:<10} {seconds:.3f} s")
+            out[backend] = seconds
+    numba = process_time([sys.executable, "-c", "import numba"], runs)
+    bare = process_time([sys.executable, "-c", "pass"], runs)
+    print(f"   python -c 'import numba'                   {numba:.3f} s (bare interpreter {bare:.3f} s)")  # fmt: skip
+    return {
+        f"inverse --csv, pinocchio < {TARGET_PROCESS_S:g} s ({out['pinocchio']:.2f} s)": out[
+            "pinocchio"
+        ]
+        < TARGET_PROCESS_S,
+        f"inverse --csv, compiled < {TARGET_PROCESS_S:g} s ({out['compiled']:.2f} s)": out[
+            "compiled"
+        ]
+        < TARGET_PROCESS_S,
+    }
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--repeat", type=int, default=21, help="timed rounds per section (median)")
+    ap.add_argument("--batch", type=int, default=2000, help="variants in the batch")
+    ap.add_argument("--process-runs", type=int, default=5, help="whole-process runs (median)")
+    ap.add_argument("--check", action="store_true", help="exit 1 when a target is missed")
+    args = ap.parse_args()
+
+    start = time.perf_counter()
+    print(f"1. {compile_line()} ({time.perf_counter() - start:.2f} s in all)")
+    ok: dict[str, bool] = {}
+    ok |= section_direct(args.repeat)
+    ok |= section_inverse(args.repeat)
+    ok |= section_batch(args.batch, args.repeat)
+    ok |= section_physics()
+    ok |= section_process(args.process_runs)
+    print()
+    for label, good in ok.items():
+        print(f"target {label}: {verdict(good)}")
+    return 1 if args.check and not all(ok.values()) else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
