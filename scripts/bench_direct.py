@@ -99,15 +99,30 @@ def _sim(model, controller, p, t, method=None, jacobian="analytic"):
 
 
 # --- compiled backend (issue 8): add its single-run rows here -----------------------------
+# (section owned by the compiled backend; the rows are defined in scripts/bench_compiled.py)
 def compiled_rows(model, controller, p: Params, t: np.ndarray) -> list[Row]:
-    """Rows of the numba backend (``simulate(..., backend="compiled")``); none yet."""
-    return []
+    """Rows of the numba backend (``simulate(..., backend="compiled")``), if numba imports."""
+    from rrt_pin import compiled
+
+    if not compiled.available():
+        print("compiled backend: numba not available, no rows")
+        return []
+    from bench_compiled import direct_rows
+
+    return [Row(label, run) for label, run in direct_rows(model, controller, p, t)]
 
 
 # --- compiled backend (issue 8): add its batch rows here ----------------------------------
+# (section owned by the compiled backend; the rows are defined in scripts/bench_compiled.py)
 def compiled_batch_rows(model, controllers, q0s, qd0s, t: np.ndarray) -> list[Row]:
-    """Batch rows of the numba backend; ``run()`` returns q of shape (B, N, 3); none yet."""
-    return []
+    """Batch rows of the numba backend; ``run()`` returns q of shape (B, N, 3)."""
+    from rrt_pin import compiled
+
+    if not compiled.available():
+        return []
+    from bench_compiled import batch_rows
+
+    return [Row(label, run) for label, run in batch_rows(model, controllers, q0s, qd0s, t)]
 
 
 def timed(row: Row, repeat: int) -> tuple[float, np.ndarray, int]:
