@@ -259,6 +259,34 @@ def test_cache_marker_follows_the_sources(tmp_path, monkeypatch):
         _cache.cache_dir.cache_clear()
 
 
+def test_unwritable_cache_candidates_are_skipped(tmp_path, monkeypatch):
+    from rrt_pin.compiled import _cache
+
+    blocker = tmp_path / "a-file"
+    blocker.write_text("not a directory")
+    monkeypatch.setenv("RRT_PIN_CACHE_DIR", str(blocker / "sub"))
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
+    monkeypatch.delenv("NUMBA_CACHE_DIR", raising=False)
+    _cache.cache_dir.cache_clear()
+    try:
+        assert _cache.cache_dir() == tmp_path / "xdg" / "rrt_pin" / "numba" / _cache.fingerprint()
+    finally:
+        _cache.cache_dir.cache_clear()
+
+
+def test_available_is_false_without_numba(monkeypatch):
+    import rrt_pin.compiled as backend
+
+    real = importlib.util.find_spec
+    monkeypatch.setattr(backend, "_available", None)
+    monkeypatch.setattr(
+        backend.importlib.util,
+        "find_spec",
+        lambda name, *a: None if name == "numba" else real(name, *a),
+    )
+    assert backend.available() is False
+
+
 def test_importing_the_package_is_cheap():
     code = (
         "import sys, rrt_pin.compiled as c; c.is_compiled(); "

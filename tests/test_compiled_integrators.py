@@ -351,6 +351,38 @@ def test_foreign_models_are_refused(compiled, seed_params):
         )
 
 
+def test_rtol_below_scipys_floor_is_raised_with_a_warning(compiled, seed_params):
+    with pytest.warns(UserWarning, match="below 100 machine epsilons"):
+        res = compiled.simulate_compiled(
+            seed_params, None, seed_params.q0, seed_params.qd0, [0.0, 0.5], rtol=1e-17
+        )
+    assert res.rtol == 100 * np.finfo(float).eps
+
+
+def test_runs_start_at_the_first_output_time(compiled, seed_params):
+    ctrl = seed_controller(seed_params)
+    whole = compiled.simulate_compiled(
+        seed_params, ctrl, seed_params.q0, seed_params.qd0, SEED_GRID
+    )
+    later = compiled.simulate_compiled(
+        seed_params, ctrl, whole.q[500], whole.qd[500], SEED_GRID[500:], rtol=1e-12, atol=1e-14
+    )
+    assert later.t[0] == 5.0
+    assert np.abs(later.q - whole.q[500:]).max() < 1e-8
+
+
+def test_gains_other_than_the_plants_keep_the_folded_gravity(compiled, seed_params, seed_model):
+    from rrt_pin.simulate import simulate
+
+    retuned = seed_controller(seed_params.with_overrides({"gamma01": 500.0, "beta23": 90.0}))
+    args = (retuned, seed_params.q0, seed_params.qd0, SEED_GRID)
+    pin_run = simulate(seed_model, *args, method="RK45")
+    ours = simulate(seed_model, *args, method="RK45", backend="compiled", params=seed_params)
+    assert ours.n_evals == pin_run.n_evals
+    assert np.abs(ours.q - pin_run.q).max() <= 1e-12
+    np.testing.assert_allclose(ours.tau, retuned.efforts(ours.q, ours.qd), rtol=1e-13, atol=1e-10)
+
+
 def test_passive_motion_keeps_its_energy(compiled, seed_params):
     """τ = 0: T + V is conserved to the integration tolerance (gravity V from the seed's facts)."""
     t = np.linspace(0.0, 5.0, 51)

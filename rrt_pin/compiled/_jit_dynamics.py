@@ -10,14 +10,14 @@ compiled on their own. The public, validated wrappers are in
 Layouts shared with the integrators:
 
 * ``p``: the 15 physical parameters in ``rrt_pin.kernel.PARAM_ORDER`` (SI units);
-* a controller: ``kind`` 0 = no effort, 1 = eq. (31) of the seed, 2 = PD plus
-  the gravity G(q) of another parameter set, 3 = PD plus the plant's own G(q)
-  (one kernel evaluation serves both), 4 = eq. (31) with the plant's own
-  parameters: its gravity terms are exactly the plant's G(q) (the seed's eq. (15)),
-  so the dynamics fold them like kind 3, while the efforts reported at the output
-  times are eq. (31) as printed; ``c`` = (kp1, kp2, kp3, kd1, kd2, kd3,
-  q1f, q2f, q3f, *p_comp) with p_comp the 15 parameters of the model whose
-  gravity is compensated (eq. (31) reads g, m2, m3 and L2 from it).
+* a controller: ``kind`` 0 = no effort; 1 = eq. (31) of the seed with its own
+  parameters (another arm than the plant's); 2 = PD plus the plant's own G(q)
+  (one kernel evaluation serves the dynamics and the compensation); 3 = eq. (31)
+  with the plant's g, m2, m3, L2: its gravity terms are then exactly the plant's
+  G(q) (the seed's eq. (15)), so the dynamics fold them like kind 2, while the
+  efforts reported at the output times are eq. (31) as printed. ``c`` = (kp1,
+  kp2, kp3, kd1, kd2, kd3, q1f, q2f, q3f, *p_law) with p_law the 15 parameters
+  the law was built with (eq. (31) reads g, m2, m3 and L2 from them).
 
 The hot path, :func:`closed_loop`, takes ``p`` and ``c`` as tuples: calls
 between separately compiled numba functions are not inlined by LLVM, and an
@@ -57,9 +57,8 @@ NP = 15
 NC = 9 + NP
 KIND_NONE = 0
 KIND_SEED = 1
-KIND_PD_GRAVITY = 2
-KIND_PD_PLANT_GRAVITY = 3
-KIND_SEED_FOLDED = 4
+KIND_PD_PLANT_GRAVITY = 2
+KIND_SEED_FOLDED = 3
 # Indices of the parameters eq. (31) needs, in kernel.PARAM_ORDER.
 _L2 = kernel.PARAM_ORDER.index("L2")
 _M2 = kernel.PARAM_ORDER.index("m2")
@@ -258,17 +257,12 @@ def control(kind, c, q1, q2, q3, qd1, qd2, qd3, G1, G2, G3):
         return u1, u2 + g * m2 * L2 * c2 + g * m3 * c2 * (L2 + q3), u3 + g * m3 * s2
     if kind == KIND_PD_PLANT_GRAVITY or kind == KIND_SEED_FOLDED:
         return u1 + G1, u2 + G2, u3 + G3
-    h = terms(
-        q1, q2, q3, 0.0, 0.0, 0.0,
-        c[9], c[10], c[11], c[12], c[13], c[14], c[15], c[16], c[17], c[18], c[19], c[20],
-        c[21], c[22], c[23],
-    )  # fmt: skip
-    return u1 + h[9], u2 + h[10], u3 + h[11]
+    return math.nan, math.nan, math.nan  # not a kind of this module: fail loudly
 
 
 @jit(None, inline=True)
 def effort(kind, c, p, q1, q2, q3, qd1, qd2, qd3):
-    """The efforts the controller reports at one state (eq. (31) as printed for kinds 1 and 4)."""
+    """The efforts the controller reports at one state (eq. (31) as printed for kinds 1 and 3)."""
     if kind == KIND_PD_PLANT_GRAVITY:
         r = kernel_terms(q1, q2, q3, 0.0, 0.0, 0.0, p)
         return control(kind, c, q1, q2, q3, qd1, qd2, qd3, r[9], r[10], r[11])
@@ -287,7 +281,7 @@ def closed_loop(kind, c, p, q1, q2, q3, qd1, qd2, qd3):
 
     q̈ [rad/s², m/s²] solves M(q)·q̈ = τ − c(q, q̇) − G(q) with τ = the
     controller's efforts [N·m, N·m, N]; ``bad`` is ldl_solve's flag. One kernel
-    evaluation serves the dynamics and, for kinds 3 and 4, the gravity
+    evaluation serves the dynamics and, for kinds 2 and 3, the gravity
     compensation. The kernel's sine and cosine are the inlined vsin/vcos (no
     libm call) unless |q2| >= SINCOS_LIMIT.
     """
@@ -447,16 +441,3 @@ def forward_batch(q, qd, tau, p, out):
         out[i, 1] = a2
         out[i, 2] = a3
     return check, -1
-
-
-@jit(float64(int64, _rvec, _rvec, _rmat, _rmat, _mat))
-def control_batch(kind, c, p, q, qd, out):
-    """Controller efforts [N·m, N·m, N] of every row into out (N, 3)."""
-    check = 0.0
-    for i in range(q.shape[0]):
-        check += poison(q, i) + poison(qd, i)
-        u = effort(kind, c, p, q[i, 0], q[i, 1], q[i, 2], qd[i, 0], qd[i, 1], qd[i, 2])
-        out[i, 0] = u[0]
-        out[i, 1] = u[1]
-        out[i, 2] = u[2]
-    return check

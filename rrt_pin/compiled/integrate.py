@@ -61,7 +61,7 @@ RTOL_FLOOR = 100 * np.finfo(float).eps
 _ADAPTIVE = ("DOP853", "RK45")
 _NAMES = ("q1", "q2", "q3", "qd1", "qd2", "qd3")
 _EFFORTS = ("T01x", "T12y", "F23z")
-_KIND_NONE, _KIND_SEED, _KIND_PD_PLANT, _KIND_SEED_FOLDED = 0, 1, 3, 4
+_KIND_NONE, _KIND_SEED, _KIND_PD_PLANT, _KIND_SEED_FOLDED = 0, 1, 2, 3  # see _jit_dynamics
 _CODES = {"RK45": 0, "DOP853": 1, "symplectic_euler": 10, "rk4": 11, "verlet": 12}
 
 
@@ -160,8 +160,10 @@ def _controller_arrays(controller: Any, plant: Params, p: np.ndarray) -> tuple[i
 
     if isinstance(controller, SeedController):
         c[:3], c[3:6], c[6:9] = controller.kp, controller.kd, controller.qf
-        if controller.params == plant:
-            # Eq. (31)'s gravity terms are then exactly the plant's G(q): fold them.
+        law = controller.params
+        if (law.g, law.m2, law.m3, law.L2) == (plant.g, plant.m2, plant.m3, plant.L2):
+            # Eq. (31)'s gravity terms are then exactly the plant's G(q) (they depend
+            # on g, m2, m3, L2 only): fold them into the kernel's evaluation.
             c[9:] = p
             return _KIND_SEED_FOLDED, c
         c[9:] = param_array(controller.params)
