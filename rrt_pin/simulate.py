@@ -386,7 +386,24 @@ class _ClosedLoop:
 
         aba, model, data, n = pin.aba, self.model, self.data, self.n
         out = np.empty(2 * n)
-        if self.folded:
+        if self.folded and n == 3:
+            # Three joints (the RRT arm): the PD efforts in Python floats cost less
+            # than four numpy operations on 3-vectors.
+            (k1, k2, k3), (b1, b2, b3) = self.kp.tolist(), self.kd.tolist()
+            c1, c2, c3 = (self.kp * self.qf).tolist()
+            array = np.array
+
+            def f(y: np.ndarray, t: float) -> np.ndarray:
+                q1, q2, q3, v1, v2, v3 = y.tolist()
+                v = y[3:]
+                out[:3] = v
+                tau = array(
+                    (c1 - b1 * v1 - k1 * q1, c2 - b2 * v2 - k2 * q2, c3 - b3 * v3 - k3 * q3)
+                )
+                out[3:] = aba(model, data, y[:3], v, tau)
+                return out
+
+        elif self.folded:
             kp, kd, qf = self.kp, self.kd, self.qf
 
             def f(y: np.ndarray, t: float) -> np.ndarray:
@@ -839,13 +856,20 @@ def _lsoda_batch(
     atol: float,
     band: int,
     label: Callable[[int], str],
+    on_rows: Callable[[np.ndarray, slice], None] | None = None,
 ) -> tuple[np.ndarray, int]:
-    """LSODA step by step, interpolating from its Nordsieck history; states (T, len(y0))."""
+    """LSODA step by step, interpolating from its Nordsieck history; states (T, len(y0)).
+
+    ``on_rows(Y, rows)`` is called on each new block of output rows while it is
+    still in the cache.
+    """
     from scipy.integrate import LSODA
 
     solver = LSODA(f, t[0], y0, t[-1], rtol=rtol, atol=atol, lband=band, uband=band)
     Y = np.empty((t.size, y0.size))
     Y[0] = y0
+    if on_rows is not None:
+        on_rows(Y, slice(0, 1))
     k = 1
     while k < t.size:
         message = solver.step()
@@ -867,6 +891,8 @@ def _lsoda_batch(
                 _product(powers, yh, Y[k:j])
             else:  # pragma: no cover - another scipy's dense output
                 Y[k:j] = dense(t[k:j]).T
+            if on_rows is not None:
+                on_rows(Y, slice(k, j))
             k = j
     return Y, int(solver.nfev)
 
@@ -968,23 +994,34 @@ def simulate_batch(
             out[:, n:] = acc(Y[:, :n], v)
             return out.ravel()
 
+        tau = np.empty((t.size, B, n)) if efforts else None
+
+        def on_rows(Y: np.ndarray, rows: slice) -> None:
+            block = Y[rows].reshape(-1, B, width)
+            tau[rows] = loop.efforts(block[..., :n], block[..., n:])  # type: ignore[index]
+
         if method == "odepack":
-            Y, n_evals = _lsoda_batch(f, y0, t, rtol, atol, width - 1, label)
+            Y, n_evals = _lsoda_batch(
+                f, y0, t, rtol, atol, width - 1, label, on_rows if efforts else None
+            )
         else:
             counted = _Counted(f)
             Y, message, ok, _ = _run_solve_ivp(counted, y0, t, method, rtol, atol, None)
             n_evals = counted.calls
             if not ok:
                 raise _diagnose(method, f, y0, t, rtol, atol, names, message, width=width)
-        # One pass to component-major (2n, T, B): each coordinate's samples contiguous.
-        Y = np.ascontiguousarray(np.moveaxis(Y.reshape(t.size, B, width), 2, 0))
-        Q, V = np.moveaxis(Y[:n], 0, 2), np.moveaxis(Y[n:], 0, 2)  # (T, B, n) views
-    tau = np.moveaxis(loop.efforts(Q, V), 0, 1) if efforts else None
+            if efforts:
+                for i in range(0, t.size, 64):  # blocks of rows that stay in the cache
+                    on_rows(Y, slice(i, i + 64))
+        Y = Y.reshape(t.size, B, width)
+        Q, V = Y[..., :n], Y[..., n:]  # (T, B, n) views
+    if method in FIXED_STEP_METHODS:
+        tau = loop.efforts(Q, V) if efforts else None
     return BatchResult(
         t=t,
         q=np.moveaxis(Q, 0, 1),
         qd=np.moveaxis(V, 0, 1),
-        tau=tau,
+        tau=np.moveaxis(tau, 0, 1) if tau is not None else None,
         n_evals=n_evals,
         wall_time=time.perf_counter() - start,
         method=method,

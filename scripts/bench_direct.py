@@ -125,14 +125,17 @@ def compiled_batch_rows(model, controllers, q0s, qd0s, t: np.ndarray) -> list[Ro
     return [Row(label, run) for label, run in batch_rows(model, controllers, q0s, qd0s, t)]
 
 
-def timed(row: Row, repeat: int) -> tuple[float, np.ndarray, int]:
-    """Median wall time [s] over ``repeat`` runs, and the last run's output."""
-    times = []
+def interleaved(rows: list[Row], repeat: int) -> dict[str, tuple[list[float], np.ndarray, int]]:
+    """Run every row once per round, ``repeat`` rounds: a changing machine load hits all
+    rows alike. Returns, per label, the wall times [s] and the last output."""
+    out: dict[str, tuple[list[float], np.ndarray, int]] = {}
     for _ in range(repeat):
-        start = time.perf_counter()
-        q, n_evals = row.run()
-        times.append(time.perf_counter() - start)
-    return statistics.median(times), q, n_evals
+        for row in rows:
+            start = time.perf_counter()
+            q, n_evals = row.run()
+            elapsed = time.perf_counter() - start
+            out.setdefault(row.label, ([], q, n_evals))[0].append(elapsed)
+    return out
 
 
 def variants(p: Params, count: int, seed: int = 7) -> tuple[list[SeedController], np.ndarray]:
@@ -158,7 +161,7 @@ def main() -> int:
     ap.add_argument("--all", action="store_true", help="also time every method of METHODS")
     ap.add_argument("--batch", type=int, default=1000, help="variants in the batch (0: skip)")
     ap.add_argument("--baseline-runs", type=int, default=20, help="baseline runs for the estimate")
-    ap.add_argument("--batch-repeat", type=int, default=3, help="runs of the batch (median)")
+    ap.add_argument("--batch-repeat", type=int, default=3, help="rounds of the batch (median)")
     ap.add_argument("--threads", type=int, default=1, help="threads of pin.abaInParallel")
     args = ap.parse_args()
 
@@ -173,14 +176,18 @@ def main() -> int:
         f"max |q difference| = {ref.difference_q:.2e}, |qd| {ref.difference_qd:.2e} "
         f"({time.perf_counter() - start:.2f} s incl. cache)"
     )
-    print(f"grid: {t.size} points, {t[0]:g}..{t[-1]:g} s; medians of {args.repeat} runs\n")
+    print(
+        f"grid: {t.size} points, {t[0]:g}..{t[-1]:g} s; medians of {args.repeat} interleaved "
+        "rounds (each row once per round)\n"
+    )
 
     rows = single_rows(model, controller, p, t, args.all) + compiled_rows(model, controller, p, t)
     print(f"{'single run':<38} {'time [ms]':>10} {'evals':>7} {'max|q err|':>11} {'speed-up':>9}")
-    base_time = None
+    results = interleaved(rows, args.repeat)
+    base_time = statistics.median(results[rows[0].label][0])
     for row in rows:
-        median, q, n_evals = timed(row, args.repeat)
-        base_time = base_time or median
+        times, q, n_evals = results[row.label]
+        median = statistics.median(times)
         err = np.abs(q - ref.q).max()
         print(
             f"{row.label:<38} {median * 1e3:>10.2f} {n_evals:>7d} {err:>11.2e} {base_time / median:>8.2f}x"
@@ -198,17 +205,11 @@ def main() -> int:
     B = args.batch
     controllers, q0s = variants(p, B)
     qd0s = np.zeros((B, 3))
-    print(f"\nbatch of {B} seed variants (gains x0.8..1.25, q0 +-0.1), threads={args.threads}")
-    n_base = max(1, min(args.baseline_runs, B))
-    base_times = []
-    for i in range(n_base):
-        start = time.perf_counter()
-        baseline(model, controllers[i], q0s[i], qd0s[i], t)
-        base_times.append(time.perf_counter() - start)
-    per_run = statistics.median(base_times)
+    rounds = max(1, args.batch_repeat)
+    per_round = -(-max(1, min(args.baseline_runs, B)) // rounds)
     print(
-        f"baseline: median {per_run * 1e3:.2f} ms per variant over {n_base} runs "
-        f"-> {B} variants ~ {per_run * B:.2f} s"
+        f"\nbatch of {B} seed variants (gains x0.8..1.25, q0 +-0.1), threads={args.threads}; "
+        f"{rounds} rounds, each: the baseline on {per_round} variants, then each batch row once"
     )
     batch_rows = [
         Row(
@@ -228,12 +229,29 @@ def main() -> int:
             )
         )
     batch_rows += compiled_batch_rows(model, controllers, q0s, qd0s, t)
+    base_times: list[float] = []
+    results = {}
+    for k in range(rounds):
+        for i in range(k * per_round, (k + 1) * per_round):
+            start = time.perf_counter()
+            baseline(model, controllers[i % B], q0s[i % B], qd0s[i % B], t)
+            base_times.append(time.perf_counter() - start)
+        for label, value in interleaved(batch_rows, 1).items():
+            times, _, _ = results.setdefault(label, ([], *value[1:]))
+            times += value[0]
+            results[label] = (times, *value[1:])
+    per_run = statistics.median(base_times)
+    print(
+        f"baseline: median {per_run * 1e3:.2f} ms per variant over {len(base_times)} runs "
+        f"-> {B} variants ~ {per_run * B:.2f} s"
+    )
     checked = sorted({0, B // 2, B - 1})
     refs = {i: reference_run(model, controllers[i], q0s[i], qd0s[i], t).q for i in checked}
     print(f"accuracy judged on variants {checked} against their own DOP853/Radau references")
     print(f"{'batch':<38} {'time [s]':>10} {'evals':>7} {'max|q err|':>11} {'throughput':>11}")
     for row in batch_rows:
-        median, Q, n_evals = timed(row, args.batch_repeat)
+        times, Q, n_evals = results[row.label]
+        median = statistics.median(times)
         err = max(np.abs(Q[i] - refs[i]).max() for i in checked)
         ratio = per_run * B / median
         print(f"{row.label:<38} {median:>10.3f} {n_evals:>7d} {err:>11.2e} {ratio:>10.1f}x")
