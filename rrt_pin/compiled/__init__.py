@@ -2,8 +2,9 @@
 
 ``numba`` is an optional extra (``pip install rrt-pin[fast]``); importing this
 package does not import it. The first call that needs machine code imports
-numba and compiles every function (about 15–30 s once), or loads them from
-the disk cache (about 1 s per process, most of it importing numba); see
+numba and compiles every function (about 15–25 s, once per version of the
+sources), or loads them from the disk cache (about 0.7–1 s per process:
+importing numba, then numba's own start-up on the first load); see
 :func:`ensure_compiled` and :mod:`rrt_pin.compiled._cache` for where the cache
 lives. :func:`is_compiled` says, without importing numba or compiling, whether
 that first call will be cheap — the CLI uses it to pick a backend.

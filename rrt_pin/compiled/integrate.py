@@ -19,7 +19,10 @@ Methods (:data:`rrt_pin.compiled.METHODS`):
 Controllers: :func:`~rrt_pin.control.seed_controller` (eq. (31), with its own
 parameters, which may differ from the plant's), :func:`~rrt_pin.control.pd_gravity_controller`
 on the RRT arm built from the plant's parameters, or None (no effort: passive
-motion). A batch runs its variants one after the other, each with its own step
+motion). When eq. (31)'s g, m2, m3, L2 are the plant's, its gravity terms are
+exactly the plant's G(q) and are taken from the kernel's evaluation (one sine
+and cosine per evaluation, as the Pinocchio backend folds them); the efforts
+reported are eq. (31) as printed. A batch runs its variants one after the other, each with its own step
 control, so every variant is held to the tolerance, and each may have its own
 parameters (masses, lengths, inertias), gains, target and initial state.
 
