@@ -22,9 +22,10 @@ on the RRT arm built from the plant's parameters, or None (no effort: passive
 motion). When eq. (31)'s g, m2, m3, L2 are the plant's, its gravity terms are
 exactly the plant's G(q) and are taken from the kernel's evaluation (one sine
 and cosine per evaluation, as the Pinocchio backend folds them); the efforts
-reported are eq. (31) as printed. A batch runs its variants one after the other, each with its own step
-control, so every variant is held to the tolerance, and each may have its own
-parameters (masses, lengths, inertias), gains, target and initial state.
+reported are eq. (31) as printed. A batch runs its variants one after the
+other, each with its own step control, so every variant is held to the
+tolerance, and each may have its own parameters (masses, lengths, inertias),
+gains, target and initial state.
 
 Failures never return NaN: a non-finite state, a step size below 10 ulp of t,
 a singular mass matrix, a diverging Verlet half kick or an exhausted step
