@@ -45,7 +45,9 @@ from __future__ import annotations
 
 import math
 import re
+import sys
 import time
+import types
 import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -1034,3 +1036,18 @@ def simulate_batch(
         qd_names=qd_names,
         tau_names=effort_names(model),
     )
+
+
+class _CallableModule(types.ModuleType):
+    """This module, callable as :func:`simulate`.
+
+    ``rrt_pin.simulate`` names both this module and (through the package's lazy
+    exports) the function; once anything has imported the module, the package's
+    attribute is the module, so calling it must still simulate.
+    """
+
+    def __call__(self, *args: Any, **kwargs: Any) -> SimulationResult:
+        return simulate(*args, **kwargs)
+
+
+sys.modules[__name__].__class__ = _CallableModule

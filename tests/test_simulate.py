@@ -393,3 +393,16 @@ def test_compiled_backend_needs_the_arms_parameters(seed_model, seed_params):
             [0.0, 1.0],
             backend="compiled",
         )
+
+
+def test_rrt_pin_simulate_calls_even_after_the_module_was_imported():
+    """``rrt_pin.simulate`` is the module once imported; calling it still simulates."""
+    import subprocess
+
+    code = (
+        "import rrt_pin.simulate, rrt_pin; p = rrt_pin.Params(); "
+        "r = rrt_pin.simulate(rrt_pin.rrt_model(p), rrt_pin.seed_controller(p), p.q0, p.qd0, "
+        "[0.0, 0.1]); print(r.q.shape, r.method)"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "(2, 3) odepack"
