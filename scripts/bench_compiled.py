@@ -360,7 +360,9 @@ def section_physics() -> dict[str, bool]:
     t = np.linspace(0.0, 15.0, 1501)
     for method, tol in (("DOP853", 1e-10), ("RK45", 1e-10), ("rk4", 1e-12), ("verlet", 1e-12)):
         a = simulate(smodel, ctrl, seed.q0, seed.qd0, t, method=method)
-        b = simulate(smodel, ctrl, seed.q0, seed.qd0, t, method=method, backend="compiled", params=seed)  # fmt: skip
+        b = simulate(
+            smodel, ctrl, seed.q0, seed.qd0, t, method=method, backend="compiled", params=seed
+        )
         diff = np.abs(a.q - b.q).max()
         print(
             f"   {method:<7} compiled vs pinocchio backend: max |dq| {diff:.1e}, evaluations "
@@ -391,7 +393,7 @@ def section_process(runs: int) -> dict[str, bool]:
             out[backend] = seconds
     numba = process_time([sys.executable, "-c", "import numba"], runs)
     bare = process_time([sys.executable, "-c", "pass"], runs)
-    print(f"   python -c 'import numba'                   {numba:.3f} s (bare interpreter {bare:.3f} s)")  # fmt: skip
+    print(f"   python -c 'import numba'{'':<19} {numba:.3f} s (bare interpreter {bare:.3f} s)")
     return {
         f"inverse --csv, pinocchio < {TARGET_PROCESS_S:g} s ({out['pinocchio']:.2f} s)": out[
             "pinocchio"

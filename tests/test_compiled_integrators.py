@@ -236,7 +236,9 @@ def test_batch_equals_single_runs(compiled, rng, method):
 
     plants, controllers, q0s, qd0s = _variants(rng, 5)
     # One variant compensates gravity through the kernel (pd_gravity on its own arm).
-    controllers[3] = pd_gravity_controller(rrt_model(plants[3]), (200, 250, 40), (400, 200, 120), plants[3].qf)  # fmt: skip
+    controllers[3] = pd_gravity_controller(
+        rrt_model(plants[3]), (200, 250, 40), (400, 200, 120), plants[3].qf
+    )
     t = SEED_GRID[::10]
     batch = compiled.simulate_batch_compiled(plants, controllers, q0s, qd0s, t, method=method)
     assert batch.q.shape == (5, t.size, 3) and batch.tau.shape == (5, t.size, 3)
@@ -289,7 +291,9 @@ def test_unstable_fixed_step_is_reported(compiled, method):
     stiff = Params(gamma23=1e6, beta23=0.0, m3=1.0)
     t = np.linspace(0.0, 100.0, 1001)
     with pytest.raises(DivergenceError) as info:
-        compiled.simulate_compiled(stiff, seed_controller(stiff), stiff.q0, stiff.qd0, t, method=method)  # fmt: skip
+        compiled.simulate_compiled(
+            stiff, seed_controller(stiff), stiff.q0, stiff.qd0, t, method=method
+        )
     assert 0.0 < info.value.t <= 100.0
     assert info.value.coordinate in ("q1", "q2", "q3", "qd1", "qd2", "qd3")
 

@@ -144,8 +144,10 @@ def _octant(x):
     y = float(j)
     z = ((ax - y * _DP1) - y * _DP2) - y * _DP3
     zz = z * z
-    ps = z + z * zz * (((((_S[0] * zz + _S[1]) * zz + _S[2]) * zz + _S[3]) * zz + _S[4]) * zz + _S[5])  # fmt: skip
-    pc = 1.0 - 0.5 * zz + zz * zz * (((((_C[0] * zz + _C[1]) * zz + _C[2]) * zz + _C[3]) * zz + _C[4]) * zz + _C[5])  # fmt: skip
+    hs = ((((_S[0] * zz + _S[1]) * zz + _S[2]) * zz + _S[3]) * zz + _S[4]) * zz + _S[5]
+    hc = ((((_C[0] * zz + _C[1]) * zz + _C[2]) * zz + _C[3]) * zz + _C[4]) * zz + _C[5]
+    ps = z + z * zz * hs
+    pc = 1.0 - 0.5 * zz + zz * zz * hc
     return j & 7, ps, pc
 
 
