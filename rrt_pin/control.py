@@ -87,11 +87,21 @@ def _states(q: Any, qd: Any, n: int) -> tuple[np.ndarray, np.ndarray]:
     return q, qd
 
 
+#: The fields of Params that the RRT arm's model depends on (not gains, targets, states).
+_PLANT_FIELDS = (
+    "L1", "L2", "m1", "m2", "m3", "I1x", "I1y", "I1z", "I2x", "I2y", "I2z", "I3x", "I3y", "I3z", "g",
+)  # fmt: skip
+
+
+def _seed_model(params: Params) -> pin.Model:
+    return _plant_model(tuple(getattr(params, name) for name in _PLANT_FIELDS))
+
+
 @functools.lru_cache(maxsize=8)
-def _seed_model(plant: Params) -> pin.Model:
+def _plant_model(plant: tuple[float, ...]) -> pin.Model:
     from rrt_pin.model import rrt_model
 
-    return rrt_model(plant)
+    return rrt_model(Params(**dict(zip(_PLANT_FIELDS, plant, strict=True))))
 
 
 @dataclass(frozen=True)

@@ -67,6 +67,9 @@ if TYPE_CHECKING:
 __all__ = [
     "ADAPTIVE_METHODS",
     "BACKENDS",
+    "BATCH_ATOL",
+    "BATCH_METHODS",
+    "BATCH_RTOL",
     "DEFAULT_ATOL",
     "DEFAULT_METHOD",
     "DEFAULT_RTOL",

@@ -121,6 +121,8 @@ def test_gravity_compensation_is_recognised_only_for_the_same_arm(seed_params, s
     assert seed.compensates_gravity_of(seed_model)
     assert seed.compensates_gravity_of(rrt_model(seed_params))
     assert not seed.compensates_gravity_of(rrt_model(seed_params.with_overrides({"m3": 41.0})))
+    tuned = Params(gamma01=1.0, beta23=3.0, q1f=0.2, q20=0.1, I3x=4.5, L1=0.5)
+    assert seed_controller(tuned).compensates_gravity_of(rrt_model(tuned))
     pdg = pd_gravity_controller(seed_model, 1.0, 1.0, [0, 0, 0])
     assert pdg.compensates_gravity_of(seed_model)
     other = rrt_model(seed_params.with_overrides({"g": 9.0}))
