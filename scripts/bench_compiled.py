@@ -393,7 +393,7 @@ def section_process(runs: int) -> dict[str, bool]:
             out[backend] = seconds
     numba = process_time([sys.executable, "-c", "import numba"], runs)
     bare = process_time([sys.executable, "-c", "pass"], runs)
-    print(f"   python -c 'import numba'{'':<19} {numba:.3f} s (bare interpreter {bare:.3f} s)")
+    print(f"   python -c 'import numba'{'':<18} {numba:.3f} s (bare interpreter {bare:.3f} s)")
     return {
         f"inverse --csv, pinocchio < {TARGET_PROCESS_S:g} s ({out['pinocchio']:.2f} s)": out[
             "pinocchio"
