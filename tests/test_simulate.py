@@ -406,3 +406,19 @@ def test_rrt_pin_simulate_calls_even_after_the_module_was_imported():
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "(2, 3) odepack"
+
+
+def test_seed_reference_cache_round_trip(tmp_path, seed_params):
+    first = seed_reference(tf=1.0, dt=0.1, cache_dir=tmp_path)
+    files = list(tmp_path.iterdir())
+    assert len(files) == 1 and files[0].suffix == ".npz"
+    again = seed_reference(tf=1.0, dt=0.1, cache_dir=tmp_path)
+    np.testing.assert_array_equal(again.q, first.q)
+    np.testing.assert_array_equal(again.qd, first.qd)
+    assert again.difference_q == first.difference_q
+    other = seed_reference(
+        seed_params.with_overrides({"m3": 41.0}), tf=1.0, dt=0.1, cache_dir=tmp_path
+    )
+    assert len(list(tmp_path.iterdir())) == 2 and not np.array_equal(other.q, first.q)
+    files[0].write_bytes(b"not an npz")  # a broken cache is recomputed, not an error
+    np.testing.assert_array_equal(seed_reference(tf=1.0, dt=0.1, cache_dir=tmp_path).q, first.q)
