@@ -853,6 +853,10 @@ def _product(powers: np.ndarray, yh: np.ndarray, out: np.ndarray) -> None:
         np.matmul(powers, yh[s : s + width].T, out=out[:, s : s + width])
 
 
+#: Output rows handed to the batch's efforts at a time (a few MB: still cached).
+_ROW_BLOCK = 32
+
+
 def _lsoda_batch(
     f: Callable[[float, np.ndarray], np.ndarray],
     y0: np.ndarray,
@@ -865,17 +869,15 @@ def _lsoda_batch(
 ) -> tuple[np.ndarray, int]:
     """LSODA step by step, interpolating from its Nordsieck history; states (T, len(y0)).
 
-    ``on_rows(Y, rows)`` is called on each new block of output rows while it is
-    still in the cache.
+    ``on_rows(Y, rows)`` is called on each new block of about ``_ROW_BLOCK`` output
+    rows while it is still in the cache.
     """
     from scipy.integrate import LSODA
 
     solver = LSODA(f, t[0], y0, t[-1], rtol=rtol, atol=atol, lband=band, uband=band)
     Y = np.empty((t.size, y0.size))
     Y[0] = y0
-    if on_rows is not None:
-        on_rows(Y, slice(0, 1))
-    k = 1
+    k, done = 1, 0
     while k < t.size:
         message = solver.step()
         bad = np.flatnonzero(~np.isfinite(solver.y))
@@ -896,8 +898,9 @@ def _lsoda_batch(
                 _product(powers, yh, Y[k:j])
             else:  # pragma: no cover - another scipy's dense output
                 Y[k:j] = dense(t[k:j]).T
-            if on_rows is not None:
-                on_rows(Y, slice(k, j))
+            if on_rows is not None and (j - done >= _ROW_BLOCK or j == t.size):
+                on_rows(Y, slice(done, j))
+                done = j
             k = j
     return Y, int(solver.nfev)
 
@@ -1016,8 +1019,8 @@ def simulate_batch(
             if not ok:
                 raise _diagnose(method, f, y0, t, rtol, atol, names, message, width=width)
             if efforts:
-                for i in range(0, t.size, 64):  # blocks of rows that stay in the cache
-                    on_rows(Y, slice(i, i + 64))
+                for i in range(0, t.size, _ROW_BLOCK):  # blocks of rows that stay cached
+                    on_rows(Y, slice(i, i + _ROW_BLOCK))
         Y = Y.reshape(t.size, B, width)
         Q, V = Y[..., :n], Y[..., n:]  # (T, B, n) views
     if method in FIXED_STEP_METHODS:
