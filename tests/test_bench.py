@@ -1,0 +1,96 @@
+"""The benchmark's building blocks, and one quick end-to-end run."""
+
+from __future__ import annotations
+
+import io
+
+import numpy as np
+import pytest
+
+from rrt_pin.bench import BenchRow, Progress, _on_front, median_time, pareto_front, write_rows
+
+
+def test_pareto_front_by_brute_force(rng):
+    times = rng.random(200)
+    errors = rng.random(200)
+    mask = pareto_front(times, errors)
+    for i in range(200):
+        dominated = any(
+            times[j] <= times[i]
+            and errors[j] <= errors[i]
+            and (times[j] < times[i] or errors[j] < errors[i])
+            for j in range(200)
+        )
+        assert mask[i] == (not dominated)
+    assert 1 <= mask.sum() < 200
+
+
+def test_pareto_front_small_cases():
+    assert pareto_front([1, 2, 3], [3, 2, 1]).tolist() == [True, True, True]
+    assert pareto_front([1, 2, 3], [1, 2, 3]).tolist() == [True, False, False]
+    assert pareto_front([1, 1], [2, 2]).tolist() == [True, True]  # ties dominate neither
+
+
+def test_default_is_not_pushed_off_the_front_by_its_own_twin():
+    twin = BenchRow("p", "m", "rtol=1e-09", 0.0010, 500, 1e-10)
+    default = BenchRow("p", "m", "default", 0.0011, 500, 1e-10)
+    slower = BenchRow("p", "x", "rtol=1e-09", 0.0009, 700, 1e-11)
+    assert _on_front(default, [twin, default])
+    assert not _on_front(default, [twin, default, slower])
+
+
+def test_median_time_repeats_until_min_total():
+    calls = []
+    t, result = median_time(lambda: calls.append(1) or len(calls), repeats=3, min_total=0.0)
+    assert len(calls) == 3 and result == 3 and t >= 0.0
+    calls.clear()
+    median_time(lambda: calls.append(1), repeats=1, min_total=1e9, max_repeats=17)
+    assert len(calls) == 17
+
+
+def test_progress_counts_on_a_pipe():
+    out = io.StringIO()
+    p = Progress(2, stream=out)
+    p.step("a")
+    p.step("b")
+    assert out.getvalue() == "[1/2] a\n[2/2] b\n"
+
+
+def test_rows_csv(tmp_path):
+    path = write_rows(
+        tmp_path / "r.csv", [BenchRow("compiled", "DOP853", "rtol=1e-09", 2.5e-4, 740, 8e-10)]
+    )
+    assert path.read_text() == (
+        "backend,method,setting,time_s,n_evals,max_error\ncompiled,DOP853,rtol=1e-09,0.00025,740,8e-10\n"
+    )
+
+
+def test_mpmath_reference_agrees_with_pinocchio(seed_model, seed_params, rng):
+    pytest.importorskip("mpmath")
+    import pinocchio as pin
+
+    from rrt_pin.bench import mpmath_inverse_reference
+    from tests.conftest import random_states
+
+    q, qd, qdd = random_states(rng, 20)
+    ref = mpmath_inverse_reference(q, qd, qdd, seed_params)
+    data = seed_model.createData()
+    tau = np.array(
+        [pin.rnea(seed_model, data, a, b, c) for a, b, c in zip(q, qd, qdd, strict=True)]
+    )
+    np.testing.assert_allclose(tau, ref, rtol=1e-11, atol=1e-9)
+
+
+@pytest.mark.slow
+def test_bench_quick_end_to_end(tmp_path, capsys):
+    from rrt_pin.cli import main
+
+    assert main(["bench", "--quick", "--out", str(tmp_path)]) == 0
+    out, err = capsys.readouterr()
+    assert "Pareto front" in out and "[" in err
+    header = (tmp_path / "work_precision.csv").read_text().splitlines()[0]
+    assert header == "backend,method,setting,time_s,n_evals,max_error"
+    rows = (tmp_path / "work_precision.csv").read_text().splitlines()[1:]
+    assert len(rows) >= 5 * 2
+    for name in ("work_precision.png", "inverse.csv", "energy_drift.csv"):
+        assert (tmp_path / name).stat().st_size > 0
