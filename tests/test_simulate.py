@@ -7,6 +7,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
+import rrt_pin
 from rrt_pin.control import pd_gravity_controller, seed_controller
 from rrt_pin.errors import DivergenceError, InputError
 from rrt_pin.model import load_urdf_model, rrt_model
@@ -362,6 +363,8 @@ def test_compiled_backend_is_dispatched_lazily(monkeypatch, seed_model, seed_par
     fake.available = lambda: True
     fake.simulate_compiled = simulate_compiled
     monkeypatch.setitem(sys.modules, "rrt_pin.compiled", fake)
+    # `from rrt_pin import compiled` reads the package attribute first, once imported.
+    monkeypatch.setattr(rrt_pin, "compiled", fake, raising=False)
     c = seed_controller(seed_params)
     r = simulate(seed_model, c, seed_params.q0, seed_params.qd0, seed_run.t, backend="compiled")
     assert r is seed_run
