@@ -36,8 +36,8 @@ _LAZY = {
     "joint_wrenches": "rrt_pin.wrenches",
     "seed_controller": "rrt_pin.control",
     "pd_gravity_controller": "rrt_pin.control",
-    "simulate": "rrt_pin.simulate",
-    "simulate_batch": "rrt_pin.simulate",
+    "simulate": "rrt_pin.simulation",
+    "simulate_batch": "rrt_pin.simulation",
     "equations_of_motion": "rrt_pin.symbolic",
 }
 

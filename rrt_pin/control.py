@@ -11,7 +11,7 @@ with diagonal gains kp ≥ 0 [N·m/rad or N/m] and kd ≥ 0 [N·m·s/rad or N·s
 a gravity term G: the seed's printed formula (:class:`SeedController`) or
 Pinocchio's generalized gravity of a model (:class:`PDGravityController`). Their
 ``gravity`` and ``pd`` parts are exposed separately so that a simulation can fold
-an exact gravity compensation into the dynamics (see :mod:`rrt_pin.simulate`).
+an exact gravity compensation into the dynamics (see :mod:`rrt_pin.simulation`).
 """
 
 from __future__ import annotations

@@ -4,7 +4,7 @@ A reference run integrates the closed loop at rtol 1e-13 with two unrelated
 methods of scipy's ``solve_ivp`` – DOP853 (explicit Runge–Kutta, order 8) and
 Radau (implicit Runge–Kutta, order 5) – on the plain right-hand side
 ``pin.aba(model, data, q, q̇, controller(q, q̇))`` (no gravity folding, no
-shortcut shared with :mod:`rrt_pin.simulate`), and reports how far the two
+shortcut shared with :mod:`rrt_pin.simulation`), and reports how far the two
 disagree. The DOP853 solution is the reference.
 
 :func:`seed_reference` caches the seed's run in a ``.npz`` file (in

@@ -21,7 +21,7 @@ zero or derive from a potential. Units: q [rad, m], q̇ [rad/s, m/s], p
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -79,6 +79,7 @@ def leapfrog(
     t_eval: np.ndarray,
     step: float,
     efforts: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None,
+    names: Sequence[str] | None = None,
 ) -> LeapfrogResult:
     """Integrate with the canonical Störmer–Verlet method, landing on ``t_eval``.
 
@@ -90,6 +91,7 @@ def leapfrog(
         step: largest step [s]; each interval between output times is split
             into equal steps no longer than this.
         efforts: optional τ(q, q̇) [N·m, N] added to ṗ (zero when None).
+        names: the 2·nv coordinate names used in errors (default q1…, qd1…).
 
     Raises:
         InputError: bad shapes, non-finite values, a non-positive step.
@@ -110,7 +112,8 @@ def leapfrog(
     if not (np.isfinite(step) and step > 0):
         raise InputError(f"step={step!r} must be > 0 [s]")
     data = model.createData()
-    names = [f"q{i + 1}" for i in range(model.nv)]
+    if names is None:
+        names = [f"q{i + 1}" for i in range(model.nv)] + [f"qd{i + 1}" for i in range(model.nv)]
     n_evals = 0
 
     def mass(qq: np.ndarray) -> np.ndarray:
@@ -124,10 +127,15 @@ def leapfrog(
             out = out + np.asarray(efforts(qq, vv), dtype=float)
         return out
 
-    def fail(t: float, x: np.ndarray, what: str) -> None:
+    def fail(t: float, q_: np.ndarray, p_: np.ndarray, what: str) -> None:
+        x = np.concatenate([q_, p_])  # a non-finite momentum is a non-finite velocity
         bad = np.flatnonzero(~np.isfinite(x))
-        coord = names[bad[0]] if bad.size else "all coordinates"
-        raise DivergenceError(t, coord, what)
+        if bad.size:
+            inf = [i for i in bad if np.isinf(x[i])]
+            raise DivergenceError(
+                t, names[(inf or bad)[0]], f"the state became non-finite ({what})"
+            )
+        raise DivergenceError(t, "all coordinates", what)
 
     def converged(new: np.ndarray, old: np.ndarray) -> bool:
         return bool(np.abs(new - old).max() <= TOL * (1.0 + np.abs(new).max()))
@@ -149,29 +157,33 @@ def leapfrog(
                 v0 = np.linalg.solve(M0, ph)
                 new = p + 0.5 * h * dLdq(q, v0)
                 n_evals += 1
+                if not np.isfinite(new).all():
+                    fail(t, q, new, "momentum stage")
                 done = converged(new, ph)
                 ph = new
                 if done:
                     break
             else:
-                fail(t, ph, f"the momentum stage did not converge with step {h!r} s")
+                fail(t, q, ph, f"the momentum stage did not converge with step {h!r} s")
             v0 = np.linalg.solve(M0, ph)
             q1 = q + h * v0
             for _ in range(MAX_ITER):
                 new = q + 0.5 * h * (v0 + np.linalg.solve(mass(q1), ph))
                 n_evals += 1
+                if not np.isfinite(new).all():
+                    fail(t, new, ph, "position stage")
                 done = converged(new, q1)
                 q1 = new
                 if done:
                     break
             else:
-                fail(t, q1, f"the position stage did not converge with step {h!r} s")
+                fail(t, q1, ph, f"the position stage did not converge with step {h!r} s")
             v1 = np.linalg.solve(mass(q1), ph)
             p = ph + 0.5 * h * dLdq(q1, v1)
             n_evals += 1
             q = q1
             if not (np.isfinite(q).all() and np.isfinite(p).all()):
-                fail(t + h, np.concatenate([q, p]), "non-finite state")
+                fail(t + h, q, p, "last kick")
             n_steps += 1
         out_q[k] = q
         out_v[k] = np.linalg.solve(mass(q), p)

@@ -9,7 +9,7 @@ from rrt_pin.control import SeedController, pd_gravity_controller, seed_controll
 from rrt_pin.errors import DivergenceError, InputError
 from rrt_pin.model import rrt_model
 from rrt_pin.params import Params
-from rrt_pin.simulate import BatchResult, simulate, simulate_batch
+from rrt_pin.simulation import BatchResult, simulate, simulate_batch
 
 T = np.linspace(0.0, 15.0, 301)  # [s]
 ACCURACY = 1e-8  # max |q error| of the batch defaults against tight single references
@@ -17,7 +17,7 @@ B = 5
 
 
 def tight_reference(model, controller, q0, qd0, t):
-    """A single run at rtol 1e-13 (scipy DOP853 on pin.aba; nothing from rrt_pin.simulate)."""
+    """A single run at rtol 1e-13 (scipy DOP853 on pin.aba; nothing from rrt_pin.simulation)."""
     data = model.createData()
 
     def f(_t, y):

@@ -10,7 +10,7 @@ from rrt_pin.csvio import read_csv
 from rrt_pin.grid import time_grid
 from rrt_pin.model import load_urdf_model, rrt_model
 from rrt_pin.params import Params
-from rrt_pin.simulate import METHODS, simulate
+from rrt_pin.simulation import METHODS, simulate
 from tests.robots import robot_urdf
 
 HEADER = ["t", "q1", "q2", "q3", "qd1", "qd2", "qd3", "T01x", "T12y", "F23z"]

@@ -42,7 +42,7 @@ def reference():
 
 
 def _scipy_run(params, controller, q0, qd0, t, method, rtol, atol):
-    """solve_ivp on a plain pin.aba right-hand side (independent of rrt_pin.simulate)."""
+    """solve_ivp on a plain pin.aba right-hand side (independent of rrt_pin.simulation)."""
     import pinocchio as pin
     from scipy.integrate import solve_ivp
 
@@ -113,7 +113,7 @@ def test_seed_run_against_the_tight_reference(compiled, reference, seed_params, 
 
 @pytest.mark.parametrize("method", ADAPTIVE + FIXED)
 def test_same_trajectories_as_the_pinocchio_backend(compiled, seed_params, seed_model, method):
-    from rrt_pin.simulate import simulate
+    from rrt_pin.simulation import simulate
 
     ctrl = seed_controller(seed_params)
     args = (ctrl, seed_params.q0, seed_params.qd0, SEED_GRID)
@@ -129,7 +129,7 @@ def test_same_trajectories_as_the_pinocchio_backend(compiled, seed_params, seed_
 
 def test_controller_built_for_another_arm(compiled, seed_params, seed_model):
     """Eq. (31) with wrong masses (model mismatch): the plant is not fully compensated."""
-    from rrt_pin.simulate import simulate
+    from rrt_pin.simulation import simulate
 
     wrong = seed_controller(seed_params.with_overrides({"m2": 50.0, "m3": 45.0}))
     args = (wrong, seed_params.q0, seed_params.qd0, SEED_GRID)
@@ -376,7 +376,7 @@ def test_runs_start_at_the_first_output_time(compiled, seed_params):
 
 
 def test_gains_other_than_the_plants_keep_the_folded_gravity(compiled, seed_params, seed_model):
-    from rrt_pin.simulate import simulate
+    from rrt_pin.simulation import simulate
 
     retuned = seed_controller(seed_params.with_overrides({"gamma01": 500.0, "beta23": 90.0}))
     args = (retuned, seed_params.q0, seed_params.qd0, SEED_GRID)

@@ -13,7 +13,7 @@ from rrt_pin.errors import DivergenceError, InputError
 from rrt_pin.model import load_urdf_model, rrt_model
 from rrt_pin.params import Params
 from rrt_pin.reference import reference_run, seed_reference
-from rrt_pin.simulate import (
+from rrt_pin.simulation import (
     ADAPTIVE_METHODS,
     METHODS,
     SimulationResult,
@@ -36,6 +36,7 @@ METHOD_ACCURACY = {
     "symplectic_euler": 1e-2,
     "rk4": 1e-8,
     "verlet": 1e-4,
+    "leapfrog": 1e-4,
 }
 
 
@@ -164,7 +165,9 @@ def test_each_method_runs_and_converges(method, seed_model, seed_params, referen
         assert r.rtol is None and r.step == pytest.approx(0.01)
 
 
-@pytest.mark.parametrize("method, order", [("symplectic_euler", 1), ("rk4", 4), ("verlet", 2)])
+@pytest.mark.parametrize(
+    "method, order", [("symplectic_euler", 1), ("rk4", 4), ("verlet", 2), ("leapfrog", 2)]
+)
 def test_fixed_step_methods_have_their_order(method, order, seed_model, seed_params):
     t = np.linspace(0.0, 1.0, 11)
     c = seed_controller(seed_params)
@@ -398,12 +401,12 @@ def test_compiled_backend_needs_the_arms_parameters(seed_model, seed_params):
         )
 
 
-def test_rrt_pin_simulate_calls_even_after_the_module_was_imported():
-    """``rrt_pin.simulate`` is the module once imported; calling it still simulates."""
+def test_rrt_pin_simulate_is_the_function_even_after_the_module_was_imported():
+    """The module is ``rrt_pin.simulation``, so importing it never shadows ``rrt_pin.simulate``."""
     import subprocess
 
     code = (
-        "import rrt_pin.simulate, rrt_pin; p = rrt_pin.Params(); "
+        "import rrt_pin.simulation, rrt_pin; p = rrt_pin.Params(); "
         "r = rrt_pin.simulate(rrt_pin.rrt_model(p), rrt_pin.seed_controller(p), p.q0, p.qd0, "
         "[0.0, 0.1]); print(r.q.shape, r.method)"
     )

@@ -24,11 +24,11 @@ if TYPE_CHECKING:
     import pinocchio as pin
 
     from rrt_pin.params import Params
-    from rrt_pin.simulate import SimulationResult
+    from rrt_pin.simulation import SimulationResult
 
 HELP = "direct dynamics under the seed's feedback law, eq. (31) (SI units)"
 
-#: rrt_pin.simulate.METHODS, repeated here so that building the parser imports no
+#: rrt_pin.simulation.METHODS, repeated here so that building the parser imports no
 #: numpy (tests/test_cli_simulate.py checks that the two agree).
 METHODS = (
     "odepack",
@@ -40,8 +40,9 @@ METHODS = (
     "symplectic_euler",
     "rk4",
     "verlet",
+    "leapfrog",
 )
-FIXED_STEP = ("symplectic_euler", "rk4", "verlet")
+FIXED_STEP = ("symplectic_euler", "rk4", "verlet", "leapfrog")
 #: The share of the initial distance to qf inside which a joint counts as settled.
 SETTLING_BAND = 0.02
 
@@ -156,7 +157,7 @@ def run(args: argparse.Namespace) -> int:
     setup = _setup(args, params)
 
     from rrt_pin.grid import time_grid
-    from rrt_pin.simulate import simulate
+    from rrt_pin.simulation import simulate
 
     t = time_grid(_number("--tf", args.tf), _number("--dt", args.dt))
     result = simulate(

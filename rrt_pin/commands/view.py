@@ -349,7 +349,7 @@ def trajectory(
             values = np.asarray(rest_to_rest(q0, qf, Tp, t).q)
         else:
             from rrt_pin.control import seed_controller
-            from rrt_pin.simulate import simulate
+            from rrt_pin.simulation import simulate
 
             result = simulate(model, seed_controller(params), params.q0, params.qd0, t)
             values = np.asarray(result.q)

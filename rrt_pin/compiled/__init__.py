@@ -15,7 +15,7 @@ Public API (SI units throughout):
   :func:`nonlinear_effects`, :func:`coriolis`, :func:`gravity`,
   :func:`inverse_dynamics`, :func:`forward_dynamics`;
 * whole simulations: :func:`simulate_compiled` (the ``backend="compiled"`` of
-  :func:`rrt_pin.simulate.simulate`) and :func:`simulate_batch_compiled` (many
+  :func:`rrt_pin.simulation.simulate`) and :func:`simulate_batch_compiled` (many
   seed variants: gains, targets, initial states and masses per variant);
 * :data:`METHODS`: ``DOP853``, ``RK45`` (adaptive, step by step as SciPy's
   ``solve_ivp``), ``symplectic_euler``, ``rk4``, ``verlet`` (fixed steps, as

@@ -3,8 +3,8 @@
 The integration loop, the controller, the dense output at the requested times
 and the efforts at those times all run in compiled code (see
 :mod:`rrt_pin.compiled._jit_integrators`); Python only validates the inputs
-and wraps the arrays. Results are the same types as :mod:`rrt_pin.simulate`'s
-(:class:`~rrt_pin.simulate.SimulationResult`, :class:`~rrt_pin.simulate.BatchResult`).
+and wraps the arrays. Results are the same types as :mod:`rrt_pin.simulation`'s
+(:class:`~rrt_pin.simulation.SimulationResult`, :class:`~rrt_pin.simulation.BatchResult`).
 
 Methods (:data:`rrt_pin.compiled.METHODS`):
 
@@ -52,7 +52,7 @@ from rrt_pin.params import Params
 if TYPE_CHECKING:
     import pinocchio as pin
 
-    from rrt_pin.simulate import BatchResult, SimulationResult
+    from rrt_pin.simulation import BatchResult, SimulationResult
 
 __all__ = ["DEFAULT_METHOD", "MAX_STEPS", "simulate_batch_compiled", "simulate_compiled"]
 
@@ -114,7 +114,7 @@ def _options(
     step: float | None,
     t: np.ndarray,
 ) -> tuple[str, float | None, float | None, float | None]:
-    from rrt_pin.simulate import DEFAULT_ATOL, DEFAULT_RTOL
+    from rrt_pin.simulation import DEFAULT_ATOL, DEFAULT_RTOL
 
     method = DEFAULT_METHOD if method is None else method
     if method not in METHODS:
@@ -287,7 +287,7 @@ def simulate_compiled(
         t_eval: increasing output times [s]; the run starts at ``t_eval[0]``.
         method: one of :data:`rrt_pin.compiled.METHODS` (default DOP853).
         rtol: relative tolerance of DOP853/RK45 (default that of
-            :func:`rrt_pin.simulate.simulate`, 1e-9).
+            :func:`rrt_pin.simulation.simulate`, 1e-9).
         atol: absolute tolerance [rad, m, rad/s, m/s] (default 1e-11).
         step: longest step of the fixed-step methods [s]; default the shortest
             interval of ``t_eval``.
@@ -303,7 +303,7 @@ def simulate_compiled(
         DivergenceError: the compiled loop reported a failure (time, coordinate).
         ImportError: numba is not installed.
     """
-    from rrt_pin.simulate import SimulationResult
+    from rrt_pin.simulation import SimulationResult
 
     ensure_compiled()
     start = time.perf_counter()
@@ -402,14 +402,14 @@ def simulate_batch_compiled(
         max_steps: step budget of each variant.
 
     Returns:
-        A :class:`~rrt_pin.simulate.BatchResult`: q, qd, tau of shape (B, N, 3);
+        A :class:`~rrt_pin.simulation.BatchResult`: q, qd, tau of shape (B, N, 3);
         ``n_evals`` is the total over the variants.
 
     Raises:
         InputError: bad shapes, values, controllers or options.
         DivergenceError: a variant failed (the message names it and the coordinate).
     """
-    from rrt_pin.simulate import BatchResult
+    from rrt_pin.simulation import BatchResult
 
     ensure_compiled()
     start = time.perf_counter()

@@ -45,9 +45,7 @@ from __future__ import annotations
 
 import math
 import re
-import sys
 import time
-import types
 import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -85,7 +83,9 @@ __all__ = [
 #: Adaptive methods with error control (rtol, atol apply).
 ADAPTIVE_METHODS = ("odepack", "RK45", "DOP853", "LSODA", "Radau", "BDF")
 #: Every method :func:`simulate` accepts.
-METHODS = (*ADAPTIVE_METHODS, *FIXED_STEP_METHODS)
+METHODS = (*ADAPTIVE_METHODS, *FIXED_STEP_METHODS, "leapfrog")
+#: Fixed-step methods: ``step`` applies, rtol and atol do not.
+STEPPED_METHODS = (*FIXED_STEP_METHODS, "leapfrog")
 #: Methods :func:`simulate_batch` accepts (no dense Jacobian of the whole batch).
 BATCH_METHODS = ("odepack", "RK45", "DOP853", *FIXED_STEP_METHODS)
 _IMPLICIT = ("LSODA", "Radau", "BDF")
@@ -341,7 +341,7 @@ def _check_options(
             isinstance(value, (int, float)) and math.isfinite(value) and value > 0
         ):
             raise InputError(f"{name}={value!r} must be a finite number > 0")
-    if method in FIXED_STEP_METHODS:
+    if method in STEPPED_METHODS:
         return None, None, float(step) if step is not None else float(np.diff(t).min())
     return (
         float(rtol) if rtol is not None else defaults[0],
@@ -669,6 +669,11 @@ def simulate(
     if method in FIXED_STEP_METHODS:
         fixed = integrate_fixed_step(method, acc, q0, qd0, t, step, names)
         Q, V, n_evals = fixed.q, fixed.v, fixed.n_evals
+    elif method == "leapfrog":
+        from rrt_pin.symplectic import leapfrog
+
+        run = leapfrog(model, q0, qd0, t, step, efforts=controller, names=names)
+        Q, V, n_evals = run.q, run.qd, run.n_evals
     else:
         f = _first_order(acc, n)
         y0 = np.concatenate((q0, qd0))
@@ -1042,18 +1047,3 @@ def simulate_batch(
         qd_names=qd_names,
         tau_names=effort_names(model),
     )
-
-
-class _CallableModule(types.ModuleType):
-    """This module, callable as :func:`simulate`.
-
-    ``rrt_pin.simulate`` names both this module and (through the package's lazy
-    exports) the function; once anything has imported the module, the package's
-    attribute is the module, so calling it must still simulate.
-    """
-
-    def __call__(self, *args: Any, **kwargs: Any) -> SimulationResult:
-        return simulate(*args, **kwargs)
-
-
-sys.modules[__name__].__class__ = _CallableModule
