@@ -9,12 +9,15 @@ from rrt_pin.params import PARAM_DOCS, Params
 
 __all__ = [
     "add_scene_arguments",
+    "check_urdf_params",
+    "check_writable",
     "finite_float",
     "float_list",
     "nonnegative_float",
     "params_from_args",
     "positive_float",
     "positive_int",
+    "positive_seconds",
 ]
 
 
@@ -103,3 +106,56 @@ def params_from_args(args: argparse.Namespace) -> Params:
     from rrt_pin.scene import resolve_params
 
     return resolve_params(getattr(args, "scene_obj", None), parse_overrides(args.overrides))
+
+
+def positive_seconds(flag: str, value: object) -> float:
+    """A time option (e.g. ``--tf`` from a scene file) as a finite float > 0 [s].
+
+    Raises:
+        InputError: the value is not a finite number > 0.
+    """
+    from rrt_pin.errors import InputError
+
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise InputError(f"{flag}={value!r} must be a finite number [s]")
+    if value <= 0.0:
+        raise InputError(f"{flag}={value!r} must be > 0 [s]")
+    return float(value)
+
+
+def check_writable(path: str, flag: str) -> None:
+    """Fail before any work when an output's folder does not exist or it names a folder.
+
+    Raises:
+        InputError: naming the option and the path.
+    """
+    from pathlib import Path
+
+    from rrt_pin.errors import InputError
+
+    p = Path(path)
+    folder = p.parent if str(p.parent) else Path(".")
+    if not folder.is_dir():
+        raise InputError(f"cannot write {flag} {path!r}: folder {str(folder)!r} does not exist")
+    if p.is_dir():
+        raise InputError(f"cannot write {flag} {path!r}: it is a folder")
+
+
+def check_urdf_params(args: argparse.Namespace, hint: str) -> None:
+    """With ``--urdf`` only g and Tp mean something: refuse the RRT arm's other parameters.
+
+    Raises:
+        InputError: a ``--set`` or scene parameter describes the RRT arm.
+    """
+    from rrt_pin.errors import InputError
+    from rrt_pin.params import parse_overrides
+
+    given = set(parse_overrides(args.overrides))
+    scene = getattr(args, "scene_obj", None)
+    if scene is not None:
+        given |= set(scene.params)
+    unused = sorted(given - {"g", "Tp"})
+    if unused:
+        raise InputError(
+            f"parameter {unused[0]} describes the RRT arm and does not apply to --urdf ({hint})"
+        )

@@ -12,7 +12,15 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from rrt_pin.commands._common import add_scene_arguments, finite_float, float_list, params_from_args
+from rrt_pin.commands._common import (
+    add_scene_arguments,
+    check_urdf_params,
+    check_writable,
+    finite_float,
+    float_list,
+    params_from_args,
+    positive_seconds,
+)
 from rrt_pin.errors import InputError, UrdfError
 
 if TYPE_CHECKING:
@@ -130,7 +138,7 @@ def run(args: argparse.Namespace) -> int:
     job = _Job.from_args(args, params)
     for path, what in ((args.csv, "--csv"), (args.plot, "--plot")):
         if path:
-            _check_writable(path, what)
+            check_writable(path, what)
 
     import numpy as np
 
@@ -139,7 +147,7 @@ def run(args: argparse.Namespace) -> int:
     from rrt_pin.trajectory import rest_to_rest
 
     tf = params.Tp if args.tf is None else args.tf
-    tf, dt = _number("--tf", tf), _number("--dt", args.dt)
+    tf, dt = positive_seconds("--tf", tf), positive_seconds("--dt", args.dt)
     if dt > tf:
         raise InputError(f"--dt={dt!r} is larger than --tf={tf!r} [s]")
     t = time_grid(tf, dt)
@@ -231,7 +239,7 @@ class _Job:
             raise InputError(
                 f"--backend {args.backend} is the RRT arm's kernel; --urdf needs --backend pinocchio"
             )
-        _check_urdf_params(args)
+        check_urdf_params(args, "only g and Tp do")
         from rrt_pin.model import load_urdf_model
 
         model = load_urdf_model(args.urdf)
@@ -301,22 +309,6 @@ def _joint_coordinates(model: pin.Model, path: str) -> tuple[tuple[str, ...], tu
     return tuple(names), tuple(prismatic)
 
 
-def _check_urdf_params(args: argparse.Namespace) -> None:
-    """With --urdf only g and Tp mean something; refuse the RRT arm's other parameters."""
-    from rrt_pin.params import parse_overrides
-
-    given = set(parse_overrides(args.overrides))
-    scene = getattr(args, "scene_obj", None)
-    if scene is not None:
-        given |= set(scene.params)
-    unused = sorted(given - {"g", "Tp"})
-    if unused:
-        raise InputError(
-            f"parameter {unused[0]} describes the RRT arm and does not apply to --urdf "
-            "(only g and Tp do)"
-        )
-
-
 def _ends(
     flag: str,
     value: Any,
@@ -340,26 +332,6 @@ def _ends(
             raise InputError(f"{flag} value {i + 1} ({names[i]}) = {v!r} must be a finite number")
         out.append(float(v))
     return out
-
-
-def _number(flag: str, value: Any) -> float:
-    import math
-
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise InputError(f"{flag}={value!r} must be a finite number [s]")
-    if value <= 0.0:
-        raise InputError(f"{flag}={value!r} must be > 0 [s]")
-    return float(value)
-
-
-def _check_writable(path: str, flag: str) -> None:
-    """Fail before any work when the output's folder does not exist."""
-    p = Path(path)
-    folder = p.parent if str(p.parent) else Path(".")
-    if not folder.is_dir():
-        raise InputError(f"cannot write {flag} {path!r}: folder {str(folder)!r} does not exist")
-    if p.is_dir():
-        raise InputError(f"cannot write {flag} {path!r}: it is a folder")
 
 
 def summary(

@@ -8,14 +8,16 @@ from __future__ import annotations
 
 import argparse
 import sys
-from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from rrt_pin.commands._common import (
     add_scene_arguments,
+    check_urdf_params,
+    check_writable,
     float_list,
     params_from_args,
     positive_float,
+    positive_seconds,
 )
 from rrt_pin.errors import InputError
 
@@ -153,13 +155,13 @@ def run(args: argparse.Namespace) -> int:
     params = params_from_args(args)
     for path, flag in ((args.csv, "--csv"), (args.plot, "--plot")):
         if path:
-            _check_writable(path, flag)
+            check_writable(path, flag)
     setup = _setup(args, params)
 
     from rrt_pin.grid import time_grid
     from rrt_pin.simulation import simulate
 
-    t = time_grid(_number("--tf", args.tf), _number("--dt", args.dt))
+    t = time_grid(positive_seconds("--tf", args.tf), positive_seconds("--dt", args.dt))
     result = simulate(
         setup.model,
         setup.controller,
@@ -233,7 +235,7 @@ def _setup(args: argparse.Namespace, params: Params) -> _Setup:
         raise InputError(
             f"--backend {args.backend} is the RRT arm's kernel; --urdf needs --backend pinocchio"
         )
-    _check_urdf_params(args)
+    check_urdf_params(args, "only g does; use --q0, --qd0, --qf, --kp, --kd")
     model = load_urdf_model(args.urdf)
     model.gravity.linear[:] = (0.0, 0.0, -params.g)
     given = (("--q0", args.q0), ("--qf", args.qf), ("--kp", args.kp), ("--kd", args.kd))
@@ -268,42 +270,6 @@ def _values(flag: str, value: list[float], n: int, gain: bool = False) -> list[f
             if v < 0.0:
                 raise ParameterError(f"{flag}[{i}]", v, "gain must be >= 0")
     return list(value)
-
-
-def _check_urdf_params(args: argparse.Namespace) -> None:
-    """With --urdf only g (and Tp, unused here) mean something; refuse the arm's others."""
-    from rrt_pin.params import parse_overrides
-
-    given = set(parse_overrides(args.overrides))
-    scene = getattr(args, "scene_obj", None)
-    if scene is not None:
-        given |= set(scene.params)
-    unused = sorted(given - {"g", "Tp"})
-    if unused:
-        raise InputError(
-            f"parameter {unused[0]} describes the RRT arm and does not apply to --urdf "
-            "(only g does; use --q0, --qd0, --qf, --kp, --kd)"
-        )
-
-
-def _number(flag: str, value: Any) -> float:
-    import math
-
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise InputError(f"{flag}={value!r} must be a finite number [s]")
-    if value <= 0.0:
-        raise InputError(f"{flag}={value!r} must be > 0 [s]")
-    return float(value)
-
-
-def _check_writable(path: str, flag: str) -> None:
-    """Fail before any work when the output's folder does not exist."""
-    p = Path(path)
-    folder = p.parent if str(p.parent) else Path(".")
-    if not folder.is_dir():
-        raise InputError(f"cannot write {flag} {path!r}: folder {str(folder)!r} does not exist")
-    if p.is_dir():
-        raise InputError(f"cannot write {flag} {path!r}: it is a folder")
 
 
 def settling_times(
