@@ -85,7 +85,7 @@ def test_summary_without_csv(capsys, seed_csv):
 def test_wrench_columns(tmp_path, capsys, seed_params):
     path = tmp_path / "w.csv"
     code, out, err = run(["inverse", "--wrenches", "--dt", "0.01", "--csv", str(path)], capsys)
-    assert code == 0 and out == "" and err == f"wrote {path}\n"
+    assert code == 0 and out == "" and err == f"wrote {path} (backend pinocchio)\n"
     header, data = read_csv(path)
     assert header == HEADER.split(",") + list(RRT_WRENCH_COLUMNS)
     p = seed_params
@@ -382,7 +382,7 @@ def test_subprocess_csv_imports_only_what_it_needs(tmp_path):
     assert "pinocchio" in imported
     for heavy in ("meshcat", "sympy", "matplotlib", "numba", "selenium", "scipy"):
         assert heavy not in imported, heavy
-    assert proc.stderr.splitlines()[-1] == f"wrote {out}"
+    assert proc.stderr.splitlines()[-1] == f"wrote {out} (backend pinocchio)"
     assert out.read_text().count("\n") == 15002
 
 

@@ -25,7 +25,9 @@ def run(argv, capsys):
 def test_csv_contract(tmp_path, capsys):
     target = tmp_path / "run.csv"
     code, out, err = run(["simulate", "--csv", str(target)], capsys)
-    assert code == 0 and out == "" and err == f"wrote {target}\n"
+    assert (
+        code == 0 and out == "" and err == f"wrote {target} (method odepack, backend pinocchio)\n"
+    )
     assert target.read_text().splitlines()[0] == ",".join(HEADER)
     header, data = read_csv(target, HEADER)
     assert header == HEADER and data.shape == (1501, 10)
@@ -183,3 +185,18 @@ def test_scene_options(tmp_path, capsys):
     code, out, _ = run(["simulate", "--scene", str(scene)], capsys)
     assert code == 0
     assert "t = 0 .. 3 s, method DOP853" in out.splitlines()[0]
+
+
+@pytest.mark.parametrize("command", ["simulate", "inverse"])
+def test_a_failed_csv_write_removes_the_plot_too(command, tmp_path, capsys, monkeypatch):
+    import rrt_pin.io
+
+    def broken(path, text):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(rrt_pin.io, "atomic_write_text", broken)
+    png, csv = tmp_path / "p.png", tmp_path / "r.csv"
+    code = main([command, "--tf", "1", "--csv", str(csv), "--plot", str(png)])
+    err = capsys.readouterr().err
+    assert code == 2 and err.strip().endswith("No space left on device")
+    assert list(tmp_path.iterdir()) == []

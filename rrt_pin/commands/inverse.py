@@ -186,7 +186,7 @@ def run(args: argparse.Namespace) -> int:
             if args.plot:
                 Path(args.plot).unlink(missing_ok=True)
             raise InputError(f"cannot write --csv {args.csv!r}: {e.strerror or e}") from e
-        print(f"wrote {args.csv}", file=sys.stderr)
+        print(f"wrote {args.csv} (backend {args.backend})", file=sys.stderr)
     else:
         sys.stdout.write(summary(job, traj.t, tau, args.backend, dt, wrenches))
     return 0

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from rrt_pin.commands._common import (
@@ -174,17 +175,26 @@ def run(args: argparse.Namespace) -> int:
         backend=args.backend,
         step=args.dt if args.method in FIXED_STEP else None,
     )
+    text = None
+    if args.csv:
+        from rrt_pin.csvio import csv_text
+
+        text = csv_text(result.header, result.table())  # format first: a failure writes nothing
     if args.plot:
         _plot(args.plot, setup, result)
         print(f"wrote {args.plot}", file=sys.stderr)
-    if args.csv:
-        from rrt_pin.csvio import write_csv
+    if text is not None:
+        from rrt_pin.io import atomic_write_text
 
         try:
-            write_csv(args.csv, result.header, result.table())
+            atomic_write_text(args.csv, text)
         except OSError as e:
+            if args.plot:
+                Path(args.plot).unlink(missing_ok=True)
             raise InputError(f"cannot write --csv {args.csv!r}: {e.strerror or e}") from e
-        print(f"wrote {args.csv}", file=sys.stderr)
+        print(
+            f"wrote {args.csv} (method {result.method}, backend {result.backend})", file=sys.stderr
+        )
     else:
         sys.stdout.write(summary(setup, result))
     return 0
