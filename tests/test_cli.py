@@ -101,3 +101,44 @@ def test_import_is_light():
     code = "import sys, rrt_pin, rrt_pin.cli; print(sorted(m for m in ('pinocchio', 'numpy', 'meshcat', 'sympy', 'matplotlib', 'numba') if m in sys.modules))"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]"
+
+
+@pytest.mark.parametrize(
+    "requested, rrt, built, expected",
+    [
+        ("auto", True, True, "compiled"),
+        ("auto", True, False, "pinocchio"),
+        ("auto", False, True, "pinocchio"),  # another URDF: only Pinocchio knows it
+        ("pinocchio", True, True, "pinocchio"),
+        ("symbolic", True, False, "symbolic"),
+    ],
+)
+def test_auto_backend_picks_compiled_only_when_built(monkeypatch, requested, rrt, built, expected):
+    import rrt_pin.compiled as compiled
+    from rrt_pin.commands._common import resolve_backend
+
+    monkeypatch.setattr(compiled, "is_compiled", lambda: built)
+    loads = []
+    monkeypatch.setattr(compiled, "ensure_compiled", lambda: loads.append(1) or _FakeReport())
+    assert resolve_backend(requested, rrt) == expected
+    assert loads == ([1] if expected == "compiled" else [])
+
+
+class _FakeReport:
+    def describe(self) -> str:
+        return "compiled backend loaded from the cache in 0.01 s"
+
+
+def test_compiled_backend_without_numba_is_one_line(monkeypatch, capsys):
+    import rrt_pin.compiled as compiled
+
+    def missing():
+        raise ImportError("numba not found: pip install rrt-pin[fast]")
+
+    monkeypatch.setattr(compiled, "ensure_compiled", missing)
+    assert main(["simulate", "--backend", "compiled"]) == 2
+    err = capsys.readouterr().err
+    assert (
+        err
+        == "rrt-pin: error: backend 'compiled' is not available: numba not found: pip install rrt-pin[fast]\n"
+    )

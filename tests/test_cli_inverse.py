@@ -342,7 +342,7 @@ def test_compiled_backend_is_wired(capsys, monkeypatch):
     monkeypatch.setitem(sys.modules, "rrt_pin.compiled", None)  # makes the import fail
     monkeypatch.delattr(rrt_pin, "compiled", raising=False)
     code, out, err = run(["inverse", "--backend", "compiled", "--dt", "0.5"], capsys)
-    assert code == 2 and out == "" and "backend='compiled' is unavailable" in err
+    assert code == 2 and out == "" and "backend 'compiled' is not available" in err
 
     class Fake:
         calls = 0
@@ -350,6 +350,14 @@ def test_compiled_backend_is_wired(capsys, monkeypatch):
         @staticmethod
         def available():
             return True
+
+        @staticmethod
+        def ensure_compiled():
+            class Report:
+                def describe(self):
+                    return "compiled backend loaded from the cache in 0.01 s"
+
+            return Report()
 
         @staticmethod
         def inverse_dynamics(q, qd, qdd, params):
@@ -360,6 +368,7 @@ def test_compiled_backend_is_wired(capsys, monkeypatch):
     monkeypatch.setattr(rrt_pin, "compiled", Fake, raising=False)
     code, out, err = run(["inverse", "--backend", "compiled", "--dt", "0.5"], capsys)
     assert code == 0 and Fake.calls == 1 and "backend compiled" in out and "7 N·m" in out
+    assert err == "rrt-pin: compiled backend loaded from the cache in 0.01 s\n"
 
 
 def run_process(args, cwd):

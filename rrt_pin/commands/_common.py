@@ -159,3 +159,38 @@ def check_urdf_params(args: argparse.Namespace, hint: str) -> None:
         raise InputError(
             f"parameter {unused[0]} describes the RRT arm and does not apply to --urdf ({hint})"
         )
+
+
+def resolve_backend(requested: str, rrt: bool) -> str:
+    """The backend a run uses, loading the compiled one first so its cost is reported apart.
+
+    ``auto`` picks ``compiled`` only for the RRT arm and only when its machine
+    code is already built (in this process or in the disk cache, checked
+    without importing numba); otherwise ``pinocchio``. With ``compiled``,
+    importing numba and loading (or compiling) the code happens here, and one
+    line on stderr says how long it took, so that the run's own time excludes it.
+
+    Raises:
+        InputError: ``compiled`` was asked for but numba is missing.
+    """
+    import sys
+
+    from rrt_pin.errors import InputError
+
+    if requested == "auto":
+        try:
+            from rrt_pin import compiled
+
+            built = rrt and compiled.is_compiled()
+        except ImportError:
+            built = False
+        requested = "compiled" if built else "pinocchio"
+    if requested == "compiled":
+        try:
+            from rrt_pin import compiled
+
+            report = compiled.ensure_compiled()
+        except ImportError as e:
+            raise InputError(f"backend 'compiled' is not available: {e}") from e
+        print(f"rrt-pin: {report.describe()}", file=sys.stderr)
+    return requested

@@ -20,6 +20,7 @@ from rrt_pin.commands._common import (
     float_list,
     params_from_args,
     positive_seconds,
+    resolve_backend,
 )
 from rrt_pin.errors import InputError, UrdfError
 
@@ -104,10 +105,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--backend",
-        choices=("pinocchio", "symbolic", "compiled"),
+        choices=("pinocchio", "symbolic", "compiled", "auto"),
         default="pinocchio",
         help="pinocchio: batched RNEA, any model (default); symbolic: the generated numpy "
-        "kernel of the RRT arm; compiled: its numba version",
+        "kernel of the RRT arm; compiled: its numba version (loading it costs ~1 s per "
+        "process, more than it saves here; reported on stderr); auto: compiled only when "
+        "its code is already built, else pinocchio",
     )
     parser.add_argument(
         "--urdf",
@@ -135,6 +138,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     """Compute the efforts (and wrenches) and write or summarise them."""
     params = params_from_args(args)
+    args.backend = resolve_backend(args.backend, rrt=args.urdf is None)
     job = _Job.from_args(args, params)
     for path, what in ((args.csv, "--csv"), (args.plot, "--plot")):
         if path:

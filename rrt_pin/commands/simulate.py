@@ -19,6 +19,7 @@ from rrt_pin.commands._common import (
     params_from_args,
     positive_float,
     positive_seconds,
+    resolve_backend,
 )
 from rrt_pin.errors import InputError
 
@@ -106,9 +107,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--backend",
-        choices=("pinocchio", "compiled"),
+        choices=("pinocchio", "compiled", "auto"),
         default="pinocchio",
-        help="pinocchio: ABA, any model (default); compiled: the numba kernel of the RRT arm",
+        help="pinocchio: ABA, any model (default); compiled: the numba kernel of the RRT "
+        "arm (loading it costs ~1 s per process, compiling it ~15 s once, both reported on "
+        "stderr; a run then takes ~0.2 ms instead of ~3 ms); auto: compiled only when its "
+        "code is already built, else pinocchio",
     )
     parser.add_argument(
         "--urdf",
@@ -157,6 +161,7 @@ def run(args: argparse.Namespace) -> int:
     for path, flag in ((args.csv, "--csv"), (args.plot, "--plot")):
         if path:
             check_writable(path, flag)
+    args.backend = resolve_backend(args.backend, rrt=args.urdf is None)
     setup = _setup(args, params)
 
     from rrt_pin.grid import time_grid
