@@ -920,7 +920,7 @@ def simulate_batch(
     rtol: float | None = None,
     atol: float | None = None,
     step: float | None = None,
-    threads: int = 1,
+    threads: int | None = None,
     efforts: bool = True,
 ) -> BatchResult:
     """Simulate B variants of one model at once, as one vectorized state.
@@ -943,8 +943,10 @@ def simulate_batch(
         rtol: relative tolerance (default 1e-8).
         atol: absolute tolerance (default 1e-9) [rad, m, rad/s, m/s].
         step: longest step of the fixed-step methods [s].
-        threads: OpenMP threads of ``pin.abaInParallel`` (1 by default: extra
-            threads pay only on otherwise idle cores).
+        threads: OpenMP threads of ``pin.abaInParallel``; default: the CPUs
+            available (as :func:`rrt_pin.inverse.default_num_threads`, capped by
+            ``OMP_NUM_THREADS``). Extra threads pay only on otherwise idle
+            cores: pass 1 on a busy machine.
         efforts: also compute the applied efforts at every output time.
 
     Returns:
@@ -975,6 +977,10 @@ def simulate_batch(
     if method not in BATCH_METHODS:
         raise InputError(f"method={method!r} is not one of {', '.join(BATCH_METHODS)} for a batch")
     rtol, atol, step = _check_options(method, rtol, atol, step, t, (BATCH_RTOL, BATCH_ATOL))
+    if threads is None:
+        from rrt_pin.inverse import default_num_threads
+
+        threads = default_num_threads()
     if isinstance(threads, bool) or not isinstance(threads, int) or threads < 1:
         raise InputError(f"threads={threads!r} must be an integer >= 1")
     for i, c in enumerate(controllers):

@@ -33,6 +33,7 @@ import pinocchio as pin
 from scipy.integrate import solve_ivp
 
 from rrt_pin.control import SeedController, seed_controller
+from rrt_pin.inverse import default_num_threads
 from rrt_pin.model import rrt_model
 from rrt_pin.params import Params
 from rrt_pin.reference import reference_run, seed_reference
@@ -162,7 +163,12 @@ def main() -> int:
     ap.add_argument("--batch", type=int, default=1000, help="variants in the batch (0: skip)")
     ap.add_argument("--baseline-runs", type=int, default=20, help="baseline runs for the estimate")
     ap.add_argument("--batch-repeat", type=int, default=3, help="rounds of the batch (median)")
-    ap.add_argument("--threads", type=int, default=1, help="threads of pin.abaInParallel")
+    ap.add_argument(
+        "--threads",
+        type=int,
+        default=None,
+        help="threads of pin.abaInParallel (default: simulate_batch's, the CPUs available)",
+    )
     args = ap.parse_args()
 
     p = Params()
@@ -208,7 +214,8 @@ def main() -> int:
     rounds = max(1, args.batch_repeat)
     per_round = -(-max(1, min(args.baseline_runs, B)) // rounds)
     print(
-        f"\nbatch of {B} seed variants (gains x0.8..1.25, q0 +-0.1), threads={args.threads}; "
+        f"\nbatch of {B} seed variants (gains x0.8..1.25, q0 +-0.1), "
+        f"threads={args.threads or default_num_threads()}; "
         f"{rounds} rounds, each: the baseline on {per_round} variants, then each batch row once"
     )
     batch_rows = [
@@ -221,13 +228,12 @@ def main() -> int:
             lambda: _batch(model, controllers, q0s, qd0s, t, args.threads, True),
         ),
     ]
-    if args.threads == 1:
-        batch_rows.append(
-            Row(
-                "simulate_batch() states, threads=2",
-                lambda: _batch(model, controllers, q0s, qd0s, t, 2, False),
-            )
+    batch_rows.append(
+        Row(
+            "simulate_batch() states, threads=1",
+            lambda: _batch(model, controllers, q0s, qd0s, t, 1, False),
         )
+    )
     batch_rows += compiled_batch_rows(model, controllers, q0s, qd0s, t)
     base_times: list[float] = []
     results = {}
