@@ -424,48 +424,50 @@ def plot_work_precision(
     from rrt_pin.io import atomic_write
 
     ok = [r for r in rows if np.isfinite(r.time_s) and np.isfinite(r.max_error) and r.max_error > 0]
-    fig, ax = plt.subplots(figsize=(9, 6))
+    fig, ax = plt.subplots(figsize=(12, 6.5))
     groups: dict[tuple[str, str], list[BenchRow]] = {}
     for r in ok:
         groups.setdefault((r.backend, r.method), []).append(r)
-    markers = "os^vD<>ph*X"
-    for i, ((backend, method), rs) in enumerate(sorted(groups.items())):
+    methods = sorted({m for _, m in groups})
+    colours = {m: plt.get_cmap("tab10")(i % 10) for i, m in enumerate(methods)}
+    markers = {m: "os^vD<>ph*X"[i % 11] for i, m in enumerate(methods)}
+    for (backend, method), rs in sorted(groups.items()):
         rs = sorted(rs, key=lambda r: r.time_s)
-        style = "-" if backend == "pinocchio" else "--"
         ax.plot(
             [r.time_s for r in rs],
             [r.max_error for r in rs],
-            style,
-            marker=markers[i % len(markers)],
+            "-" if backend == "pinocchio" else "--",
+            color=colours[method],
+            marker=markers[method],
+            markerfacecolor=colours[method] if backend == "pinocchio" else "white",
             label=f"{method} ({backend})",
-            alpha=0.8,
+            alpha=0.85,
         )
-    front = [
-        r
-        for r, keep in zip(
-            ok, pareto_front([r.time_s for r in ok], [r.max_error for r in ok]), strict=True
-        )
-        if keep
-    ]
-    front.sort(key=lambda r: r.time_s)
-    if front:
-        ax.step(
-            [r.time_s for r in front],
-            [r.max_error for r in front],
-            where="post",
-            color="k",
-            linewidth=2.5,
-            alpha=0.35,
-            label="Pareto front",
-        )
+
+    def draw_front(subset: list[BenchRow], **style: object) -> None:
+        keep = pareto_front([r.time_s for r in subset], [r.max_error for r in subset])
+        front = sorted((r for r, k in zip(subset, keep, strict=True) if k), key=lambda r: r.time_s)
+        if front:
+            ax.step([r.time_s for r in front], [r.max_error for r in front], where="post", **style)
+
+    every = [*ok, *defaults]
+    draw_front(every, color="k", linewidth=3, alpha=0.3, label="Pareto front, all")
+    draw_front(
+        [r for r in every if r.backend == "pinocchio"],
+        color="k",
+        linewidth=1.2,
+        linestyle=":",
+        label="Pareto front, pinocchio",
+    )
     for d, colour in zip(defaults, ("k", "r"), strict=False):
         ax.plot(
             [d.time_s],
             [d.max_error],
             "*",
             color=colour,
-            markersize=16,
-            label=f"default, backend {d.backend} ({d.method})",
+            markersize=18,
+            markeredgecolor="white",
+            label=f"simulate() default, {d.backend} ({d.method})",
         )
     ax.set_xscale("log")
     ax.set_yscale("log")
@@ -473,7 +475,7 @@ def plot_work_precision(
     ax.set_ylabel("max |q − q_ref| over 0..15 s [rad, m]")
     ax.set_title("Work–precision of the seed's direct dynamics (eq. 31)")
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=7, ncol=2, loc="upper right")
+    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     fig.tight_layout()
     try:
         return atomic_write(path, lambda fh: fig.savefig(fh, format="png", dpi=110))
