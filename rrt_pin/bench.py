@@ -243,6 +243,8 @@ RTOLS = (1e-4, 1e-6, 1e-8, 1e-10, 1e-12)
 STEPS = (1e-2, 5e-3, 2e-3, 1e-3, 5e-4)
 QUICK_RTOLS = (1e-6, 1e-9, 1e-12)
 QUICK_STEPS = (1e-2, 2e-3)
+#: Shortest burst of repeated calls timed as one sample [s].
+BURST = 0.005
 
 
 def _settings(method: str, quick: bool) -> list[tuple[str, dict]]:
@@ -301,49 +303,66 @@ def direct_work_precision(
                 continue  # scipy's Fortran and implicit loops have no compiled twin
             for setting, kw in _settings(method, quick):
                 plan.append((backend, method, setting, kw))
-    if progress is not None:
-        progress.total += len(plan) + len(backends)
-
-    def measure(backend: str, method: str, kw: dict) -> tuple[float, int, float]:
-        def run():
-            return simulate(
-                model, ctrl, p.q0, p.qd0, t, method=method, backend=backend, params=p, **kw
-            )
-
-        if backend == "compiled":
-            run()  # compile (or load the cache) before timing
-        elapsed, res = median_time(run, repeats, min_total=0.05 * repeats)
-        return elapsed, int(res.n_evals), float(np.abs(res.q - ref.q).max())
-
-    measure("pinocchio", "RK45", {"rtol": 1e-3, "atol": 1e-5})  # warm imports and caches
-    rows = []
-    for backend, method, setting, kw in plan:
-        try:
-            elapsed, n_evals, err = measure(backend, method, kw)
-        except Exception as e:  # a failing configuration is a result too
-            from rrt_pin.errors import RrtPinError
-
-            if not isinstance(e, RrtPinError):
-                raise
-            elapsed, n_evals, err = float("nan"), 0, float("inf")
-        rows.append(BenchRow(backend, method, setting, elapsed, n_evals, err))
-        if progress is not None:
-            progress.step(
-                f"direct {backend} {method} {setting}: {elapsed * 1e3:.3g} ms, error {err:.2g}"
-            )
+    from rrt_pin.errors import RrtPinError
     from rrt_pin.simulation import DEFAULT_ATOL, DEFAULT_METHOD, DEFAULT_RTOL
 
-    defaults = []
     for backend in backends:
         if backend == "compiled" and not have_compiled:
             continue
         method = DEFAULT_METHOD
         if backend == "compiled":
             from rrt_pin.compiled.integrate import DEFAULT_METHOD as method
-        e, n, er = measure(backend, method, {"rtol": DEFAULT_RTOL, "atol": DEFAULT_ATOL})
-        defaults.append(BenchRow(backend, method, f"default rtol={DEFAULT_RTOL:.0e}", e, n, er))
+        kw = {"rtol": DEFAULT_RTOL, "atol": DEFAULT_ATOL}
+        plan.append((backend, method, f"default rtol={DEFAULT_RTOL:.0e}", kw))
+    rounds = max(1, repeats)
+    if progress is not None:
+        progress.total += len(plan) + rounds
+
+    def runner(backend: str, method: str, kw: dict) -> Callable[[], object]:
+        return lambda: simulate(
+            model, ctrl, p.q0, p.qd0, t, method=method, backend=backend, params=p, **kw
+        )
+
+    runner("pinocchio", "RK45", {"rtol": 1e-3, "atol": 1e-5})()  # warm imports and caches
+    # One run of each configuration first: its cost and error (both deterministic), and
+    # compilation or cache loading out of the way. Then rounds that time every
+    # configuration once each, so that slow drifts of the machine hit all of them alike;
+    # sub-millisecond runs are timed in bursts of at least BURST seconds.
+    first: dict[int, tuple[float, int, float]] = {}
+    for i, (backend, method, setting, kw) in enumerate(plan):
+        try:
+            t0 = time.perf_counter()
+            res = runner(backend, method, kw)()
+            first[i] = (
+                time.perf_counter() - t0,
+                int(res.n_evals),
+                float(np.abs(res.q - ref.q).max()),
+            )
+        except RrtPinError:  # a failing configuration is a result too
+            pass
         if progress is not None:
-            progress.step(f"direct {backend} default ({method}): {e * 1e3:.3g} ms, error {er:.2g}")
+            err = first[i][2] if i in first else float("inf")
+            progress.step(f"direct {backend} {method} {setting}: error {err:.2g}")
+    times: dict[int, list[float]] = {i: [] for i in first}
+    for k in range(rounds):
+        for i in first:
+            backend, method, _, kw = plan[i]
+            fn = runner(backend, method, kw)
+            burst = max(1, min(200, int(BURST / max(first[i][0], 1e-6))))
+            t0 = time.perf_counter()
+            for _ in range(burst):
+                fn()
+            times[i].append((time.perf_counter() - t0) / burst)
+        if progress is not None:
+            progress.step(f"direct timing round {k + 1}/{rounds}")
+    rows, defaults = [], []
+    for i, (backend, method, setting, _) in enumerate(plan):
+        if i in first:
+            _, n_evals, err = first[i]
+            row = BenchRow(backend, method, setting, statistics.median(times[i]), n_evals, err)
+        else:
+            row = BenchRow(backend, method, setting, float("nan"), 0, float("inf"))
+        (defaults if setting.startswith("default") else rows).append(row)
     return rows, defaults, ref.difference_q
 
 
