@@ -111,3 +111,21 @@ def test_crba_equals_rnea_columns_at_1000_states(seed_model, rng):
         M = _full(pin.crba(seed_model, data, qi))
         cols = np.column_stack([pin.rnea(gravity_off, data0, qi, zero, e) for e in np.eye(3)])
         assert np.abs(M - cols).max() <= 1e-12 * np.abs(M).max()
+
+
+def test_symbolic_kernel_equals_pinocchio_at_1000_states(seed_model, seed_params, rng):
+    from rrt_pin import kernel
+
+    data = seed_model.createData()
+    q, qd, qdd = random_states(rng, N_RANDOM)
+    tau = rng.normal(size=(N_RANDOM, 3)) * 500.0
+    M = kernel.mass_matrix(q, seed_params)
+    id_k = kernel.inverse_dynamics(q, qd, qdd, seed_params)
+    fd_k = kernel.forward_dynamics(q, qd, tau, seed_params)
+    for i in range(N_RANDOM):
+        M_p = _full(pin.crba(seed_model, data, q[i]))
+        assert np.abs(M[i] - M_p).max() <= 1e-12 * np.abs(M_p).max()
+        id_p = pin.rnea(seed_model, data, q[i], qd[i], qdd[i])
+        assert np.abs(id_k[i] - id_p).max() <= 1e-12 * max(1.0, np.abs(id_p).max())
+        fd_p = pin.aba(seed_model, data, q[i], qd[i], tau[i])
+        assert np.abs(fd_k[i] - fd_p).max() <= 1e-12 * max(1.0, np.abs(fd_p).max())
