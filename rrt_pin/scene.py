@@ -17,14 +17,18 @@ Precedence: the seed's values < the scene file < ``--set`` and explicit flags.
 from __future__ import annotations
 
 import math
+import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import tomllib
-
 from rrt_pin.errors import SceneError
 from rrt_pin.params import PARAM_DOCS, Params, param_names, parse_number
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - Python 3.10
+    import tomli as tomllib
 
 __all__ = ["Scene", "load_scene", "resolve_params"]
 
