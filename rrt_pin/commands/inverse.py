@@ -138,11 +138,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     """Compute the efforts (and wrenches) and write or summarise them."""
     params = params_from_args(args)
-    args.backend = resolve_backend(args.backend, rrt=args.urdf is None)
-    job = _Job.from_args(args, params)
     for path, what in ((args.csv, "--csv"), (args.plot, "--plot")):
         if path:
             check_writable(path, what)
+    args.backend = resolve_backend(args.backend, rrt=args.urdf is None)
+    job = _Job.from_args(args, params)
 
     import numpy as np
 

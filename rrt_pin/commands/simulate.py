@@ -161,13 +161,15 @@ def run(args: argparse.Namespace) -> int:
     for path, flag in ((args.csv, "--csv"), (args.plot, "--plot")):
         if path:
             check_writable(path, flag)
+    from rrt_pin.grid import time_grid
+
+    # Cheap checks first: loading the compiled backend costs about a second.
+    t = time_grid(positive_seconds("--tf", args.tf), positive_seconds("--dt", args.dt))
     args.backend = resolve_backend(args.backend, rrt=args.urdf is None)
     setup = _setup(args, params)
 
-    from rrt_pin.grid import time_grid
     from rrt_pin.simulation import simulate
 
-    t = time_grid(positive_seconds("--tf", args.tf), positive_seconds("--dt", args.dt))
     result = simulate(
         setup.model,
         setup.controller,
