@@ -1,4 +1,4 @@
-"""rrt-pin: rigid-body dynamics of the RRT arm (and any URDF) with Pinocchio.
+"""rrt-pin: rigid-body dynamics of the chapter's RRT arm (and any URDF) with Pinocchio.
 
 SI units everywhere: s, m, rad, kg, N, N·m. ``import rrt_pin`` is cheap: the
 names below are imported on first use (PEP 562), so the library never pulls in
@@ -20,6 +20,7 @@ from rrt_pin.errors import (
     UrdfError,
     ViewerError,
 )
+from rrt_pin._version import __version__
 from rrt_pin.params import Params
 
 _LAZY = {
@@ -32,14 +33,25 @@ _LAZY = {
     "load_scene": "rrt_pin.scene",
     "resolve_params": "rrt_pin.scene",
     "rest_to_rest": "rrt_pin.trajectory",
+    "RestToRest": "rrt_pin.trajectory",
+    "Trajectory": "rrt_pin.trajectory",
+    "time_grid": "rrt_pin.grid",
     "inverse_dynamics": "rrt_pin.inverse",
     "joint_wrenches": "rrt_pin.wrenches",
-    "seed_controller": "rrt_pin.control",
+    "Robot": "rrt_pin.robot",
+    "chapter_arm": "rrt_pin.robots",
+    "Controller": "rrt_pin.control",
+    "chapter_controller": "rrt_pin.control",
     "pd_gravity_controller": "rrt_pin.control",
-    "simulate": "rrt_pin.simulation",
-    "simulate_batch": "rrt_pin.simulation",
+    "tracking_controller": "rrt_pin.control",
+    "seed_controller": "rrt_pin.control",  # deprecated name of chapter_controller
+    "simulate_batch": "rrt_pin.simulate.api",
+    "SimulationResult": "rrt_pin.simulate.results",
+    "BatchResult": "rrt_pin.simulate.results",
     "equations_of_motion": "rrt_pin.symbolic",
 }
+#: Subpackages and modules reachable as attributes (``rrt_pin.simulate`` is callable).
+_MODULES = ("simulate", "robots", "methods", "backends", "control", "compiled")
 
 __all__ = [
     "DivergenceError",
@@ -50,11 +62,15 @@ __all__ = [
     "SceneError",
     "UrdfError",
     "ViewerError",
+    "__version__",
     *_LAZY,
+    *_MODULES,
 ]
 
 
 def __getattr__(name: str) -> Any:
+    if name in _MODULES:
+        return importlib.import_module(f"rrt_pin.{name}")
     module = _LAZY.get(name)
     if module is None:
         raise AttributeError(f"module 'rrt_pin' has no attribute {name!r}")

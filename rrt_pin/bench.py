@@ -248,7 +248,9 @@ BURST = 0.005
 
 
 def _settings(method: str, quick: bool) -> list[tuple[str, dict]]:
-    from rrt_pin.simulation import ADAPTIVE_METHODS
+    from rrt_pin.methods import names
+
+    ADAPTIVE_METHODS = names(adaptive=True)
 
     if method in ADAPTIVE_METHODS:
         return [
@@ -277,7 +279,8 @@ def direct_work_precision(
     from rrt_pin.model import rrt_model
     from rrt_pin.params import Params
     from rrt_pin.reference import seed_reference
-    from rrt_pin.simulation import METHODS, simulate
+    from rrt_pin.methods import METHODS
+    from rrt_pin.simulate import simulate
 
     p = params if params is not None else Params()
     model = rrt_model(p)
@@ -304,7 +307,9 @@ def direct_work_precision(
             for setting, kw in _settings(method, quick):
                 plan.append((backend, method, setting, kw))
     from rrt_pin.errors import RrtPinError
-    from rrt_pin.simulation import DEFAULT_ATOL, DEFAULT_METHOD, DEFAULT_RTOL
+    from rrt_pin.methods import DEFAULT_ATOL, DEFAULT_RTOL
+
+    DEFAULT_METHOD = "odepack"
 
     for backend in backends:
         if backend == "compiled" and not have_compiled:
@@ -380,7 +385,7 @@ def energy_drift(
     from rrt_pin.grid import time_grid
     from rrt_pin.model import rrt_model
     from rrt_pin.params import Params
-    from rrt_pin.simulation import simulate
+    from rrt_pin.simulate import simulate
     from rrt_pin.symplectic import mechanical_energy
 
     p = params if params is not None else Params()

@@ -1,26 +1,44 @@
-"""Feedback laws: the seed's eq. (31) and PD plus gravity compensation for any model.
+"""Controllers: the contract every feedback law follows, and the laws rrt-pin ships.
 
-A controller maps a state to joint efforts: ``tau = controller(q, qd)`` with ``q``
-[rad or m] and ``qd`` [rad/s or m/s], arrays of shape (nv,), returning (nv,) efforts
-[N·m for revolute joints, N for prismatic ones]. ``controller.efforts(q, qd)`` does
-the same for arrays of shape (N, nv). Both laws here have the form
+The contract (:class:`Controller`) gives time to the law, as robotics-toolbox,
+MuJoCo and Drake do::
 
-    tau = −kd·q̇ − kp·(q − qf) + G(q),
+    tau = controller.efforts(t, q, qd)          # one state: (nv,) -> (nv,)
+    tau = controller.efforts_many(t, Q, QD)     # N states (N, nv), t scalar or (N,)
 
-with diagonal gains kp ≥ 0 [N·m/rad or N/m] and kd ≥ 0 [N·m·s/rad or N·s/m], and
-a gravity term G: the seed's printed formula (:class:`SeedController`) or
-Pinocchio's generalized gravity of a model (:class:`PDGravityController`). Their
-``gravity`` and ``pd`` parts are exposed separately so that a simulation can fold
-an exact gravity compensation into the dynamics (see :mod:`rrt_pin.simulation`).
+with ``t`` [s], ``q`` the joint coordinates [rad or m] (angles for continuous
+joints, see :mod:`rrt_pin.robot`), ``qd`` [rad/s or m/s] and efforts [N·m for
+revolute joints, N for prismatic ones]. Two optional capabilities are declared
+by methods, never guessed: :meth:`Controller.jacobian` (∂τ/∂q, ∂τ/∂q̇ for the
+implicit integrators) and :meth:`Controller.feedback` (the law is
+τ = −kd·q̇ − kp·(q − qf) + G(q): a simulation may then fold an exact gravity
+compensation into the dynamics, and a batch of such laws is evaluated as arrays).
+
+What a batch may share: :func:`rrt_pin.simulate.simulate_batch` runs one plant
+(one model) and one controller per variant. Laws whose :meth:`feedback` share
+the same gravity term are evaluated together (gains and targets stacked);
+any other controller is evaluated variant by variant through ``efforts``.
+
+Any object with ``nv`` and ``efforts(t, q, qd)``, or any function
+``f(t, q, qd)``, is accepted where a controller is (see :func:`as_controller`).
+
+Laws here:
+
+* :class:`ChapterController`: the chapter's eq. (31), exactly as printed;
+* :class:`PDGravityController`: PD plus Pinocchio's gravity compensation, any robot;
+* :class:`TrackingController`: computed torque along a prescribed motion
+  (feed-forward M(q)·q̈_d + b(q, q̇) with PD on the tracking error).
 """
 
 from __future__ import annotations
 
 import functools
+import inspect
 import math
-from collections.abc import Sequence
+from abc import ABC, abstractmethod
+from collections.abc import Callable, Hashable, Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, ClassVar, Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
@@ -30,24 +48,175 @@ from rrt_pin.params import Params
 if TYPE_CHECKING:
     import pinocchio as pin
 
+    from rrt_pin.robot import Robot
+
 __all__ = [
+    "ChapterController",
     "Controller",
+    "LinearFeedback",
     "PDGravityController",
     "SeedController",
+    "TrackingController",
+    "as_controller",
+    "chapter_controller",
     "pd_gravity_controller",
     "seed_controller",
+    "tracking_controller",
 ]
 
 
-@runtime_checkable
-class Controller(Protocol):
-    """Anything that maps one state (q, q̇) to joint efforts τ (arrays of shape (nv,))."""
+@dataclass(frozen=True, eq=False)
+class LinearFeedback:
+    """The structure τ = −kd·q̇ − kp·(q − qf) + G(q) of a law (see :meth:`Controller.feedback`).
 
-    def __call__(self, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
-        """Efforts [N·m or N] at configuration ``q`` and velocity ``qd``."""
-        ...
+    Attributes:
+        kp: stiffness gains (nv,) [N·m/rad or N/m].
+        kd: damping gains (nv,) [N·m·s/rad or N·s/m].
+        qf: target (nv,) [rad or m].
+        gravity: G at configurations (…, nv) -> (…, nv) [N·m or N].
+        key: laws with equal keys have the same G (a batch evaluates them together).
+        exact_for: whether G is exactly a model's generalized gravity (then a
+            simulation of that model may fold it into the dynamics).
+    """
+
+    kp: np.ndarray
+    kd: np.ndarray
+    qf: np.ndarray
+    gravity: Callable[[np.ndarray], np.ndarray]
+    key: Hashable
+    exact_for: Callable[[Any], bool]
 
 
+class Controller(ABC):
+    """The contract of a feedback law: efforts from time and state.
+
+    Subclasses implement :attr:`nv` and :meth:`efforts`; they may override
+    :meth:`efforts_many` (vectorized), :meth:`jacobian` and :meth:`feedback`.
+    """
+
+    @property
+    @abstractmethod
+    def nv(self) -> int:
+        """Number of joint coordinates the law drives."""
+
+    @abstractmethod
+    def efforts(self, t: float, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
+        """Efforts (nv,) [N·m or N] at time ``t`` [s] and one state ``q``, ``qd`` (nv,)."""
+
+    def efforts_many(self, t: Any, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
+        """Efforts (N, nv) at N states (N, nv); ``t`` one time or N times [s].
+
+        The default calls :meth:`efforts` once per state.
+        """
+        q = np.asarray(q, dtype=float)
+        qd = np.asarray(qd, dtype=float)
+        ts = np.broadcast_to(np.asarray(t, dtype=float), q.shape[:1])
+        out = np.empty(q.shape)
+        for i in range(q.shape[0]):
+            out[i] = self.efforts(float(ts[i]), q[i], qd[i])
+        return out
+
+    def jacobian(self, t: float, q: np.ndarray, qd: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+        """(∂τ/∂q, ∂τ/∂q̇), each (nv, nv), or None when the law does not provide them."""
+        return None
+
+    def feedback(self) -> LinearFeedback | None:
+        """The law's PD-plus-gravity structure, or None if it has none."""
+        return None
+
+    def __call__(self, *args: Any) -> np.ndarray:
+        """``controller(t, q, qd)`` is :meth:`efforts`; the old ``controller(q, qd)`` (time 0)
+        is deprecated and kept for one release."""
+        if len(args) == 2:
+            return self.efforts(0.0, *args)
+        return self.efforts(*args)
+
+
+# --------------------------------------------------------------------------
+# Adapting user objects
+# --------------------------------------------------------------------------
+class _FunctionController(Controller):
+    """A plain function ``f(t, q, qd)`` (or a legacy ``f(q, qd)``) as a Controller."""
+
+    def __init__(self, f: Callable[..., Any], nv: int, timed: bool) -> None:
+        self.f, self._nv, self.timed = f, nv, timed
+
+    @property
+    def nv(self) -> int:
+        return self._nv
+
+    def efforts(self, t: float, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
+        return self.f(t, q, qd) if self.timed else self.f(q, qd)
+
+
+class _DuckController(Controller):
+    """Any object with ``efforts(t, q, qd)`` (and maybe ``efforts_many``, ``jacobian``)."""
+
+    def __init__(self, obj: Any, nv: int) -> None:
+        self.obj, self._nv = obj, nv
+
+    @property
+    def nv(self) -> int:
+        return self._nv
+
+    def efforts(self, t: float, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
+        return self.obj.efforts(t, q, qd)
+
+    def efforts_many(self, t: Any, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
+        many = getattr(self.obj, "efforts_many", None)
+        return many(t, q, qd) if many is not None else super().efforts_many(t, q, qd)
+
+    def jacobian(self, t: float, q: np.ndarray, qd: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+        jac = getattr(self.obj, "jacobian", None)
+        return jac(t, q, qd) if jac is not None else None
+
+
+def _positional_count(f: Callable[..., Any]) -> int | None:
+    try:
+        sig = inspect.signature(f)
+    except (TypeError, ValueError):
+        return None
+    kinds = (inspect.Parameter.POSITIONAL_ONLY, inspect.Parameter.POSITIONAL_OR_KEYWORD)
+    params = list(sig.parameters.values())
+    if any(p.kind is inspect.Parameter.VAR_POSITIONAL for p in params):
+        return None
+    return sum(1 for p in params if p.kind in kinds)
+
+
+def as_controller(obj: Any, nv: int) -> Controller:
+    """``obj`` as a :class:`Controller` of ``nv`` coordinates.
+
+    Accepts a Controller; an object with ``efforts(t, q, qd)``; a function
+    ``f(t, q, qd)``; or a time-invariant function ``f(q, qd)``.
+
+    Raises:
+        InputError: ``obj`` is none of these, or drives another number of joints.
+    """
+    if isinstance(obj, Controller):
+        controller = obj
+    elif callable(getattr(obj, "efforts", None)) and _positional_count(obj.efforts) == 3:
+        controller = _DuckController(obj, int(getattr(obj, "nv", nv)))
+    elif callable(obj):
+        count = _positional_count(obj)
+        if count not in (2, 3):
+            raise InputError(
+                f"controller {type(obj).__name__} must take (t, q, qd) (or (q, qd) for a "
+                "time-invariant law)"
+            )
+        controller = _FunctionController(obj, nv, timed=count == 3)
+    else:
+        raise InputError(
+            f"controller must be a Controller, an object with efforts(t, q, qd) or a function "
+            f"f(t, q, qd), not {type(obj).__name__}"
+        )
+    if controller.nv != nv:
+        raise InputError(f"the controller drives {controller.nv} joints but the robot has {nv}")
+    return controller
+
+
+# --------------------------------------------------------------------------
+# Gains
+# --------------------------------------------------------------------------
 def _gains(name: str, value: Any, n: int) -> tuple[float, ...]:
     """A gain vector: a scalar (same for every joint) or n finite values ≥ 0."""
     values = _floats(name, value, n)
@@ -83,7 +252,9 @@ def _states(q: Any, qd: Any, n: int) -> tuple[np.ndarray, np.ndarray]:
     q = np.asarray(q, dtype=float)
     qd = np.asarray(qd, dtype=float)
     if q.ndim != 2 or q.shape[1] != n or qd.shape != q.shape:
-        raise InputError(f"efforts() needs q and qd of shape (N, {n}); got {q.shape=}, {qd.shape=}")
+        raise InputError(
+            f"efforts_many() needs q and qd of shape (N, {n}); got {q.shape=}, {qd.shape=}"
+        )
     return q, qd
 
 
@@ -93,7 +264,20 @@ _PLANT_FIELDS = (
 )  # fmt: skip
 
 
-def _seed_model(params: Params) -> pin.Model:
+class _ModelKey:
+    """Equal when the models are equal (``pin.Model.__eq__``): laws on equal models share G."""
+
+    def __init__(self, model: pin.Model) -> None:
+        self.model = model
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, _ModelKey) and bool(self.model == other.model)
+
+    def __hash__(self) -> int:
+        return int(self.model.nv)
+
+
+def _chapter_model(params: Params) -> pin.Model:
     return _plant_model(tuple(getattr(params, name) for name in _PLANT_FIELDS))
 
 
@@ -104,9 +288,56 @@ def _plant_model(plant: tuple[float, ...]) -> pin.Model:
     return rrt_model(Params(**dict(zip(_PLANT_FIELDS, plant, strict=True))))
 
 
-@dataclass(frozen=True)
-class SeedController:
-    """The seed's feedback law, eq. (31), exactly as printed.
+class _PDGravity(Controller):
+    """τ = −kd·q̇ − kp·(q − qf) + G(q), the shared shape of the two regulators.
+
+    Deprecated forms kept for one release: ``efforts(Q, QD)`` (N states, no
+    time; use :meth:`efforts_many`) and ``derivatives(q, qd)`` (use :meth:`jacobian`).
+    """
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        one = cls.__dict__.get("efforts")
+        if one is None:
+            return
+
+        def efforts(self: Any, *args: Any) -> np.ndarray:
+            if len(args) == 2:  # deprecated: efforts(q, qd), one state or N states
+                q = np.asarray(args[0], dtype=float)
+                return one(self, 0.0, *args) if q.ndim == 1 else self.efforts_many(0.0, *args)
+            return one(self, *args)
+
+        efforts.__doc__ = one.__doc__
+        cls.efforts = efforts
+
+    def derivatives(self, q: np.ndarray, qd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Deprecated: :meth:`jacobian` at t = 0."""
+        return self.jacobian(0.0, q, qd)  # type: ignore[return-value]
+
+    kp: tuple[float, ...]
+    kd: tuple[float, ...]
+    qf: tuple[float, ...]
+
+    def gravity(self, q: np.ndarray) -> np.ndarray:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def pd(self, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
+        """The PD part −kd·q̇ − kp·(q − qf), any leading shape (…, nv) [N·m or N]."""
+        return -np.asarray(self.kd) * qd - np.asarray(self.kp) * (q - np.asarray(self.qf))
+
+    def efforts_many(self, t: Any, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
+        """Efforts at N states: q, qd of shape (N, nv) -> (N, nv) [N·m or N] (time-invariant).
+
+        Raises:
+            InputError: the shapes do not match (N, nv).
+        """
+        q, qd = _states(q, qd, self.nv)
+        return self.pd(q, qd) + self.gravity(q)
+
+
+@dataclass(frozen=True, eq=False)
+class ChapterController(_PDGravity):
+    """The chapter's feedback law, eq. (31), exactly as printed.
 
     ::
 
@@ -119,14 +350,14 @@ class SeedController:
         kd: damping gains (β01 [N·m·s/rad], β12 [N·m·s/rad], β23 [N·s/m]).
         qf: target (q1f [rad], q2f [rad], q3f [m]).
         params: the arm whose g, m2, m3, L2 the gravity terms use (SI units).
-        kind: ``"seed"``.
+        kind: ``"chapter"``.
     """
 
     kp: tuple[float, float, float]
     kd: tuple[float, float, float]
     qf: tuple[float, float, float]
     params: Params = field(repr=False)
-    kind: ClassVar[str] = "seed"
+    kind: ClassVar[str] = "chapter"
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "kp", _gains("kp", self.kp, 3))
@@ -140,8 +371,8 @@ class SeedController:
         """Number of joints (3)."""
         return 3
 
-    def __call__(self, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
-        """Efforts (T01x [N·m], T12y [N·m], F23z [N]) at one state (not validated)."""
+    def efforts(self, t: float, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
+        """Efforts (T01x [N·m], T12y [N·m], F23z [N]) at one state (not validated; no t)."""
         p = self.params
         kp1, kp2, kp3 = self.kp
         kd1, kd2, kd3 = self.kd
@@ -173,20 +404,7 @@ class SeedController:
         out[..., 2] *= p.g * p.m3
         return out
 
-    def pd(self, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
-        """The PD part −kd·q̇ − kp·(q − qf), any leading shape (…, 3) [N·m, N]."""
-        return -np.asarray(self.kd) * qd - np.asarray(self.kp) * (q - np.asarray(self.qf))
-
-    def efforts(self, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
-        """Efforts at N states: q, qd of shape (N, 3) -> (N, 3) [N·m, N·m, N].
-
-        Raises:
-            InputError: the shapes do not match (N, 3).
-        """
-        q, qd = _states(q, qd, 3)
-        return self.pd(q, qd) + self.gravity(q)
-
-    def derivatives(self, q: np.ndarray, qd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def jacobian(self, t: float, q: np.ndarray, qd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """∂τ/∂q and ∂τ/∂q̇ at one state, each (3, 3)."""
         p = self.params
         c2, s2 = math.cos(q[1]), math.sin(q[1])
@@ -202,100 +420,202 @@ class SeedController:
         True when ``model`` equals the RRT arm generated from :attr:`params` (then
         eq. (31)'s gravity terms are G(q) of eq. (15), as the tests verify).
         """
-        return bool(model == _seed_model(self.params))
+        return bool(model == _chapter_model(self.params))
+
+    def feedback(self) -> LinearFeedback:
+        """PD plus the printed gravity terms; batches share them when g, m2, m3, L2 agree."""
+        p = self.params
+        return LinearFeedback(
+            kp=np.array(self.kp),
+            kd=np.array(self.kd),
+            qf=np.array(self.qf),
+            gravity=self.gravity,
+            key=("chapter", p.g, p.m2, p.m3, p.L2),
+            exact_for=self.compensates_gravity_of,
+        )
 
 
-@dataclass(frozen=True)
-class PDGravityController:
-    """PD plus gravity compensation for any model: τ = −kd·q̇ − kp·(q − qf) + G(q).
+@dataclass(frozen=True, eq=False)
+class PDGravityController(_PDGravity):
+    """PD plus gravity compensation for any robot: τ = −kd·q̇ − kp·(q − qf) + G(q).
 
     G(q) is ``pin.computeGeneralizedGravity`` of :attr:`model` (a private copy).
 
     Attributes:
-        kp: stiffness gains, one per joint [N·m/rad or N/m].
-        kd: damping gains, one per joint [N·m·s/rad or N·s/m].
-        qf: target configuration [rad or m].
+        kp: stiffness gains, one per coordinate [N·m/rad or N/m].
+        kd: damping gains, one per coordinate [N·m·s/rad or N·s/m].
+        qf: target joint coordinates [rad or m].
         model: the Pinocchio model whose gravity is compensated.
+        robot: its :class:`~rrt_pin.robot.Robot` (built from the model when None).
         kind: ``"pd_gravity"``.
     """
 
     kp: tuple[float, ...]
     kd: tuple[float, ...]
     qf: tuple[float, ...]
-    model: pin.Model = field(repr=False, compare=False)
+    model: pin.Model = field(repr=False)
+    robot: Any = field(default=None, repr=False)
     kind: ClassVar[str] = "pd_gravity"
-    _data: Any = field(init=False, repr=False, compare=False, default=None)
-    _pool: Any = field(init=False, repr=False, compare=False, default=None)
+    _data: Any = field(init=False, repr=False, default=None)
+    _pool: Any = field(init=False, repr=False, default=None)
 
     def __post_init__(self) -> None:
         import pinocchio as pin
+
+        from rrt_pin.robot import Robot
 
         if not isinstance(self.model, pin.Model):
             raise InputError(f"model must be a pinocchio.Model, not {type(self.model).__name__}")
         model = self.model.copy()
         object.__setattr__(self, "model", model)
-        object.__setattr__(self, "kp", _gains("kp", self.kp, model.nv))
-        object.__setattr__(self, "kd", _gains("kd", self.kd, model.nv))
-        object.__setattr__(self, "qf", _target("qf", self.qf, model.nq))
+        if self.robot is None:
+            object.__setattr__(self, "robot", Robot.from_model(model))
+        n = model.nv
+        object.__setattr__(self, "kp", _gains("kp", self.kp, n))
+        object.__setattr__(self, "kd", _gains("kd", self.kd, n))
+        if model.nq != n and np.shape(self.qf) == (model.nq,):
+            object.__setattr__(self, "qf", tuple(self.robot.coordinates(np.asarray(self.qf))))
+        object.__setattr__(self, "qf", _target("qf", self.qf, n))
         object.__setattr__(self, "_data", model.createData())
 
     @property
     def nv(self) -> int:
-        """Number of velocity coordinates of the model."""
+        """Number of joint coordinates of the model."""
         return int(self.model.nv)
 
-    def __call__(self, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
-        """Efforts [N·m or N] at one state (not validated)."""
+    def efforts(self, t: float, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
+        """Efforts [N·m or N] at one state (not validated; time-invariant)."""
         import pinocchio as pin
 
-        g = pin.computeGeneralizedGravity(self.model, self._data, q)
+        g = pin.computeGeneralizedGravity(self.model, self._data, self.robot.configuration(q))
         return self.pd(q, qd) + g
 
     def gravity(self, q: np.ndarray) -> np.ndarray:
-        """G(q) at configurations ``q`` of shape (N, nq) -> (N, nv) [N·m or N]."""
+        """G at joint coordinates ``q`` of shape (nv,) or (N, nv) [N·m or N]."""
         import pinocchio as pin
 
         q = np.asarray(q, dtype=float)
         if q.ndim == 1:
-            return np.array(pin.computeGeneralizedGravity(self.model, self._data, q))
+            return np.array(
+                pin.computeGeneralizedGravity(self.model, self._data, self.robot.configuration(q))
+            )
         if self._pool is None:
             object.__setattr__(self, "_pool", pin.ModelPool(self.model, 1))
-        zeros = np.zeros((self.model.nv, q.shape[0]))
-        return pin.rneaInParallel(1, self._pool, np.ascontiguousarray(q.T), zeros, zeros).T
+        shape = q.shape
+        flat = self.robot.configuration(q.reshape(-1, shape[-1]))
+        zeros = np.zeros((self.model.nv, flat.shape[0]))
+        out = pin.rneaInParallel(1, self._pool, np.ascontiguousarray(flat.T), zeros, zeros).T
+        return out.reshape(shape)
 
-    def pd(self, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
-        """The PD part −kd·q̇ − kp·(q − qf), any leading shape (…, nv) [N·m or N]."""
-        return -np.asarray(self.kd) * qd - np.asarray(self.kp) * (q - np.asarray(self.qf))
-
-    def efforts(self, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
-        """Efforts at N states: q, qd of shape (N, nv) -> (N, nv) [N·m or N].
-
-        Raises:
-            InputError: the shapes do not match (N, nv).
-        """
-        q, qd = _states(q, qd, self.model.nv)
-        return self.pd(q, qd) + self.gravity(q)
-
-    def derivatives(self, q: np.ndarray, qd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def jacobian(self, t: float, q: np.ndarray, qd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """∂τ/∂q and ∂τ/∂q̇ at one state, each (nv, nv)."""
         import pinocchio as pin
 
-        dg = pin.computeGeneralizedGravityDerivatives(self.model, self._data, q)
+        dg = pin.computeGeneralizedGravityDerivatives(
+            self.model, self._data, self.robot.configuration(q)
+        )
         return np.array(dg) - np.diag(self.kp), -np.diag(self.kd)
 
     def compensates_gravity_of(self, model: pin.Model) -> bool:
         """Whether ``model`` equals :attr:`model` (then G(q) is its generalized gravity)."""
         return bool(model == self.model)
 
+    def feedback(self) -> LinearFeedback:
+        """PD plus this model's gravity; batches share it when the models are equal."""
+        return LinearFeedback(
+            kp=np.array(self.kp),
+            kd=np.array(self.kd),
+            qf=np.array(self.qf),
+            gravity=self.gravity,
+            key=_ModelKey(self.model),
+            exact_for=self.compensates_gravity_of,
+        )
 
-def seed_controller(params: Params | None = None) -> SeedController:
-    """The seed's eq. (31) with the gains, target and arm of ``params`` (seed's by default).
+
+@dataclass(frozen=True, eq=False)
+class TrackingController(Controller):
+    """Computed torque along a prescribed motion: exact tracking for an exact model.
+
+    ::
+
+        τ = M(q)·(q̈d + kd·(q̇d − q̇) + kp·(qd − q)) + b(q, q̇)      (one RNEA call)
+
+    with (qd, q̇d, q̈d) the motion at time t. With the robot's own model the
+    tracking error e obeys ë + kd·ė + kp·e = 0: starting on the motion, the
+    robot follows it up to the integration error.
+
+    Attributes:
+        robot: the robot whose model gives M and b.
+        motion: the reference, a function of time returning a
+            :class:`~rrt_pin.trajectory.Trajectory` (e.g.
+            :class:`~rrt_pin.trajectory.RestToRest`), or a sampled Trajectory
+            (interpolated linearly between samples).
+        kp: stiffness of the error dynamics [1/s²], one per coordinate or one for all.
+        kd: damping of the error dynamics [1/s], one per coordinate or one for all.
+        kind: ``"tracking"``.
+    """
+
+    robot: Robot = field(repr=False)
+    motion: Any = field(repr=False)
+    kp: Any = 100.0
+    kd: Any = 20.0
+    kind: ClassVar[str] = "tracking"
+    _data: Any = field(init=False, repr=False, default=None)
+
+    def __post_init__(self) -> None:
+        from rrt_pin.trajectory import Trajectory
+
+        n = self.robot.nv
+        object.__setattr__(self, "kp", np.array(_gains("kp", self.kp, n)))
+        object.__setattr__(self, "kd", np.array(_gains("kd", self.kd, n)))
+        if isinstance(self.motion, Trajectory):
+            if self.motion.n != n:
+                raise InputError(f"the motion has {self.motion.n} coordinates but the robot {n}")
+        elif not callable(self.motion):
+            raise InputError("motion must be a Trajectory or a function of time returning one")
+        object.__setattr__(self, "_data", self.robot.model.createData())
+
+    @property
+    def nv(self) -> int:
+        """Number of joint coordinates."""
+        return self.robot.nv
+
+    def reference(self, t: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(q, q̇, q̈) of the motion at time(s) ``t`` [s], each (…, nv)."""
+        from rrt_pin.trajectory import Trajectory
+
+        m = self.motion
+        if isinstance(m, Trajectory):
+            ts = np.atleast_1d(np.asarray(t, dtype=float))
+            cols = [
+                np.column_stack([np.interp(ts, m.t, a[:, k]) for k in range(m.n)])
+                for a in (m.q, m.qd, m.qdd)
+            ]
+        else:
+            sample = m(t)
+            cols = [sample.q, sample.qd, sample.qdd]
+        if np.ndim(t) == 0:
+            return cols[0][0], cols[1][0], cols[2][0]
+        return cols[0], cols[1], cols[2]
+
+    def efforts(self, t: float, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
+        """Computed-torque efforts [N·m or N] at time ``t`` [s] and one state."""
+        import pinocchio as pin
+
+        qr, qdr, qddr = self.reference(float(t))
+        a = qddr + self.kd * (qdr - qd) + self.kp * (qr - q)
+        model = self.robot.model
+        return np.array(pin.rnea(model, self._data, self.robot.configuration(q), qd, a))
+
+
+def chapter_controller(params: Params | None = None) -> ChapterController:
+    """The chapter's eq. (31) with the gains, target and arm of ``params`` (the chapter's by default).
 
     Raises:
         ParameterError: a gain is negative or not finite.
     """
     p = params if params is not None else Params()
-    return SeedController(kp=p.kp, kd=p.kd, qf=p.qf, params=p)
+    return ChapterController(kp=p.kp, kd=p.kd, qf=p.qf, params=p)
 
 
 def pd_gravity_controller(
@@ -308,12 +628,30 @@ def pd_gravity_controller(
 
     Args:
         model: any Pinocchio model (its gravity vector is used as set).
-        kp: stiffness gains [N·m/rad or N/m]: one per joint, or one for all.
-        kd: damping gains [N·m·s/rad or N·s/m]: one per joint, or one for all.
-        qf: target configuration (nq,) [rad or m].
+        kp: stiffness gains [N·m/rad or N/m]: one per coordinate, or one for all.
+        kd: damping gains [N·m·s/rad or N·s/m]: one per coordinate, or one for all.
+        qf: target joint coordinates (nv,) [rad or m] (or Pinocchio's (nq,)).
 
     Raises:
         ParameterError: a gain is negative or not finite (names it, e.g. ``kd[2]``).
         InputError: a gain or target has the wrong length, or a target is not finite.
     """
     return PDGravityController(kp=kp, kd=kd, qf=qf, model=model)  # type: ignore[arg-type]
+
+
+def tracking_controller(robot: Any, motion: Any, kp: Any = 100.0, kd: Any = 20.0) -> TrackingController:
+    """Computed torque along ``motion`` for ``robot`` (a Robot or a Pinocchio model).
+
+    Raises:
+        InputError: a bad robot, motion or gain.
+    """
+    from rrt_pin.robot import Robot
+
+    if not isinstance(robot, Robot):
+        robot = Robot.from_model(robot)
+    return TrackingController(robot=robot, motion=motion, kp=kp, kd=kd)
+
+
+#: Deprecated names (kept for one release): the chapter was called "the seed".
+SeedController = ChapterController
+seed_controller = chapter_controller

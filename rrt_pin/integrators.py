@@ -1,4 +1,4 @@
-"""Fixed-step integrators for mechanical systems q̈ = a(q, q̇).
+"""Fixed-step integrators for mechanical systems q̈ = a(t, q, q̇).
 
 Each method advances positions ``q`` [rad or m] and velocities ``v`` [rad/s or m/s]
 by a step ``h`` [s]. They work unchanged on one state (arrays of shape (n,)) and
@@ -26,20 +26,20 @@ than ``step``). Every step is checked: a non-finite state raises
 
 from __future__ import annotations
 
+import functools
+import importlib
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
-from rrt_pin.errors import DivergenceError
+from rrt_pin.errors import DivergenceError, InputError
 
-__all__ = ["FIXED_STEP_METHODS", "FixedStepResult", "blame", "integrate_fixed_step"]
+__all__ = ["FixedStepResult", "blame", "integrate_fixed_step", "rk4", "symplectic_euler", "verlet"]
 
-Acceleration = Callable[[np.ndarray, np.ndarray], np.ndarray]
-
-#: The fixed-step methods, by name.
-FIXED_STEP_METHODS = ("symplectic_euler", "rk4", "verlet")
+#: a(t, q, v): accelerations from time [s], positions and velocities.
+Acceleration = Callable[[float, np.ndarray, np.ndarray], np.ndarray]
 
 #: Fixed-point iterations of Verlet's implicit half kick stop at this relative change.
 VERLET_TOL = 1e-14
@@ -76,21 +76,24 @@ def blame(values: np.ndarray, size: np.ndarray) -> np.ndarray:
 
 
 class _Stepper:
-    """One method's step, keeping the evaluation count and Verlet's reusable kick."""
+    """Evaluations of ``acc`` for one method's steps: the count, and Verlet's reusable kick."""
 
     def __init__(self, method: str, acc: Acceleration) -> None:
+        from rrt_pin import methods
+
+        entry = methods.get(method)
+        if entry.runner is None:
+            raise InputError(f"method={method!r} is not a fixed-step method")
+        module, _, name = entry.runner.partition(":")
+        self.step = functools.partial(getattr(importlib.import_module(module), name), self)
         self.acc = acc
         self.n_evals = 0
         self.a_last: np.ndarray | None = None
-        self.step = {
-            "symplectic_euler": self._euler,
-            "rk4": self._rk4,
-            "verlet": self._verlet,
-        }[method]
 
-    def _eval(self, q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
+    def eval(self, q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
+        """a(t, q, v), counted and checked for non-finite values."""
         self.n_evals += 1
-        a = self.acc(q, v)
+        a = self.acc(t, q, v)
         if not np.isfinite(a).all():
             infinite = np.isinf(a)
             candidates = infinite if infinite.any() else ~np.isfinite(a)
@@ -100,43 +103,50 @@ class _Stepper:
             )
         return a
 
-    def _euler(self, q: np.ndarray, v: np.ndarray, h: float, t: float):
-        v1 = v + h * self._eval(q, v, t)
-        return q + h * v1, v1
 
-    def _rk4(self, q: np.ndarray, v: np.ndarray, h: float, t: float):
-        a1 = self._eval(q, v, t)
-        q2, v2 = q + 0.5 * h * v, v + 0.5 * h * a1
-        a2 = self._eval(q2, v2, t + 0.5 * h)
-        q3, v3 = q + 0.5 * h * v2, v + 0.5 * h * a2
-        a3 = self._eval(q3, v3, t + 0.5 * h)
-        q4, v4 = q + h * v3, v + h * a3
-        a4 = self._eval(q4, v4, t + h)
-        q1 = q + h / 6.0 * (v + 2.0 * v2 + 2.0 * v3 + v4)
-        v1 = v + h / 6.0 * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
-        return q1, v1
+# One function per method: (stepper, q, v, h, t) -> (q, v) after a step h [s] from time t.
+def symplectic_euler(s: _Stepper, q: np.ndarray, v: np.ndarray, h: float, t: float):
+    """Semi-implicit Euler: v₁ = v₀ + h·a(q₀, v₀); q₁ = q₀ + h·v₁."""
+    v1 = v + h * s.eval(q, v, t)
+    return q + h * v1, v1
 
-    def _verlet(self, q: np.ndarray, v: np.ndarray, h: float, t: float):
-        a0 = self.a_last if self.a_last is not None else self._eval(q, v, t)
-        v_half = v + 0.5 * h * a0
-        q1 = q + h * v_half
-        v1 = v_half
-        self.a_last = None
-        for _ in range(VERLET_MAX_ITER):
-            a1 = self._eval(q1, v1, t + h)
-            v_new = v_half + 0.5 * h * a1
-            change = np.abs(v_new - v1)
-            v1 = v_new
-            if change.max() <= VERLET_TOL * (1.0 + np.abs(v1).max()):
-                # a(q1, v1) at the converged v1, to within the tolerance: reuse it.
-                self.a_last = a1
-                return q1, v1
-        raise _Failure(
-            t + h,
-            change,
-            f"the implicit half kick of 'verlet' did not converge in {VERLET_MAX_ITER} "
-            f"iterations; use a step shorter than {h:.3g} s",
-        )
+
+def rk4(s: _Stepper, q: np.ndarray, v: np.ndarray, h: float, t: float):
+    """The classical 4th-order Runge–Kutta step."""
+    a1 = s.eval(q, v, t)
+    q2, v2 = q + 0.5 * h * v, v + 0.5 * h * a1
+    a2 = s.eval(q2, v2, t + 0.5 * h)
+    q3, v3 = q + 0.5 * h * v2, v + 0.5 * h * a2
+    a3 = s.eval(q3, v3, t + 0.5 * h)
+    q4, v4 = q + h * v3, v + h * a3
+    a4 = s.eval(q4, v4, t + h)
+    q1 = q + h / 6.0 * (v + 2.0 * v2 + 2.0 * v3 + v4)
+    v1 = v + h / 6.0 * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
+    return q1, v1
+
+
+def verlet(s: _Stepper, q: np.ndarray, v: np.ndarray, h: float, t: float):
+    """Velocity Verlet; the last half kick is solved by fixed-point iteration."""
+    a0 = s.a_last if s.a_last is not None else s.eval(q, v, t)
+    v_half = v + 0.5 * h * a0
+    q1 = q + h * v_half
+    v1 = v_half
+    s.a_last = None
+    for _ in range(VERLET_MAX_ITER):
+        a1 = s.eval(q1, v1, t + h)
+        v_new = v_half + 0.5 * h * a1
+        change = np.abs(v_new - v1)
+        v1 = v_new
+        if change.max() <= VERLET_TOL * (1.0 + np.abs(v1).max()):
+            # a(q1, v1) at the converged v1, to within the tolerance: reuse it.
+            s.a_last = a1
+            return q1, v1
+    raise _Failure(
+        t + h,
+        change,
+        f"the implicit half kick of 'verlet' did not converge in {VERLET_MAX_ITER} "
+        f"iterations; use a step shorter than {h:.3g} s",
+    )
 
 
 class _Failure(Exception):
@@ -160,11 +170,11 @@ def integrate_fixed_step(
     step: float,
     names: Sequence[str],
 ) -> FixedStepResult:
-    """Integrate q̈ = acc(q, q̇) with a fixed-step method, outputs at ``t_eval``.
+    """Integrate q̈ = acc(t, q, q̇) with a fixed-step method, outputs at ``t_eval``.
 
     Args:
-        method: one of :data:`FIXED_STEP_METHODS`.
-        acc: accelerations [rad/s² or m/s²] from positions and velocities.
+        method: a fixed-step method of :data:`rrt_pin.methods.METHODS`.
+        acc: accelerations [rad/s² or m/s²] from time, positions and velocities.
         q0: initial positions, shape (n,) or (N, n) [rad or m].
         v0: initial velocities, same shape [rad/s or m/s].
         t_eval: increasing output times [s]; ``t_eval[0]`` is the initial time.

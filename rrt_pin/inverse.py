@@ -15,10 +15,11 @@ or m/s²; efforts in N·m (revolute) or N (prismatic).
 from __future__ import annotations
 
 import os
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from rrt_pin import validate
 from rrt_pin.errors import InputError
 
 if TYPE_CHECKING:
@@ -26,10 +27,7 @@ if TYPE_CHECKING:
 
     from rrt_pin.params import Params
 
-__all__ = ["BACKENDS", "batch_arrays", "default_num_threads", "inverse_dynamics"]
-
-#: Backend names accepted by :func:`inverse_dynamics`.
-BACKENDS = ("pinocchio", "symbolic", "compiled")
+__all__ = ["batch_arrays", "default_num_threads", "inverse_dynamics"]
 
 #: Fewer samples than this per thread are not worth another thread.
 _MIN_SAMPLES_PER_THREAD = 256
@@ -48,20 +46,6 @@ def default_num_threads() -> int:
     return max(1, min(cpus, cap if cap > 0 else cpus))
 
 
-def _array(name: str, value: object, width: int, width_name: str) -> np.ndarray:
-    try:
-        arr = np.asarray(value, dtype=float)
-    except (TypeError, ValueError) as e:
-        raise InputError(f"{name} is not an array of numbers: {e}") from e
-    if arr.ndim == 1:
-        arr = arr[None, :]
-    if arr.ndim != 2 or arr.shape[1] != width:
-        raise InputError(
-            f"{name}.shape={np.shape(value)} but {width_name}={width}: want (N, {width})"
-        )
-    return arr
-
-
 def batch_arrays(
     q: object, qd: object, qdd: object, nq: int, nv: int
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -74,26 +58,16 @@ def batch_arrays(
             not finite (the message names the array, sample and column).
     """
     arrays = (
-        _array("q", q, nq, "model.nq"),
-        _array("qd", qd, nv, "model.nv"),
-        _array("qdd", qdd, nv, "model.nv"),
+        validate.samples("q", q, nq, "rad or m")[0],
+        validate.samples("qd", qd, nv, "rad/s or m/s")[0],
+        validate.samples("qdd", qdd, nv, "rad/s² or m/s²")[0],
     )
-    counts = {a.shape[0] for a in arrays}
-    if len(counts) != 1:
-        shapes = ", ".join(
-            f"{n}.shape={a.shape}" for n, a in zip(("q", "qd", "qdd"), arrays, strict=True)
-        )
-        raise InputError(f"sample counts differ: {shapes}")
-    for name, arr in zip(("q", "qd", "qdd"), arrays, strict=True):
-        bad = ~np.isfinite(arr)
-        if bad.any():
-            i, j = (int(k) for k in np.argwhere(bad)[0])
-            raise InputError(f"{name}[{i}, {j}]={float(arr[i, j])!r} must be finite")
+    _same_count(*arrays)
     return arrays
 
 
 def inverse_dynamics(
-    model: pin.Model | None,
+    model: Any,
     q: np.ndarray,
     qd: np.ndarray,
     qdd: np.ndarray,
@@ -105,67 +79,90 @@ def inverse_dynamics(
     """Joint efforts τ = M(q)·q̈ + C(q, q̇)·q̇ + G(q) for each sample.
 
     Args:
-        model: the Pinocchio model (any fixed-base arm); its gravity is used.
-            Ignored (may be None) by the ``"symbolic"`` and ``"compiled"``
-            backends, which take the RRT arm from ``params``.
-        q: configurations, shape (N, model.nq) [rad or m]; (nq,) for one sample.
-        qd: velocities, shape (N, model.nv) [rad/s or m/s].
-        qdd: accelerations, shape (N, model.nv) [rad/s² or m/s²].
-        backend: ``"pinocchio"`` (RNEA in C++ over the batch, any model),
-            ``"symbolic"`` (the generated numpy kernel of the RRT arm) or
-            ``"compiled"`` (the numba kernel of the RRT arm).
-        params: the RRT arm's parameters; required by ``"symbolic"`` and
-            ``"compiled"``.
+        model: a :class:`~rrt_pin.robot.Robot` or a Pinocchio model (any
+            fixed-base robot; its gravity is used). The ``symbolic`` and
+            ``compiled`` backends compute the chapter's arm: from the robot's
+            parameters, or from ``params`` (``model`` may then be None).
+        q: joint coordinates, shape (N, nv) [rad or m] (angles for continuous
+            joints; with a Pinocchio model, its (N, nq) configurations); (nv,)
+            for one sample.
+        qd: velocities, shape (N, nv) [rad/s or m/s].
+        qdd: accelerations, shape (N, nv) [rad/s² or m/s²].
+        backend: a backend of :mod:`rrt_pin.backends` that computes ``inverse``.
+        params: the chapter arm's parameters (``symbolic``/``compiled`` with a model).
         num_threads: threads for the Pinocchio backend; default: the CPUs
             available, fewer for small batches.
 
     Returns:
-        Efforts, shape (N, nv) [N·m for revolute joints, N for prismatic ones].
-        For the RRT arm the columns are (T01x, T12y, F23z).
+        Efforts, shape (N, nv) — (nv,) for a single sample, as ``pin.rnea`` —
+        [N·m for revolute joints, N for prismatic ones]. For the chapter's arm
+        the columns are (T01x, T12y, F23z).
 
     Raises:
         InputError: bad shapes, non-finite values, an unknown backend, or a
-            backend that needs ``params`` or is not installed.
+            backend that does not compute this robot or is not installed.
     """
-    if backend == "pinocchio":
+    from rrt_pin import backends
+    from rrt_pin.robot import Robot
+
+    b = backends.get(backend, "inverse")
+    robot = model if isinstance(model, Robot) else None
+    if b.name == "pinocchio":
         if model is None:
-            raise InputError("backend='pinocchio' needs a Pinocchio model")
-        q, qd, qdd = batch_arrays(q, qd, qdd, model.nq, model.nv)
-        return _rnea_batch(model, q, qd, qdd, num_threads)
-    if backend not in BACKENDS:
-        raise InputError(f"backend={backend!r} is unknown; valid: {', '.join(BACKENDS)}")
+            raise InputError("backend='pinocchio' needs a Robot or a Pinocchio model")
+        if robot is not None:
+            pin_model, nq = robot.model, robot.nv
+        else:
+            pin_model, nq = model, model.nq
+        nv = pin_model.nv
+        q, single = validate.samples("q", q, nq, "rad or m")
+        qd, _ = validate.samples("qd", qd, nv, "rad/s or m/s")
+        qdd, _ = validate.samples("qdd", qdd, nv, "rad/s² or m/s²")
+        _same_count(q, qd, qdd)
+        if robot is not None:
+            q = robot.configuration(q)
+        tau = _rnea_batch(pin_model, q, qd, qdd, num_threads)
+        return tau[0] if single else tau
+    if robot is not None:
+        if not robot.supports(b.name):
+            raise InputError(
+                f"backend={backend!r} computes the chapter's RRT arm only; {robot.name} needs "
+                "backend='pinocchio'"
+            )
+        params = robot.params
     if params is None:
-        raise InputError(f"backend={backend!r} needs params (the RRT arm's Params)")
-    if model is not None and (model.nq, model.nv) != (3, 3):
+        raise InputError(f"backend={backend!r} needs the chapter's arm (its Params)")
+    if model is not None and robot is None and (model.nq, model.nv) != (3, 3):
         raise InputError(
             f"backend={backend!r} is the RRT arm's kernel, but {model.nq=} and {model.nv=}; "
             "use backend='pinocchio' for other models"
         )
-    q, qd, qdd = batch_arrays(q, qd, qdd, 3, 3)
-    if backend == "symbolic":
-        try:
-            from rrt_pin import kernel
-        except ImportError as e:
+    q, single = validate.samples("q", q, 3, "rad or m")
+    qd, _ = validate.samples("qd", qd, 3, "rad/s or m/s")
+    qdd, _ = validate.samples("qdd", qdd, 3, "rad/s² or m/s²")
+    _same_count(q, qd, qdd)
+    if b.name == "symbolic":
+        from rrt_pin import kernel
+
+        tau = np.asarray(kernel.inverse_dynamics(q, qd, qdd, params), dtype=float)
+    else:
+        if not b.available():
             raise InputError(
-                "backend='symbolic' needs rrt_pin/kernel.py (generate it with the symbolic "
-                f"derivation): {e}"
-            ) from e
-        return np.asarray(kernel.inverse_dynamics(q, qd, qdd, params), dtype=float)
-    try:
+                "backend='compiled' is unavailable (numba missing): pip install rrt-pin[fast]"
+            )
         from rrt_pin import compiled
 
-        compiled_id = compiled.inverse_dynamics
-        available = getattr(compiled, "available", lambda: True)
-    except (ImportError, AttributeError) as e:
-        raise InputError(
-            f"backend='compiled' is unavailable ({e}); it needs rrt_pin.compiled and numba: "
-            "pip install rrt-pin[fast]"
-        ) from e
-    if not available():
-        raise InputError(
-            "backend='compiled' is unavailable (numba missing?): pip install rrt-pin[fast]"
+        tau = np.asarray(compiled.inverse_dynamics(q, qd, qdd, params), dtype=float)
+    return tau[0] if single else tau
+
+
+def _same_count(*arrays: np.ndarray) -> None:
+    counts = {a.shape[0] for a in arrays}
+    if len(counts) != 1:
+        shapes = ", ".join(
+            f"{n}.shape={a.shape}" for n, a in zip(("q", "qd", "qdd"), arrays, strict=True)
         )
-    return np.asarray(compiled_id(q, qd, qdd, params), dtype=float)
+        raise InputError(f"sample counts differ: {shapes}")
 
 
 def _rnea_batch(

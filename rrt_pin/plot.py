@@ -5,10 +5,14 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-__all__ = ["Panel", "plot_panels"]
+if TYPE_CHECKING:
+    from rrt_pin.robot import Robot
+
+__all__ = ["Panel", "effort_panels", "plot_panels", "position_panels"]
 
 
 @dataclass(frozen=True)
@@ -61,3 +65,46 @@ def plot_panels(
         return atomic_write(path, lambda fh: fig.savefig(fh, format="png", dpi=110))
     finally:
         plt.close(fig)
+
+
+def _groups(robot: Robot, units: Sequence[str]) -> list[tuple[str, list[int]]]:
+    """Coordinates grouped by unit, in order of first appearance."""
+    groups: dict[str, list[int]] = {}
+    for k, unit in enumerate(units):
+        groups.setdefault(unit, []).append(k)
+    return list(groups.items())
+
+
+def effort_panels(robot: Robot, tau: np.ndarray, what: str = "") -> list[Panel]:
+    """Panels of a robot's efforts (N, nv): one per joint when each has a description
+    (the chapter's arm), else one per unit (N·m, N)."""
+    docs = robot.effort_docs
+    if all(docs):
+        return [
+            Panel(f"{name} [{unit}]", {name: tau[:, k]}, title=f"{doc}{what}")
+            for k, (name, unit, doc) in enumerate(
+                zip(robot.effort_names, robot.effort_units, docs, strict=True)
+            )
+        ]
+    kinds = {"N·m": "revolute", "N": "prismatic"}
+    return [
+        Panel(
+            f"effort [{unit}]",
+            {robot.effort_names[k]: tau[:, k] for k in ks},
+            title=f"{kinds.get(unit, unit)} joints{what}",
+        )
+        for unit, ks in _groups(robot, robot.effort_units)
+    ]
+
+
+def position_panels(robot: Robot, q: np.ndarray) -> list[Panel]:
+    """Panels of a robot's joint coordinates (N, nv), one per unit (rad, m)."""
+    kinds = {"rad": "revolute", "m": "prismatic"}
+    return [
+        Panel(
+            f"q [{unit}]",
+            {robot.q_names[k]: q[:, k] for k in ks},
+            title=f"{kinds.get(unit, unit)} joints: positions",
+        )
+        for unit, ks in _groups(robot, robot.coordinate_units)
+    ]

@@ -3,8 +3,8 @@
 A reference run integrates the closed loop at rtol 1e-13 with two unrelated
 methods of scipy's ``solve_ivp`` – DOP853 (explicit Runge–Kutta, order 8) and
 Radau (implicit Runge–Kutta, order 5) – on the plain right-hand side
-``pin.aba(model, data, q, q̇, controller(q, q̇))`` (no gravity folding, no
-shortcut shared with :mod:`rrt_pin.simulation`), and reports how far the two
+``pin.aba(model, data, q, q̇, controller.efforts(t, q, q̇))`` (no gravity folding, no
+shortcut shared with :mod:`rrt_pin.simulate`), and reports how far the two
 disagree. The DOP853 solution is the reference.
 
 :func:`seed_reference` caches the seed's run in a ``.npz`` file (in
@@ -88,12 +88,18 @@ def reference_run(
     import pinocchio as pin
     from scipy.integrate import solve_ivp
 
+    from rrt_pin.control import as_controller
+    from rrt_pin.robot import Robot
+
+    robot = Robot.from_model(model)
+    law = as_controller(controller, model.nv)
     n = model.nv
     data = model.createData()
 
     def f(t: float, y: np.ndarray) -> np.ndarray:
         q, v = y[:n], y[n:]
-        return np.concatenate((v, pin.aba(model, data, q, v, controller(q, v))))
+        tau = law.efforts(t, q, v)
+        return np.concatenate((v, pin.aba(model, data, robot.configuration(q), v, tau)))
 
     t = np.asarray(t_eval, dtype=float)
     y0 = np.concatenate((np.asarray(q0, dtype=float), np.asarray(qd0, dtype=float)))
@@ -140,7 +146,7 @@ def seed_reference(
     import pinocchio as pin
     import scipy
 
-    from rrt_pin.control import seed_controller
+    from rrt_pin.control import chapter_controller
     from rrt_pin.grid import time_grid
     from rrt_pin.model import rrt_model
 
@@ -167,7 +173,7 @@ def seed_reference(
                 )
         except (OSError, KeyError, ValueError):
             pass  # unreadable cache: recompute
-    ref = reference_run(rrt_model(p), seed_controller(p), p.q0, p.qd0, t)
+    ref = reference_run(rrt_model(p), chapter_controller(p), p.q0, p.qd0, t)
     if cache:
         from rrt_pin.io import atomic_write_bytes
 

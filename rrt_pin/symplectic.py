@@ -78,20 +78,24 @@ def leapfrog(
     qd0: np.ndarray,
     t_eval: np.ndarray,
     step: float,
-    efforts: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None,
+    efforts: Callable[[float, np.ndarray, np.ndarray], np.ndarray] | None = None,
     names: Sequence[str] | None = None,
+    configuration: Callable[[np.ndarray], np.ndarray] | None = None,
 ) -> LeapfrogResult:
     """Integrate with the canonical Störmer–Verlet method, landing on ``t_eval``.
 
     Args:
-        model: a Pinocchio model (nq = nv).
+        model: a Pinocchio model (nq = nv, or ``configuration`` maps joint
+            coordinates to its configuration vector).
         q0: initial positions [rad, m].
         qd0: initial velocities [rad/s, m/s].
         t_eval: increasing output times [s]; the first is the initial time.
         step: largest step [s]; each interval between output times is split
             into equal steps no longer than this.
-        efforts: optional τ(q, q̇) [N·m, N] added to ṗ (zero when None).
+        efforts: optional τ(t, q, q̇) [N·m, N] added to ṗ (zero when None).
         names: the 2·nv coordinate names used in errors (default q1…, qd1…).
+        configuration: joint coordinates (nv,) -> Pinocchio's q (nq,) (e.g.
+            :meth:`rrt_pin.robot.Robot.configuration` for continuous joints).
 
     Raises:
         InputError: bad shapes, non-finite values, a non-positive step.
@@ -103,7 +107,10 @@ def leapfrog(
     t_eval = np.asarray(t_eval, dtype=float)
     q = np.array(q0, dtype=float)
     qd = np.array(qd0, dtype=float)
-    if q.shape != (model.nv,) or qd.shape != (model.nv,) or model.nq != model.nv:
+    pin_q = configuration if configuration is not None else (lambda x: x)
+    if q.shape != (model.nv,) or qd.shape != (model.nv,) or (
+        model.nq != model.nv and configuration is None
+    ):
         raise InputError(f"{q.shape=} and {qd.shape=} must be ({model.nv},) with nq = nv")
     if not (np.isfinite(q).all() and np.isfinite(qd).all() and np.isfinite(t_eval).all()):
         raise InputError("q0, qd0 and t_eval must be finite")
@@ -117,14 +124,15 @@ def leapfrog(
     n_evals = 0
 
     def mass(qq: np.ndarray) -> np.ndarray:
-        M = pin.crba(model, data, qq)
+        M = pin.crba(model, data, pin_q(qq))
         return np.triu(M) + np.triu(M, 1).T
 
-    def dLdq(qq: np.ndarray, vv: np.ndarray) -> np.ndarray:
-        C = pin.computeCoriolisMatrix(model, data, qq, vv)
-        out = C.T @ vv - pin.computeGeneralizedGravity(model, data, qq)
+    def dLdq(qq: np.ndarray, vv: np.ndarray, tt: float) -> np.ndarray:
+        x = pin_q(qq)
+        C = pin.computeCoriolisMatrix(model, data, x, vv)
+        out = C.T @ vv - pin.computeGeneralizedGravity(model, data, x)
         if efforts is not None:
-            out = out + np.asarray(efforts(qq, vv), dtype=float)
+            out = out + np.asarray(efforts(tt, qq, vv), dtype=float)
         return out
 
     def fail(t: float, q_: np.ndarray, p_: np.ndarray, what: str) -> None:
@@ -155,7 +163,7 @@ def leapfrog(
             ph = p
             for _ in range(MAX_ITER):
                 v0 = np.linalg.solve(M0, ph)
-                new = p + 0.5 * h * dLdq(q, v0)
+                new = p + 0.5 * h * dLdq(q, v0, t)
                 n_evals += 1
                 if not np.isfinite(new).all():
                     fail(t, q, new, "momentum stage")
@@ -179,7 +187,7 @@ def leapfrog(
             else:
                 fail(t, q1, ph, f"the position stage did not converge with step {h!r} s")
             v1 = np.linalg.solve(mass(q1), ph)
-            p = ph + 0.5 * h * dLdq(q1, v1)
+            p = ph + 0.5 * h * dLdq(q1, v1, t + h)
             n_evals += 1
             q = q1
             if not (np.isfinite(q).all() and np.isfinite(p).all()):

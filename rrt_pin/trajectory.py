@@ -1,4 +1,4 @@
-"""The seed's rest-to-rest motion, eq. (30), for any number of joints.
+"""The chapter's rest-to-rest motion, eq. (30), for any number of joints.
 
     q(t) = q(0) + (qf − q(0))/Tp · [t − Tp/(2π)·sin(2πt/Tp)],   0 ≤ t ≤ Tp
 
@@ -23,7 +23,7 @@ import numpy as np
 
 from rrt_pin.errors import InputError
 
-__all__ = ["Trajectory", "rest_to_rest"]
+__all__ = ["RestToRest", "Trajectory", "rest_to_rest"]
 
 
 @dataclass(frozen=True)
@@ -121,3 +121,35 @@ def rest_to_rest(
     for arr in (times, q, qd, qdd):
         arr.flags.writeable = False
     return Trajectory(t=times, q=q, qd=qd, qdd=qdd)
+
+
+@dataclass(frozen=True)
+class RestToRest:
+    """Eq. (30) as a function of time: ``motion(t)`` samples it (see :func:`rest_to_rest`).
+
+    A tracking controller (:class:`~rrt_pin.control.TrackingController`) follows it.
+
+    Attributes:
+        q0: initial coordinates [rad or m].
+        qf: final coordinates [rad or m].
+        Tp: duration of the motion [s].
+    """
+
+    q0: tuple[float, ...]
+    qf: tuple[float, ...]
+    Tp: float
+
+    def __post_init__(self) -> None:
+        rest_to_rest(self.q0, self.qf, self.Tp, 0.0)  # validates
+        object.__setattr__(self, "q0", tuple(float(v) for v in self.q0))
+        object.__setattr__(self, "qf", tuple(float(v) for v in self.qf))
+        object.__setattr__(self, "Tp", float(self.Tp))
+
+    @property
+    def n(self) -> int:
+        """Number of coordinates."""
+        return len(self.q0)
+
+    def __call__(self, t: float | Sequence[float] | np.ndarray) -> Trajectory:
+        """The samples at time(s) ``t`` [s]."""
+        return rest_to_rest(self.q0, self.qf, self.Tp, t)

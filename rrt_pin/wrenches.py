@@ -33,7 +33,6 @@ if TYPE_CHECKING:
 
 __all__ = [
     "RRT_WRENCH_COLUMNS",
-    "RRT_WRENCH_DOCS",
     "JointWrenches",
     "generic_wrench_columns",
     "joint_wrenches",
@@ -60,17 +59,6 @@ _RRT_COMPONENTS = (
     (2, "moment", 2, "M23z"),
 )
 RRT_WRENCH_COLUMNS = tuple(c[3] for c in _RRT_COMPONENTS)
-
-#: One line per RRT wrench column, for ``--help``.
-RRT_WRENCH_DOCS = (
-    "F01x,F01y,F01z: force of link 0 on link 1 at A, frame (1) [N]; "
-    "T01y,T01z: torque of 0 on 1 about A, frame (1) [N·m]; "
-    "F12x,F12y,F12z: force of link 1 on link 2 at B, frame (2) [N]; "
-    "T12x,T12z: torque of 1 on 2 about B, frame (2) [N·m]; "
-    "F23x,F23y: force of link 2 on link 3 at C3, frame (2) [N]; "
-    "M23x,M23y,M23z: moment of 2 on 3 about C3, frame (2) [N·m]"
-)
-
 
 @dataclass(frozen=True)
 class JointWrenches:

@@ -91,7 +91,7 @@ def compile_line() -> str:
 
 def direct_rows(model, controller, p, t: np.ndarray) -> list[tuple[str, Run]]:
     """(label, run) rows of the compiled backend on the seed's run; ``run()`` -> (q, evals)."""
-    from rrt_pin.simulation import simulate
+    from rrt_pin.simulate import simulate
 
     print(f"compiled: {compile_line()}")
 
@@ -317,7 +317,7 @@ def section_physics() -> dict[str, bool]:
     from rrt_pin.control import seed_controller
     from rrt_pin.model import rrt_model
     from rrt_pin.params import Params
-    from rrt_pin.simulation import simulate
+    from rrt_pin.simulate import simulate
 
     p = Params(I1z=0.3, I2z=0.2)  # every term of the kernel non-zero
     model = rrt_model(p)

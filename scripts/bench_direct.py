@@ -37,7 +37,8 @@ from rrt_pin.inverse import default_num_threads
 from rrt_pin.model import rrt_model
 from rrt_pin.params import Params
 from rrt_pin.reference import reference_run, seed_reference
-from rrt_pin.simulation import METHODS, simulate, simulate_batch
+from rrt_pin.methods import METHODS
+from rrt_pin.simulate import simulate, simulate_batch
 
 TARGET_ERROR = 1e-8  # max |q error| the defaults must reach [rad, m]
 TARGET_SPEEDUP = 3.0  # single run, against the baseline

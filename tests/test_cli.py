@@ -8,6 +8,7 @@ import pytest
 from rrt_pin.cli import main
 from rrt_pin.params import Params
 from rrt_pin.urdf import urdf_xml
+from tests.robots import robot_urdf
 
 
 def run(argv, capsys):
@@ -104,23 +105,32 @@ def test_import_is_light():
 
 
 @pytest.mark.parametrize(
-    "requested, rrt, built, expected",
+    "requested, rrt, built, task, method, expected",
     [
-        ("auto", True, True, "compiled"),
-        ("auto", True, False, "pinocchio"),
-        ("auto", False, True, "pinocchio"),  # another URDF: only Pinocchio knows it
-        ("pinocchio", True, True, "pinocchio"),
-        ("symbolic", True, False, "symbolic"),
+        ("auto", True, True, "inverse", None, "compiled"),
+        ("auto", True, False, "inverse", None, "pinocchio"),
+        ("auto", False, True, "inverse", None, "pinocchio"),  # another URDF: only Pinocchio
+        ("pinocchio", True, True, "inverse", None, "pinocchio"),
+        ("symbolic", True, False, "inverse", None, "symbolic"),
+        # auto never changes the method: odepack (the default) runs on Pinocchio only
+        ("auto", True, True, "simulate", None, "pinocchio"),
+        ("auto", True, True, "simulate", "odepack", "pinocchio"),
+        ("auto", True, True, "simulate", "DOP853", "compiled"),
     ],
 )
-def test_auto_backend_picks_compiled_only_when_built(monkeypatch, requested, rrt, built, expected):
+def test_auto_backend_picks_compiled_only_when_built(
+    monkeypatch, requested, rrt, built, task, method, expected
+):
     import rrt_pin.compiled as compiled
     from rrt_pin.commands._common import resolve_backend
+    from rrt_pin.robot import Robot
+    from rrt_pin.robots import chapter_arm
 
+    robot = chapter_arm() if rrt else Robot.from_urdf(robot_urdf("ur5"))
     monkeypatch.setattr(compiled, "is_compiled", lambda: built)
     loads = []
     monkeypatch.setattr(compiled, "ensure_compiled", lambda: loads.append(1) or _FakeReport())
-    assert resolve_backend(requested, rrt) == expected
+    assert resolve_backend(requested, robot, task, method) == expected
     assert loads == ([1] if expected == "compiled" else [])
 
 

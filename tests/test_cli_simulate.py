@@ -5,12 +5,14 @@ import pytest
 
 from rrt_pin.cli import main
 from rrt_pin.commands import simulate as command
+from rrt_pin.metrics import settling_times
 from rrt_pin.control import pd_gravity_controller, seed_controller
 from rrt_pin.csvio import read_csv
 from rrt_pin.grid import time_grid
 from rrt_pin.model import load_urdf_model, rrt_model
 from rrt_pin.params import Params
-from rrt_pin.simulation import METHODS, simulate
+from rrt_pin.methods import METHODS
+from rrt_pin.simulate import simulate
 from tests.robots import robot_urdf
 
 HEADER = ["t", "q1", "q2", "q3", "qd1", "qd2", "qd3", "T01x", "T12y", "F23z"]
@@ -42,7 +44,9 @@ def test_summary_without_csv(capsys):
     code, out, err = run(["simulate"], capsys)
     assert code == 0 and err == ""
     lines = out.splitlines()
-    assert lines[0].startswith("simulated the RRT arm under eq. (31): 1501 samples")
+    assert lines[0].startswith(
+        "simulated the RRT arm under the chapter's feedback law, eq. (31): 1501 samples"
+    )
     assert "method odepack" in lines[0]
     rows = {line.split()[0]: line for line in lines[2:]}
     for name in ("q1", "q2", "q3"):
@@ -57,9 +61,9 @@ def test_summary_without_csv(capsys):
 def test_settling_times():
     t = np.linspace(0.0, 4.0, 5)
     q = np.array([[0.0, 1.0], [0.5, 1.0], [0.99, 1.0], [0.985, 1.0], [1.0, 1.0]])
-    assert command.settling_times(t, q, [0.0, 1.0], [1.0, 1.0]) == [2.0, 0.0]
+    assert settling_times(t, q, [0.0, 1.0], [1.0, 1.0]) == [2.0, 0.0]
     q[-1, 0] = 0.9
-    assert command.settling_times(t, q, [0.0, 1.0], [1.0, 1.0])[0] is None
+    assert settling_times(t, q, [0.0, 1.0], [1.0, 1.0])[0] is None
 
 
 def test_options_reach_the_simulation(tmp_path, capsys):
@@ -101,9 +105,14 @@ def test_any_urdf(tmp_path, capsys):
     np.testing.assert_array_equal(data, expected.table())
 
 
-def test_methods_listed_by_the_command_are_the_librarys():
-    assert command.METHODS == METHODS
-    assert set(command.FIXED_STEP) <= set(METHODS)
+def test_methods_listed_by_the_command_are_the_librarys(capsys):
+    """--help lists every method of the registry, leapfrog included, with how it steps."""
+    with pytest.raises(SystemExit):
+        main(["simulate", "--help"])
+    text = capsys.readouterr().out
+    for name, m in METHODS.items():
+        line = next(x for x in text.splitlines() if x.strip().startswith(name + " "))
+        assert ("--rtol" in line) == m.adaptive and ("--dt" in line) != m.adaptive
 
 
 @pytest.mark.parametrize(
@@ -139,7 +148,7 @@ def test_bad_input_is_one_line_exit_2_nothing_written(tmp_path, capsys, argv, wo
 def test_urdf_needs_its_own_values(tmp_path, capsys):
     urdf = str(robot_urdf("ur5"))
     cases = [
-        ([], "needs --q0, --qf, --kp, --kd (6 joints)"),
+        ([], "needs --q0, --qf, --kp and --kd (6 values each"),
         (["--q0", "0,0,0,0,0,0", "--qf", "0,0,0,0,0,0", "--kp", "1", "--kd", "1,1"], "--kd has 2"),
         (
             [

@@ -42,7 +42,7 @@ def close(a, b, rel=TIGHT):
 
 def test_seed_controller_is_eq31(seed_params, rng):
     c = seed_controller(seed_params)
-    assert c.kind == "seed"
+    assert c.kind == "chapter"
     assert c.kp == seed_params.kp and c.kd == seed_params.kd and c.qf == seed_params.qf
     q, qd, _ = random_states(rng, 50)
     for a, b in zip(q, qd, strict=True):

@@ -189,7 +189,8 @@ def test_single_state_empty_batch_and_gravity_changes(seed_params):
     model = rrt_model(seed_params)
     q = np.array(seed_params.q0)
     tau = inverse_dynamics(model, q, np.zeros(3), np.zeros(3))
-    np.testing.assert_allclose(tau[0], holding_efforts(seed_params, q), rtol=TIGHT, atol=1e-12)
+    assert tau.shape == (3,)  # one sample in, (nv,) out, as pin.rnea
+    np.testing.assert_allclose(tau, holding_efforts(seed_params, q), rtol=TIGHT, atol=1e-12)
     assert inverse_dynamics(model, np.empty((0, 3)), np.empty((0, 3)), np.empty((0, 3))).shape == (
         0,
         3,
@@ -220,8 +221,9 @@ def test_symbolic_backend_matches_pinocchio_and_the_lagrangian(seed_model, seed_
 
 
 def test_compiled_backend_reports_when_unavailable(seed_params, monkeypatch):
-    monkeypatch.setitem(sys.modules, "rrt_pin.compiled", None)  # makes the import fail
-    monkeypatch.delattr(rrt_pin, "compiled", raising=False)
+    from rrt_pin import backends
+
+    monkeypatch.setattr(backends.Backend, "available", lambda self: self.name != "compiled")
     with pytest.raises(InputError, match="backend='compiled' is unavailable"):
         inverse_dynamics(
             None, np.zeros(3), np.zeros(3), np.zeros(3), backend="compiled", params=seed_params
@@ -231,15 +233,15 @@ def test_compiled_backend_reports_when_unavailable(seed_params, monkeypatch):
 @pytest.mark.parametrize(
     "kwargs, words",
     [
-        (dict(q=np.zeros((4, 2))), "q.shape=(4, 2) but model.nq=3"),
-        (dict(qd=np.zeros((4, 3, 1))), "qd.shape=(4, 3, 1) but model.nv=3"),
+        (dict(q=np.zeros((4, 2))), "q has shape (4, 2) but needs (N, 3)"),
+        (dict(qd=np.zeros((4, 3, 1))), "qd has shape (4, 3, 1) but needs (N, 3)"),
         (dict(qdd=np.zeros((5, 3))), "sample counts differ"),
         (dict(q=np.full((4, 3), np.nan)), "q[0, 0]=nan must be finite"),
         (dict(qd=np.array([[0, 0, 0]] * 3 + [[0, np.inf, 0]])), "qd[3, 1]=inf must be finite"),
         (dict(qdd=[["a", 0, 0]] * 4), "qdd is not an array of numbers"),
-        (dict(backend="fast"), "backend='fast' is unknown; valid: pinocchio, symbolic, compiled"),
-        (dict(backend="symbolic"), "backend='symbolic' needs params"),
-        (dict(model=None), "backend='pinocchio' needs a Pinocchio model"),
+        (dict(backend="fast"), "backend='fast' is not one of pinocchio, symbolic, compiled"),
+        (dict(backend="symbolic"), "backend='symbolic' needs the chapter's arm"),
+        (dict(model=None), "backend='pinocchio' needs a Robot or a Pinocchio model"),
         (dict(num_threads=0), "num_threads=0 must be >= 1"),
     ],
 )

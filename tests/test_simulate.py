@@ -13,15 +13,18 @@ from rrt_pin.errors import DivergenceError, InputError
 from rrt_pin.model import load_urdf_model, rrt_model
 from rrt_pin.params import Params
 from rrt_pin.reference import reference_run, seed_reference
-from rrt_pin.simulation import (
-    ADAPTIVE_METHODS,
-    METHODS,
-    SimulationResult,
-    _ClosedLoop,
-    coordinate_names,
-    effort_names,
-    simulate,
-)
+from rrt_pin.control import as_controller
+from rrt_pin.errors import RrtPinError
+from rrt_pin.methods import METHODS, names
+from rrt_pin.robot import Robot
+from rrt_pin.simulate import SimulationResult, simulate
+from rrt_pin.simulate.closed_loop import ClosedLoop
+
+ADAPTIVE_METHODS = names(adaptive=True)
+
+
+def _ClosedLoop(model, controller):
+    return ClosedLoop(Robot.from_model(model), as_controller(controller, model.nv))
 from tests.conftest import TIGHT, random_states
 from tests.robots import robot_urdf
 
@@ -117,13 +120,13 @@ def test_gravity_folding_is_exact(seed_model, seed_params, rng):
     q, qd, _ = random_states(rng, 100)
     acc = loop.acceleration()
     for a, b in zip(q, qd, strict=True):
-        expected = pin.aba(seed_model, data, a, b, c(a, b))
-        np.testing.assert_allclose(acc(a, b), expected, rtol=0, atol=TIGHT * np.abs(expected).max())
+        expected = pin.aba(seed_model, data, a, b, c.efforts(0.0, a, b))
+        np.testing.assert_allclose(acc(0.0, a, b), expected, rtol=0, atol=TIGHT * np.abs(expected).max())
 
 
 def test_plain_callable_controller_takes_the_general_path(seed_model, seed_params, seed_run):
     c = seed_controller(seed_params)
-    plain = lambda q, qd: c(q, qd)  # noqa: E731  (no gravity_of: no folding)
+    plain = lambda q, qd: c.efforts(0.0, q, qd)  # noqa: E731  (no feedback(): no folding)
     assert not _ClosedLoop(seed_model, plain).folded
     r = simulate(seed_model, plain, seed_params.q0, seed_params.qd0, seed_run.t)
     np.testing.assert_allclose(r.q, seed_run.q, rtol=0, atol=1e-9)
@@ -187,13 +190,15 @@ def test_analytic_jacobian_matches_finite_differences(folded, seed_model, seed_p
     c = seed_controller(seed_params)
 
     class Plain:
-        """The same law without the gravity-folding hooks: the general path."""
+        """The same law without feedback(): the general path, with its own Jacobian."""
 
-        def __call__(self, q, qd):
-            return c(q, qd)
+        nv = 3
 
-        def derivatives(self, q, qd):
-            return c.derivatives(q, qd)
+        def efforts(self, t, q, qd):
+            return c.efforts(t, q, qd)
+
+        def jacobian(self, t, q, qd):
+            return c.jacobian(t, q, qd)
 
     controller = c if folded else Plain()
     loop = _ClosedLoop(seed_model, controller)
@@ -202,9 +207,9 @@ def test_analytic_jacobian_matches_finite_differences(folded, seed_model, seed_p
     q, qd, _ = random_states(rng, 5)
     h = 1e-6
     for a, b in zip(q, qd, strict=True):
-        J = loop.jacobian(a, b)
+        J = loop.jacobian(0.0, a, b)
         y = np.concatenate((a, b))
-        f = lambda y: np.concatenate((y[3:], acc(y[:3], y[3:])))  # noqa: E731
+        f = lambda y: np.concatenate((y[3:], acc(0.0, y[:3], y[3:])))  # noqa: E731
         for k in range(6):
             e = np.eye(6)[k] * h
             fd = (f(y + e) - f(y - e)) / (2 * h)
@@ -225,8 +230,9 @@ def test_any_urdf_with_pd_gravity_converges():
 
 
 def test_names_of_the_rrt_arm(seed_model):
-    assert coordinate_names(seed_model) == (("q1", "q2", "q3"), ("qd1", "qd2", "qd3"))
-    assert effort_names(seed_model) == ("T01x", "T12y", "F23z")
+    robot = Robot.from_model(seed_model)
+    assert (robot.q_names, robot.qd_names) == (("q1", "q2", "q3"), ("qd1", "qd2", "qd3"))
+    assert robot.effort_names == ("T01x", "T12y", "F23z")
 
 
 # --- bad input -------------------------------------------------------------------------
@@ -246,17 +252,20 @@ def args(seed_model, seed_params):
     [
         ({"q0": [0.1, float("nan"), 0.2]}, "q0[1]=nan must be finite"),
         ({"qd0": [0.0, 0.0, float("inf")]}, "qd0[2]=inf must be finite"),
-        ({"q0": [0.1, 0.2]}, "q0 has shape (2,) but the model needs (3,)"),
+        ({"q0": [0.1, 0.2]}, "q0 has shape (2,) but needs (3,)"),
         ({"t_eval": [0.0, 1.0, 1.0]}, "t_eval must increase"),
         ({"t_eval": [0.0, float("nan")]}, "t_eval[1]=nan must be finite"),
         ({"t_eval": [0.0]}, "at least 2 times"),
         ({"method": "Euler"}, "method='Euler' is not one of odepack, RK45"),
-        ({"rtol": -1e-6}, "rtol=-1e-06 must be a finite number > 0"),
-        ({"atol": float("nan")}, "atol=nan must be a finite number > 0"),
-        ({"method": "rk4", "step": 0.0}, "step=0.0 must be a finite number > 0"),
+        ({"rtol": -1e-6}, "rtol=-1e-06 must be > 0"),
+        ({"rtol": True}, "rtol=True must be a real number"),
+        ({"rtol": 1e300}, "rtol=1e+300 must be < 1"),
+        ({"atol": float("nan")}, "atol=nan must be finite"),
+        ({"method": "rk4", "step": 0.0}, "step=0.0 must be > 0"),
+        ({"method": "odepack", "backend": "compiled"}, "method='odepack' does not run on"),
         ({"backend": "gpu"}, "backend='gpu' is not one of pinocchio, compiled"),
         ({"jacobian": "exact"}, "jacobian='exact' is not one of"),
-        ({"controller": 3.0}, "controller must be callable"),
+        ({"controller": 3.0}, "controller must be a Controller"),
         ({"model": "arm.urdf"}, "model must be a pinocchio.Model"),
     ],
 )
@@ -270,7 +279,7 @@ def test_bad_input_is_refused(args, change, words):
 def test_unsupported_joints_are_refused():
     model = pin.Model()
     model.addJoint(0, pin.JointModelSpherical(), pin.SE3.Identity(), "ball")
-    with pytest.raises(InputError, match="joint 'ball'"):
+    with pytest.raises(RrtPinError, match="joint 'ball'"):
         simulate(model, lambda q, v: np.zeros(3), [1, 0, 0, 0], [0, 0, 0], [0.0, 1.0])
 
 
@@ -335,16 +344,19 @@ def test_step_size_underflow_is_reported(seed_model, seed_params):
 
 def test_a_law_that_returns_nan_at_an_output_time_is_caught(seed_model, seed_params):
     """Even if the integration succeeds, non-finite efforts never come back quietly."""
+    from rrt_pin.control import Controller
 
-    class Flaky:
+    class Flaky(Controller):
+        nv = 3
+
         def __init__(self):
             self.c = seed_controller(seed_params)
 
-        def __call__(self, q, qd):
-            return self.c(q, qd)
+        def efforts(self, t, q, qd):
+            return self.c.efforts(t, q, qd)
 
-        def efforts(self, q, qd):
-            tau = self.c.efforts(q, qd)
+        def efforts_many(self, t, q, qd):
+            tau = self.c.efforts_many(t, q, qd)
             tau[7, 2] = np.nan
             return tau
 
@@ -354,36 +366,37 @@ def test_a_law_that_returns_nan_at_an_output_time_is_caught(seed_model, seed_par
 
 # --- compiled backend dispatch ---------------------------------------------------------
 def test_compiled_backend_is_dispatched_lazily(monkeypatch, seed_model, seed_params, seed_run):
+    import rrt_pin.simulate.api as api
+    from rrt_pin import backends
+
     calls = []
 
-    def simulate_compiled(
-        params, controller, q0, qd0, t_eval, method="DOP853", rtol=None, atol=None, **kw
-    ):
-        calls.append((params, method, rtol, atol, kw))
+    def simulate_compiled(params, controller, q0, qd0, t_eval, method, rtol, atol, step, **kw):
+        calls.append((params, method, rtol, atol, step, kw.get("model")))
         return seed_run
 
-    fake = types.ModuleType("rrt_pin.compiled")
-    fake.available = lambda: True
-    fake.simulate_compiled = simulate_compiled
-    monkeypatch.setitem(sys.modules, "rrt_pin.compiled", fake)
-    # `from rrt_pin import compiled` reads the package attribute first, once imported.
-    monkeypatch.setattr(rrt_pin, "compiled", fake, raising=False)
+    fake = types.SimpleNamespace(simulate_compiled=simulate_compiled)
+    monkeypatch.setattr(api, "_compiled", lambda: fake)
+    monkeypatch.setattr(api, "_prepare", lambda robot, backend: None)
     c = seed_controller(seed_params)
     r = simulate(seed_model, c, seed_params.q0, seed_params.qd0, seed_run.t, backend="compiled")
     assert r is seed_run
-    assert calls == [(seed_params, "DOP853", None, None, {"model": seed_model})]
+    # the backend's default method and the registry's default tolerances, named in the result
+    assert calls == [(seed_params, "DOP853", 1e-9, 1e-11, None, seed_model)]
     simulate(
         seed_model,
         c,
         seed_params.q0,
         seed_params.qd0,
         seed_run.t,
-        "rk4",
+        method="rk4",
         backend="compiled",
         step=0.1,
     )
-    assert calls[-1] == (seed_params, "rk4", None, None, {"model": seed_model, "step": 0.1})
-    fake.available = lambda: False
+    assert calls[-1] == (seed_params, "rk4", None, None, 0.1, seed_model)
+    monkeypatch.setattr(backends.Backend, "available", lambda self: False)
+    monkeypatch.undo()
+    monkeypatch.setattr(backends.Backend, "available", lambda self: self.name != "compiled")
     with pytest.raises(InputError, match="numba not found"):
         simulate(seed_model, c, seed_params.q0, seed_params.qd0, seed_run.t, backend="compiled")
 
@@ -401,12 +414,12 @@ def test_compiled_backend_needs_the_arms_parameters(seed_model, seed_params):
         )
 
 
-def test_rrt_pin_simulate_is_the_function_even_after_the_module_was_imported():
-    """The module is ``rrt_pin.simulation``, so importing it never shadows ``rrt_pin.simulate``."""
+def test_rrt_pin_simulate_is_callable_even_after_the_package_was_imported():
+    """``rrt_pin.simulate`` is the package and calls ``simulate()``, however it was imported."""
     import subprocess
 
     code = (
-        "import rrt_pin.simulation, rrt_pin; p = rrt_pin.Params(); "
+        "import rrt_pin.simulate.results, rrt_pin; p = rrt_pin.Params(); "
         "r = rrt_pin.simulate(rrt_pin.rrt_model(p), rrt_pin.seed_controller(p), p.q0, p.qd0, "
         "[0.0, 0.1]); print(r.q.shape, r.method)"
     )

@@ -14,7 +14,7 @@ from rrt_pin.errors import DivergenceError
 from rrt_pin.grid import time_grid
 from rrt_pin.model import rrt_model
 from rrt_pin.params import Params
-from rrt_pin.simulation import simulate
+from rrt_pin.simulate import simulate
 from rrt_pin.symplectic import leapfrog, mechanical_energy
 
 ENERGY_TOL = 1e-9  # |E(t) − E(0)| ≤ ENERGY_TOL · max T over the run

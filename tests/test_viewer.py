@@ -394,7 +394,7 @@ def test_bad_csv_as_a_process_prints_one_line(tmp_path):
         (["--serve-for", "-1"], "must be >= 0"),
         (["--screenshot", "/no/such/folder/x.png"], "folder '/no/such/folder' does not exist"),
         (["--screenshot-size", "big"], "expected WIDTHxHEIGHT"),
-        (["--q0", "1,2"], "--q0 has 2 values but the RRT arm has 3 joints"),
+        (["--q0", "1,2"], "--q0 has 2 values but the arm has 3 joints"),
         (["--set", "L1=-1"], "L1=-1.0: must be > 0"),
     ],
 )
@@ -410,9 +410,9 @@ def test_urdf_needs_its_own_configurations(tmp_path, capsys):
 
     path = str(robot_urdf("ur5"))
     code = main(["view", "--urdf", path, "--port", "0", "--serve-for", "0"])
-    assert code == 2 and "with --urdf needs --q0" in capsys.readouterr().err
+    assert code == 2 and "--trajectory inverse for ur5 needs --q0" in capsys.readouterr().err
     code = main(["view", "--urdf", path, "--trajectory", "simulate", "--serve-for", "0"])
-    assert code == 2 and "needs the RRT arm" in capsys.readouterr().err
+    assert code == 2 and "--trajectory simulate for ur5 needs" in capsys.readouterr().err
     bad = _csv(tmp_path, ["t", "q_shoulder_pan_joint"], [[0, 0]])
     code = main(["view", "--urdf", path, "--trajectory", bad, "--serve-for", "0"])
     err = capsys.readouterr().err
@@ -478,17 +478,16 @@ def test_spheres_and_boxes_of_another_urdf():
 
 def test_a_csv_needs_no_dynamics_and_is_resampled(tmp_path):
     """A CSV at 1 kHz of eq. (30) becomes the keyframes of eq. (30) at 30 fps."""
-    from rrt_pin.cli import build_parser
-    from rrt_pin.commands.view import trajectory
+    from rrt_pin.playback import motion_keyframes
+    from rrt_pin.robots import chapter_arm
 
     p = Params()
     t = np.arange(0, 15001) * 1e-3
     tr = rest_to_rest(p.q0, p.qf, p.Tp, t)
     path = tmp_path / "inverse.csv"
     write_csv(path, ["t", "q1", "q2", "q3", "T01x"], np.column_stack([t, tr.q, t]))
-    parser, _ = build_parser()
-    args = parser.parse_args(["view", "--trajectory", str(path)])
-    times, q, ghost = trajectory(args, p, rrt_model(p))
+    frames = motion_keyframes(chapter_arm(p), str(path), 30.0)
+    times, q, ghost = frames.t, frames.q, frames.ghost
     assert times.shape == (451,) and times[-1] == 15.0
     # linear interpolation of 1 kHz samples: error <= h²/8 · max|q̈|
     bound = 1e-6 / 8 * np.abs(tr.qdd).max(axis=0)
@@ -498,21 +497,19 @@ def test_a_csv_needs_no_dynamics_and_is_resampled(tmp_path):
 
 def test_urdf_csv_columns(tmp_path):
     """q_<joint> (as `rrt-pin inverse --urdf` writes), the joint names and q1..qn all work."""
-    from rrt_pin.cli import build_parser
-    from rrt_pin.commands.view import trajectory
-    from rrt_pin.model import load_urdf_model
+    from rrt_pin.playback import motion_keyframes
+    from rrt_pin.robot import Robot
     from tests.robots import robot_urdf
 
     path = robot_urdf("ur5")
-    model = load_urdf_model(path)
-    names = [str(n) for n in model.names[1:]]
-    parser, _ = build_parser()
+    robot = Robot.from_urdf(path)
+    names = [j.name for j in robot.joints]
     values = np.linspace(0, 1, 6 * 3).reshape(3, 6)
     for header in ([f"q_{n}" for n in names], names, [f"q{k + 1}" for k in range(6)]):
         csv = tmp_path / "ur5.csv"
         write_csv(csv, ["t", *header], np.column_stack([[0.0, 0.5, 1.0], values]))
-        args = parser.parse_args(["view", "--urdf", str(path), "--trajectory", str(csv)])
-        times, q, ghost = trajectory(args, Params(), model)
+        frames = motion_keyframes(robot, str(csv), 30.0)
+        times, q, ghost = frames.t, frames.q, frames.ghost
         assert times.shape == (31,)
         assert np.allclose(q[0], values[0]) and np.allclose(q[-1], values[-1])
         assert np.allclose(ghost, values[-1])  # the ghost: the CSV's last pose

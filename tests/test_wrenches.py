@@ -208,7 +208,7 @@ def test_generic_column_names():
 
 
 def test_bad_input(seed_model):
-    with pytest.raises(InputError, match="q.shape=\\(2, 2\\) but model.nq=3"):
+    with pytest.raises(InputError, match="q has shape \\(2, 2\\) but needs \\(N, 3\\)"):
         joint_wrenches(seed_model, np.zeros((2, 2)), np.zeros((2, 3)), np.zeros((2, 3)))
     with pytest.raises(InputError, match="qdd\\[1, 0\\]=nan must be finite"):
         joint_wrenches(seed_model, np.zeros((2, 3)), np.zeros((2, 3)), [[0, 0, 0], [np.nan, 0, 0]])

@@ -5,11 +5,16 @@ from __future__ import annotations
 import argparse
 import math
 
+from typing import TYPE_CHECKING
+
 from rrt_pin.params import PARAM_DOCS, Params
 
+if TYPE_CHECKING:
+    from rrt_pin.robot import Robot
+
 __all__ = [
+    "add_robot_arguments",
     "add_scene_arguments",
-    "check_urdf_params",
     "check_writable",
     "finite_float",
     "float_list",
@@ -18,6 +23,8 @@ __all__ = [
     "positive_float",
     "positive_int",
     "positive_seconds",
+    "resolve_backend",
+    "robot_from_args",
 ]
 
 
@@ -90,18 +97,18 @@ def add_scene_arguments(parser: argparse.ArgumentParser) -> None:
         action="append",
         default=[],
         metavar="NAME=VALUE",
-        help=f"override one of the seed's parameters, SI units (repeatable); names: {names}",
+        help=f"override one of the chapter's parameters, SI units (repeatable); names: {names}",
     )
     parser.add_argument(
         "--scene",
         metavar="PATH",
-        help="TOML scene file: a [params] table (seed symbols, SI units) and an "
+        help="TOML run file: a [params] table (the chapter's symbols, SI units) and an "
         "[options] table of defaults for this command's long options",
     )
 
 
 def params_from_args(args: argparse.Namespace) -> Params:
-    """Seed parameters < scene file [params] < ``--set`` overrides."""
+    """The chapter's parameters < run file [params] < ``--set`` overrides."""
     from rrt_pin.params import parse_overrides
     from rrt_pin.scene import resolve_params
 
@@ -141,32 +148,126 @@ def check_writable(path: str, flag: str) -> None:
         raise InputError(f"cannot write {flag} {path!r}: it is a folder")
 
 
-def check_urdf_params(args: argparse.Namespace, hint: str) -> None:
-    """With ``--urdf`` only g and Tp mean something: refuse the RRT arm's other parameters.
-
-    Raises:
-        InputError: a ``--set`` or scene parameter describes the RRT arm.
-    """
-    from rrt_pin.errors import InputError
-    from rrt_pin.params import parse_overrides
-
-    given = set(parse_overrides(args.overrides))
-    scene = getattr(args, "scene_obj", None)
-    if scene is not None:
-        given |= set(scene.params)
-    unused = sorted(given - {"g", "Tp"})
-    if unused:
-        raise InputError(
-            f"parameter {unused[0]} describes the RRT arm and does not apply to --urdf ({hint})"
+def add_robot_arguments(parser: argparse.ArgumentParser, task: str) -> None:
+    """Add ``--urdf`` and the task's start, target and gains (``--q0``, ``--qf`` …)."""
+    needs = {
+        "inverse": "--q0 and --qf",
+        "simulate": "--q0, --qf, --kp and --kd",
+        "view": "a CSV, or the flags of the task it plays",
+    }[task]
+    parser.add_argument(
+        "--urdf",
+        metavar="PATH",
+        help="another fixed-base robot (revolute, continuous, prismatic joints) instead of the "
+        f"chapter's RRT arm; needs {needs} (list its joints: rrt-pin joints --urdf PATH)",
+    )
+    parser.add_argument(
+        "--q0",
+        type=float_list,
+        metavar="A,B,...",
+        help="start configuration, one value per joint [rad or m] "
+        "(the arm's default: q10,q20,q30)",
+    )
+    if task in ("simulate", "view"):
+        parser.add_argument(
+            "--qd0",
+            type=float_list,
+            metavar="A,B,...",
+            help="initial velocity [rad/s or m/s] (the arm's default: qd10,qd20,qd30; else zero)",
+        )
+    parser.add_argument(
+        "--qf",
+        type=float_list,
+        metavar="A,B,...",
+        help="final (target) configuration [rad or m] (the arm's default: q1f,q2f,q3f)",
+    )
+    if task in ("simulate", "view"):
+        parser.add_argument(
+            "--kp",
+            type=float_list,
+            metavar="A,B,...",
+            help="stiffness gains >= 0 [N·m/rad or N/m], one per joint or one for all "
+            "(the arm's default: gamma01,gamma12,gamma23)",
+        )
+        parser.add_argument(
+            "--kd",
+            type=float_list,
+            metavar="A,B,...",
+            help="damping gains >= 0 [N·m·s/rad or N·s/m], one per joint or one for all "
+            "(the arm's default: beta01,beta12,beta23)",
         )
 
 
-def resolve_backend(requested: str, rrt: bool) -> str:
+def _values(flag: str, value: list[float], robot: Robot, gain: bool = False) -> list[float]:
+    """One value per joint (or, for gains, one for all); gains must be >= 0."""
+    from rrt_pin.errors import InputError, ParameterError
+
+    n = robot.nv
+    if gain and len(value) == 1:
+        value = value * n
+    if len(value) != n:
+        extra = " (or one for all)" if gain else ""
+        names = ", ".join(robot.q_names)
+        raise InputError(f"{flag} has {len(value)} values but the arm has {n} joints ({names}){extra}")
+    if gain:
+        for i, v in enumerate(value):
+            if v < 0.0:
+                raise ParameterError(f"{flag}[{i}]", v, "gain must be >= 0")
+    return list(value)
+
+
+def robot_from_args(args: argparse.Namespace, params: Params, task: str) -> Robot:
+    """The run's robot: ``--urdf PATH`` or the chapter's arm, with the flags' start, target, gains.
+
+    Raises:
+        InputError: a parameter that does not apply to the robot (``--set m1`` with
+            ``--urdf``), or a flag with the wrong number of values.
+        UrdfError: the URDF does not describe a usable robot.
+    """
+    from rrt_pin.errors import InputError
+    from rrt_pin.params import parse_overrides
+    from rrt_pin.robot import Robot
+    from rrt_pin.robots import chapter_arm
+
+    if args.urdf is None:
+        robot = chapter_arm(params)
+    else:
+        given = set(parse_overrides(args.overrides))
+        scene = getattr(args, "scene_obj", None)
+        if scene is not None:
+            given |= set(scene.params)
+        robot = Robot.from_urdf(args.urdf, g=params.g, Tp=params.Tp if "Tp" in given else None)
+        unused = sorted(given - set(robot.parameters))
+        if unused:
+            raise InputError(
+                f"parameter {unused[0]} describes the RRT arm and does not apply to --urdf "
+                f"(only {' and '.join(robot.parameters)} do)"
+            )
+    changes = {}
+    for flag in ("q0", "qd0", "qf", "kp", "kd"):
+        value = getattr(args, flag, None)
+        if value is not None:
+            changes[flag] = _values(f"--{flag}", value, robot, gain=flag in ("kp", "kd"))
+    robot = robot.with_defaults(**changes) if changes else robot
+    d = robot.defaults
+    needed = {"inverse": ("q0", "qf"), "simulate": ("q0", "qf", "kp", "kd")}.get(task, ())
+    missing = [f"--{k}" for k in needed if getattr(d, k) is None]
+    if missing:
+        flags = ", ".join(missing[:-1]) + " and " + missing[-1] if len(missing) > 1 else missing[0]
+        raise InputError(
+            f"--urdf {args.urdf} needs {flags} ({robot.nv} values each: {', '.join(robot.q_names)})"
+        )
+    return robot
+
+
+def resolve_backend(requested: str, robot: Robot, task: str, method: str | None = None) -> str:
     """The backend a run uses, loading the compiled one first so its cost is reported apart.
 
-    ``auto`` picks ``compiled`` only for the RRT arm and only when its machine
-    code is already built (in this process or in the disk cache, checked
-    without importing numba); otherwise ``pinocchio``. With ``compiled``,
+    ``auto`` picks ``compiled`` only when the robot supports it (the chapter's
+    arm), its machine code is already built (in this process or in the disk
+    cache, checked without importing numba), and it runs the method asked
+    for (``auto`` never changes the method); otherwise ``pinocchio``. A
+    backend the robot does not support is refused. With ``compiled``,
     importing numba and loading (or compiling) the code happens here, and one
     line on stderr says how long it took, so that the run's own time excludes it.
 
@@ -177,14 +278,26 @@ def resolve_backend(requested: str, rrt: bool) -> str:
 
     from rrt_pin.errors import InputError
 
-    if requested == "auto":
-        try:
-            from rrt_pin import compiled
+    from rrt_pin import backends, methods
 
-            built = rrt and compiled.is_compiled()
-        except ImportError:
-            built = False
+    if requested == "auto":
+        default = backends.get("pinocchio").default_method if task == "simulate" else None
+        wanted = method or default
+        runs = wanted is None or methods.get(wanted).runs_on("compiled")
+        built = False
+        if robot.supports("compiled") and runs:
+            try:
+                from rrt_pin import compiled
+
+                built = compiled.is_compiled()
+            except ImportError:
+                built = False
         requested = "compiled" if built else "pinocchio"
+    if not robot.supports(requested):
+        raise InputError(
+            f"--backend {requested} computes the chapter's RRT arm only; --urdf needs "
+            "--backend pinocchio"
+        )
     if requested == "compiled":
         try:
             from rrt_pin import compiled

@@ -15,9 +15,10 @@ Public API (SI units throughout):
   :func:`nonlinear_effects`, :func:`coriolis`, :func:`gravity`,
   :func:`inverse_dynamics`, :func:`forward_dynamics`;
 * whole simulations: :func:`simulate_compiled` (the ``backend="compiled"`` of
-  :func:`rrt_pin.simulation.simulate`) and :func:`simulate_batch_compiled` (many
+  :func:`rrt_pin.simulate.simulate`) and :func:`simulate_batch_compiled` (many
   seed variants: gains, targets, initial states and masses per variant);
-* :data:`METHODS`: ``DOP853``, ``RK45`` (adaptive, step by step as SciPy's
+* ``METHODS``: the methods of :data:`rrt_pin.methods.METHODS` that run
+  compiled: ``RK45``, ``DOP853`` (adaptive, step by step as SciPy's
   ``solve_ivp``), ``symplectic_euler``, ``rk4``, ``verlet`` (fixed steps, as
   :mod:`rrt_pin.integrators`).
 """
@@ -50,8 +51,6 @@ __all__ = [
     "simulate_compiled",
 ]
 
-#: Integration methods of the compiled backend.
-METHODS = ("DOP853", "RK45", "symplectic_euler", "rk4", "verlet")
 
 _LAZY = {
     "mass_matrix": "rrt_pin.compiled.dynamics",
@@ -175,6 +174,10 @@ def compile_report() -> CompileReport | None:
 
 
 def __getattr__(name: str) -> Any:
+    if name == "METHODS":  # the registry's methods that run compiled
+        from rrt_pin.methods import names
+
+        return names("compiled")
     module = _LAZY.get(name)
     if module is None:
         raise AttributeError(f"module 'rrt_pin.compiled' has no attribute {name!r}")

@@ -37,6 +37,7 @@ __all__ = ["JIT_MODULES", "cache_dir", "fingerprint", "is_cached", "mark_ready"]
 #: Modules whose source is compiled to machine code (their text is fingerprinted).
 JIT_MODULES = (
     "rrt_pin.kernel",
+    "rrt_pin.compiled.codes",
     "rrt_pin.compiled._jit_dynamics",
     "rrt_pin.compiled._jit_integrators",
 )

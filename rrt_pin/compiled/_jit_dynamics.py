@@ -40,6 +40,14 @@ import numpy as np
 from numba import float64, int64, types
 
 from rrt_pin import kernel
+from rrt_pin.compiled.codes import (
+    KIND_CHAPTER,
+    KIND_CHAPTER_FOLDED,
+    KIND_NONE,
+    KIND_PD_PLANT_GRAVITY,
+    NC,
+    NP,
+)
 from rrt_pin.compiled._cache import cache_dir
 
 __all__ = ["SIGNATURES", "jit"]
@@ -52,13 +60,6 @@ DISPATCHERS: dict[str, object] = {}
 #: Seconds spent compiling (or loading from the cache) each function, by name.
 SECONDS: dict[str, float] = {}
 
-#: Number of physical parameters, of controller parameters, of state components.
-NP = 15
-NC = 9 + NP
-KIND_NONE = 0
-KIND_SEED = 1
-KIND_PD_PLANT_GRAVITY = 2
-KIND_SEED_FOLDED = 3
 # Indices of the parameters eq. (31) needs, in kernel.PARAM_ORDER.
 _L2 = kernel.PARAM_ORDER.index("L2")
 _M2 = kernel.PARAM_ORDER.index("m2")
@@ -241,14 +242,14 @@ def control(kind, c, q1, q2, q3, qd1, qd2, qd3, G1, G2, G3):
     """Joint efforts (T01x [N·m], T12y [N·m], F23z [N]) of controller ``kind``.
 
     (G1, G2, G3) is the plant's gravity vector at q, used by
-    ``KIND_PD_PLANT_GRAVITY`` and ``KIND_SEED_FOLDED`` (other kinds ignore it).
+    ``KIND_PD_PLANT_GRAVITY`` and ``KIND_CHAPTER_FOLDED`` (other kinds ignore it).
     """
     if kind == KIND_NONE:
         return 0.0, 0.0, 0.0
     u1 = -c[3] * qd1 - c[0] * (q1 - c[6])
     u2 = -c[4] * qd2 - c[1] * (q2 - c[7])
     u3 = -c[5] * qd3 - c[2] * (q3 - c[8])
-    if kind == KIND_SEED:
+    if kind == KIND_CHAPTER:
         # Eq. (31): the gravity compensation written out with the seed's symbols.
         g = c[9 + _G]
         m2 = c[9 + _M2]
@@ -257,7 +258,7 @@ def control(kind, c, q1, q2, q3, qd1, qd2, qd3, G1, G2, G3):
         c2 = math.cos(q2)
         s2 = math.sin(q2)
         return u1, u2 + g * m2 * L2 * c2 + g * m3 * c2 * (L2 + q3), u3 + g * m3 * s2
-    if kind == KIND_PD_PLANT_GRAVITY or kind == KIND_SEED_FOLDED:
+    if kind == KIND_PD_PLANT_GRAVITY or kind == KIND_CHAPTER_FOLDED:
         return u1 + G1, u2 + G2, u3 + G3
     return math.nan, math.nan, math.nan  # not a kind of this module: fail loudly
 
@@ -268,8 +269,8 @@ def effort(kind, c, p, q1, q2, q3, qd1, qd2, qd3):
     if kind == KIND_PD_PLANT_GRAVITY:
         r = kernel_terms(q1, q2, q3, 0.0, 0.0, 0.0, p)
         return control(kind, c, q1, q2, q3, qd1, qd2, qd3, r[9], r[10], r[11])
-    if kind == KIND_SEED_FOLDED:
-        return control(KIND_SEED, c, q1, q2, q3, qd1, qd2, qd3, 0.0, 0.0, 0.0)
+    if kind == KIND_CHAPTER_FOLDED:
+        return control(KIND_CHAPTER, c, q1, q2, q3, qd1, qd2, qd3, 0.0, 0.0, 0.0)
     return control(kind, c, q1, q2, q3, qd1, qd2, qd3, 0.0, 0.0, 0.0)
 
 

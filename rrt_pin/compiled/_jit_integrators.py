@@ -15,7 +15,7 @@ Fixed-step methods step from sample to sample of ``t_eval``, each interval cut
 into ``ceil(Δt / dt)`` equal substeps (one substep when ``dt <= 0``).
 
 Every run returns a status instead of raising (machine code cannot raise a
-Python exception cheaply): see the ``STATUS_*`` codes.
+Python exception cheaply): see the ``STATUS_*`` codes of :mod:`rrt_pin.compiled.codes`.
 """
 
 from __future__ import annotations
@@ -26,25 +26,28 @@ import numpy as np
 from numba import float64, int64, types
 
 from rrt_pin.compiled import _dop853_coefficients as dop
+from rrt_pin.compiled.codes import (
+    FIXED_STEP_FROM,
+    METHOD_DOP853,
+    METHOD_RK4,
+    METHOD_SYMPLECTIC_EULER,
+    STATUS_MAX_STEPS,
+    STATUS_NO_CONVERGENCE,
+    STATUS_NONFINITE,
+    STATUS_OK,
+    STATUS_SINGULAR_MASS,
+    STATUS_STEP_UNDERFLOW,
+)
 from rrt_pin.compiled._jit_dynamics import as_tuple_c, as_tuple_p, closed_loop, effort, jit
 
-__all__ = ["METHOD_CODES", "integrate", "integrate_batch"]
+__all__ = ["integrate", "integrate_batch"]
 
-# Status codes of a run.
-STATUS_OK = 0
-STATUS_NONFINITE = 1  # a non-finite state or derivative; coordinate = its index 0..5
-STATUS_STEP_UNDERFLOW = 2  # the step size fell below 10 ulp of t
-STATUS_SINGULAR_MASS = 3  # M(q) not positive definite; coordinate = pivot 0..2
-STATUS_MAX_STEPS = 4  # step budget exhausted; coordinate = component limiting the step
-STATUS_NO_CONVERGENCE = 5  # Verlet's implicit half kick diverged; coordinate = its index 0..5
 
 #: Verlet's fixed-point iterations stop at this relative change (as rrt_pin.integrators) …
 VERLET_TOL = 1e-14
 #: … or fail after this many iterations.
 VERLET_MAX_ITER = 50
 
-#: Method name -> code understood by :func:`integrate`.
-METHOD_CODES = {"RK45": 0, "DOP853": 1, "symplectic_euler": 10, "rk4": 11, "verlet": 12}
 
 SAFETY = 0.9
 MIN_FACTOR = 0.2
@@ -180,7 +183,7 @@ def adaptive(method, y0, t_eval, atol, rtol, max_step, max_steps, p_arr, kind, c
     """
     p = as_tuple_p(p_arr)
     c = as_tuple_c(c_arr)
-    dop853 = method == 1
+    dop853 = method == METHOD_DOP853
     if dop853:
         n_stages = D8_NS
         exponent = -1.0 / 8.0
@@ -467,7 +470,7 @@ def fixed(method, y0, t_eval, dt, max_steps, p_arr, kind, c_arr, out_y):
             t = ta + sub * h
             if n_steps >= max_steps:
                 return STATUS_MAX_STEPS, 0, n_evals, n_steps, 0, n, t
-            if method == 11:
+            if method == METHOD_RK4:
                 for s in range(4):
                     if s == 0:
                         for i in range(N):
@@ -482,7 +485,7 @@ def fixed(method, y0, t_eval, dt, max_steps, p_arr, kind, c_arr, out_y):
                         return STATUS_SINGULAR_MASS, bad - 1, n_evals, n_steps, 0, n, t
                 for i in range(N):
                     y[i] += h / 6.0 * (k[0, i] + 2.0 * k[1, i] + 2.0 * k[2, i] + k[3, i])
-            elif method == 10:
+            elif method == METHOD_SYMPLECTIC_EULER:
                 bad = rhs(y, p, c, kind, acc)
                 n_evals += 1
                 if bad != 0:
@@ -561,7 +564,7 @@ def integrate(
     """Integrate one run from (t_eval[0], y0) and fill out_y (N, 6) and out_tau (N, 3).
 
     Args:
-        method: a code of ``METHOD_CODES``.
+        method: a ``METHOD_*`` code of :mod:`rrt_pin.compiled.codes`.
         y0: initial state (6,).
         t_eval: strictly increasing output times (N,) [s]; the run starts at t_eval[0].
         dt: fixed-step methods' largest step [s] (<= 0: one step per interval).
@@ -580,7 +583,7 @@ def integrate(
         time reached, or the failure time when status != 0 [s]; n_out the number
         of output rows filled.
     """
-    if method < 10:
+    if method < FIXED_STEP_FROM:
         r = adaptive(method, y0, t_eval, atol, rtol, max_step, max_steps, p, kind, cvec, out_y)
     else:
         r = fixed(method, y0, t_eval, dt, max_steps, p, kind, cvec, out_y)

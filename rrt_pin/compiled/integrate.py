@@ -3,10 +3,10 @@
 The integration loop, the controller, the dense output at the requested times
 and the efforts at those times all run in compiled code (see
 :mod:`rrt_pin.compiled._jit_integrators`); Python only validates the inputs
-and wraps the arrays. Results are the same types as :mod:`rrt_pin.simulation`'s
-(:class:`~rrt_pin.simulation.SimulationResult`, :class:`~rrt_pin.simulation.BatchResult`).
+and wraps the arrays. Results are the same types as :mod:`rrt_pin.simulate`'s
+(:class:`~rrt_pin.simulate.SimulationResult`, :class:`~rrt_pin.simulate.BatchResult`).
 
-Methods (:data:`rrt_pin.compiled.METHODS`):
+Methods (those of :data:`rrt_pin.methods.METHODS` whose backends include ``compiled``):
 
 * ``DOP853`` (default) and ``RK45``: SciPy's ``solve_ivp`` algorithms step for
   step (same initial step, error norm, step-size control and dense output), so
@@ -44,15 +44,15 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from rrt_pin.compiled import METHODS, ensure_compiled
+from rrt_pin import methods, validate
+from rrt_pin.compiled import codes, ensure_compiled
 from rrt_pin.compiled.dynamics import param_array
 from rrt_pin.errors import DivergenceError, InputError
 from rrt_pin.params import Params
+from rrt_pin.simulate.results import BatchResult, SimulationResult
 
 if TYPE_CHECKING:
     import pinocchio as pin
-
-    from rrt_pin.simulation import BatchResult, SimulationResult
 
 __all__ = ["DEFAULT_METHOD", "MAX_STEPS", "simulate_batch_compiled", "simulate_compiled"]
 
@@ -62,49 +62,17 @@ DEFAULT_METHOD = "DOP853"
 MAX_STEPS = 10_000_000
 #: SciPy's floor on the relative tolerance (100 machine epsilons).
 RTOL_FLOOR = 100 * np.finfo(float).eps
-_ADAPTIVE = ("DOP853", "RK45")
 _NAMES = ("q1", "q2", "q3", "qd1", "qd2", "qd3")
 _EFFORTS = ("T01x", "T12y", "F23z")
-_KIND_NONE, _KIND_SEED, _KIND_PD_PLANT, _KIND_SEED_FOLDED = 0, 1, 2, 3  # see _jit_dynamics
-_CODES = {"RK45": 0, "DOP853": 1, "symplectic_euler": 10, "rk4": 11, "verlet": 12}
 
 
 # --------------------------------------------------------------------------
 # Validation
 # --------------------------------------------------------------------------
-def _times(t_eval: Any) -> np.ndarray:
-    try:
-        t = np.array(t_eval, dtype=np.float64)
-    except (TypeError, ValueError) as e:
-        raise InputError("t_eval is not an array of numbers [s]") from e
-    if t.ndim != 1 or t.size < 2:
-        raise InputError(f"t_eval has shape {t.shape}; it needs at least 2 times [s]")
-    if not np.isfinite(t).all():
-        i = int(np.flatnonzero(~np.isfinite(t))[0])
-        raise InputError(f"t_eval[{i}]={float(t[i])!r} must be finite [s]")
-    if not (t[1:] > t[:-1]).all():
-        i = int(np.flatnonzero(t[1:] <= t[:-1])[0])
-        raise InputError(
-            f"t_eval must increase: t_eval[{i + 1}]={float(t[i + 1])!r} <= {float(t[i])!r} [s]"
-        )
-    return t
-
-
 def _rows(name: str, value: Any, unit: str, batch: bool) -> np.ndarray:
-    try:
-        a = np.array(value, dtype=np.float64)
-    except (TypeError, ValueError) as e:
-        raise InputError(f"{name}={value!r} is not an array of numbers [{unit}]") from e
-    want = "(B, 3)" if batch else "(3,)"
-    if (batch and (a.ndim != 2 or a.shape[1] != 3 or a.shape[0] < 1)) or (
-        not batch and a.shape != (3,)
-    ):
-        raise InputError(f"{name} has shape {a.shape} but the RRT arm needs {want} [{unit}]")
-    if not np.isfinite(a).all():
-        bad = np.argwhere(~np.isfinite(a))
-        where = ", ".join(str(int(i)) for i in bad[0])
-        raise InputError(f"{name}[{where}]={float(a[tuple(bad[0])])!r} must be finite [{unit}]")
-    return a
+    if batch:
+        return validate.states(name, value, 3, unit)
+    return validate.vector(name, value, 3, unit)
 
 
 def _options(
@@ -114,38 +82,17 @@ def _options(
     step: float | None,
     t: np.ndarray,
 ) -> tuple[str, float | None, float | None, float | None]:
-    from rrt_pin.simulation import DEFAULT_ATOL, DEFAULT_RTOL
+    from rrt_pin.simulate.options import resolve
 
-    method = DEFAULT_METHOD if method is None else method
-    if method not in METHODS:
-        raise InputError(
-            f"method={method!r} is not available with backend 'compiled'; "
-            f"valid: {', '.join(METHODS)} (odepack, LSODA, Radau and BDF are "
-            "backend 'pinocchio' only)"
-        )
-    for name, value in (("rtol", rtol), ("atol", atol), ("step", step)):
-        if value is not None and not (
-            isinstance(value, (int, float))
-            and not isinstance(value, bool)
-            and math.isfinite(value)
-            and value > 0
-        ):
-            raise InputError(f"{name}={value!r} must be a finite number > 0")
-    if method not in _ADAPTIVE:
-        return (
-            method,
-            None,
-            None,
-            float(step) if step is not None else float((t[1:] - t[:-1]).min()),
-        )
-    rtol = float(rtol) if rtol is not None else DEFAULT_RTOL
-    if rtol < RTOL_FLOOR:
+    options = resolve(t, backend="compiled", method=method, rtol=rtol, atol=atol, step=step)
+    rtol = options.rtol
+    if rtol is not None and rtol < RTOL_FLOOR:
         warnings.warn(
             f"rtol={rtol!r} is below 100 machine epsilons; using {RTOL_FLOOR!r} (as SciPy)",
-            stacklevel=3,
+            stacklevel=4,
         )
         rtol = float(RTOL_FLOOR)
-    return method, rtol, float(atol) if atol is not None else DEFAULT_ATOL, None
+    return options.method.name, rtol, options.atol, options.step
 
 
 @functools.lru_cache(maxsize=16)
@@ -159,19 +106,19 @@ def _controller_arrays(controller: Any, plant: Params, p: np.ndarray) -> tuple[i
     """(kind, c): the compiled form of ``controller`` on the arm of ``plant`` (parameters ``p``)."""
     c = np.zeros(24)
     if controller is None:
-        return _KIND_NONE, c
-    from rrt_pin.control import PDGravityController, SeedController
+        return codes.KIND_NONE, c
+    from rrt_pin.control import ChapterController, PDGravityController
 
-    if isinstance(controller, SeedController):
+    if isinstance(controller, ChapterController):
         c[:3], c[3:6], c[6:9] = controller.kp, controller.kd, controller.qf
         law = controller.params
         if (law.g, law.m2, law.m3, law.L2) == (plant.g, plant.m2, plant.m3, plant.L2):
             # Eq. (31)'s gravity terms are then exactly the plant's G(q) (they depend
             # on g, m2, m3, L2 only): fold them into the kernel's evaluation.
             c[9:] = p
-            return _KIND_SEED_FOLDED, c
+            return codes.KIND_CHAPTER_FOLDED, c
         c[9:] = param_array(controller.params)
-        return _KIND_SEED, c
+        return codes.KIND_CHAPTER, c
     if isinstance(controller, PDGravityController):
         if controller.nv != 3 or not controller.compensates_gravity_of(_rrt_model(plant)):
             raise InputError(
@@ -180,10 +127,11 @@ def _controller_arrays(controller: Any, plant: Params, p: np.ndarray) -> tuple[i
             )
         c[:3], c[3:6], c[6:9] = controller.kp, controller.kd, controller.qf
         c[9:] = p
-        return _KIND_PD_PLANT, c
+        return codes.KIND_PD_PLANT_GRAVITY, c
     raise InputError(
-        "backend 'compiled' runs seed_controller(...), pd_gravity_controller(...) on the RRT "
-        f"arm, or None (no effort), not {type(controller).__name__}"
+        "backend 'compiled' runs chapter_controller(...), pd_gravity_controller(...) on the "
+        f"RRT arm, or None (no effort), not {type(controller).__name__}; use backend "
+        "'pinocchio' for other controllers"
     )
 
 
@@ -214,30 +162,30 @@ def _raise_status(
     variant: int | None,
 ) -> None:
     status, coordinate = int(info[0]), int(info[1])
-    if status == 0:
+    if status == codes.STATUS_OK:
         return
     name = _NAMES[coordinate] if 0 <= coordinate < 6 else "q1"
     if variant is not None:
         name = f"{name} (variant {variant})"
-    if status == 1:
+    if status == codes.STATUS_NONFINITE:
         problem = "the state or its derivative became non-finite"
-    elif status == 2:
+    elif status == codes.STATUS_STEP_UNDERFLOW:
         problem = (
             f"the integrator {method} failed: step size underflow (below 10 ulp of t); "
             "the dynamics diverge or are too stiff for an explicit method"
         )
-    elif status == 3:
+    elif status == codes.STATUS_SINGULAR_MASS:
         name = f"q{coordinate + 1}" + (f" (variant {variant})" if variant is not None else "")
         problem = (
             "the mass matrix is singular or ill-conditioned (an LDLᵀ pivot <= 1e-13·trace): "
             "the state left any sensible range, or the parameters are degenerate"
         )
-    elif status == 4:
+    elif status == codes.STATUS_MAX_STEPS:
         problem = (
             f"the integrator {method} took max_steps={max_steps} steps without finishing; "
             "the step size is limited by this coordinate"
         )
-    elif status == 5:
+    elif status == codes.STATUS_NO_CONVERGENCE:
         problem = (
             "the implicit half kick of 'verlet' did not converge in 50 iterations; "
             f"use a step shorter than {step!r} s"
@@ -275,6 +223,7 @@ def simulate_compiled(
     *,
     model: pin.Model | None = None,
     max_steps: int = MAX_STEPS,
+    start: float | None = None,
 ) -> SimulationResult:
     """Simulate the RRT arm of ``params`` under ``controller``, sampled at ``t_eval``.
 
@@ -285,14 +234,15 @@ def simulate_compiled(
         q0: initial positions (3,) [rad, rad, m].
         qd0: initial velocities (3,) [rad/s, rad/s, m/s].
         t_eval: increasing output times [s]; the run starts at ``t_eval[0]``.
-        method: one of :data:`rrt_pin.compiled.METHODS` (default DOP853).
+        method: a method of :data:`rrt_pin.methods.METHODS` that runs compiled (default DOP853).
         rtol: relative tolerance of DOP853/RK45 (default that of
-            :func:`rrt_pin.simulation.simulate`, 1e-9).
+            :func:`rrt_pin.simulate.simulate`, 1e-9).
         atol: absolute tolerance [rad, m, rad/s, m/s] (default 1e-11).
         step: longest step of the fixed-step methods [s]; default the shortest
             interval of ``t_eval``.
         model: if given, checked to be ``rrt_model(params)`` (the arm this backend simulates).
         max_steps: step budget (accepted and rejected steps).
+        start: ``time.perf_counter()`` when the caller's call began (for ``wall_time``).
 
     Returns:
         States and applied efforts at ``t_eval``; ``wall_time`` excludes the
@@ -303,16 +253,14 @@ def simulate_compiled(
         DivergenceError: the compiled loop reported a failure (time, coordinate).
         ImportError: numba is not installed.
     """
-    from rrt_pin.simulation import SimulationResult
-
     ensure_compiled()
-    start = time.perf_counter()
+    start = time.perf_counter() if start is None else start
     params = _params(params)
     _check_model(model, params)
     y0 = np.concatenate(
         (_rows("q0", q0, "rad, rad, m", False), _rows("qd0", qd0, "rad/s, rad/s, m/s", False))
     )
-    t = _times(t_eval)
+    t = validate.times(t_eval)
     method, rtol, atol, step = _options(method, rtol, atol, step, t)
     max_steps = _max_steps(max_steps)
     p = param_array(params)
@@ -324,7 +272,7 @@ def simulate_compiled(
     out_tau = np.empty((t.size, 3))
     atol_v = np.full(6, atol if atol is not None else 0.0)
     status, coordinate, n_evals, _, _, _, t_reached = jit.integrate(
-        _CODES[method],
+        methods.get(method).code,
         y0,
         t,
         step if step is not None else 0.0,
@@ -382,6 +330,7 @@ def simulate_batch_compiled(
     efforts: bool = True,
     *,
     max_steps: int = MAX_STEPS,
+    start: float | None = None,
 ) -> BatchResult:
     """Simulate B variants of the RRT arm, one after the other in one compiled loop.
 
@@ -394,25 +343,24 @@ def simulate_batch_compiled(
         q0s: initial positions (B, 3) [rad, rad, m].
         qd0s: initial velocities (B, 3) [rad/s, rad/s, m/s].
         t_eval: increasing output times [s], shared by the variants.
-        method: one of :data:`rrt_pin.compiled.METHODS` (default DOP853).
+        method: a method of :data:`rrt_pin.methods.METHODS` that runs compiled (default DOP853).
         rtol: relative tolerance (default 1e-9; each variant has its own steps).
         atol: absolute tolerance [rad, m, rad/s, m/s] (default 1e-11).
         step: longest step of the fixed-step methods [s].
         efforts: return the applied efforts (they are computed in any case).
         max_steps: step budget of each variant.
+        start: ``time.perf_counter()`` when the caller's call began (for ``wall_time``).
 
     Returns:
-        A :class:`~rrt_pin.simulation.BatchResult`: q, qd, tau of shape (B, N, 3);
+        A :class:`~rrt_pin.simulate.BatchResult`: q, qd, tau of shape (B, N, 3);
         ``n_evals`` is the total over the variants.
 
     Raises:
         InputError: bad shapes, values, controllers or options.
         DivergenceError: a variant failed (the message names it and the coordinate).
     """
-    from rrt_pin.simulation import BatchResult
-
     ensure_compiled()
-    start = time.perf_counter()
+    start = time.perf_counter() if start is None else start
     q0s = _rows("q0s", q0s, "rad, rad, m", True)
     qd0s = _rows("qd0s", qd0s, "rad/s, rad/s, m/s", True)
     if q0s.shape[0] != qd0s.shape[0]:
@@ -420,7 +368,7 @@ def simulate_batch_compiled(
     count = q0s.shape[0]
     plants = [_params(v) for v in _per_variant("params", params, count)]
     laws = _per_variant("controllers", controllers, count)
-    t = _times(t_eval)
+    t = validate.times(t_eval)
     method, rtol, atol, step = _options(method, rtol, atol, step, t)
     max_steps = _max_steps(max_steps)
 
@@ -446,7 +394,7 @@ def simulate_batch_compiled(
     info = np.zeros((count, 6), dtype=np.int64)
     t_reached = np.zeros(count)
     jit.integrate_batch(
-        _CODES[method],
+        methods.get(method).code,
         Y0,
         t,
         step if step is not None else 0.0,

@@ -1,0 +1,96 @@
+"""The registry of dynamics backends: which engine computes, what it can do, whether it is here.
+
+The CLI's ``--backend`` choices and help, ``auto``'s choice, the benchmark's
+plan and the library's dispatch all read :data:`BACKENDS`.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+from dataclasses import dataclass
+
+from rrt_pin.errors import InputError
+
+__all__ = ["BACKENDS", "Backend", "get"]
+
+
+@dataclass(frozen=True)
+class Backend:
+    """One dynamics engine.
+
+    Attributes:
+        name: ``pinocchio``, ``symbolic`` or ``compiled``.
+        summary: one line for help texts.
+        any_robot: runs any URDF; else only the chapter's RRT arm (a closed-form kernel).
+        tasks: ``inverse`` and/or ``simulate``.
+        default_method: the integration method ``simulate`` uses when none is given.
+        requires: the module that must import (``pinocchio``, ``numpy``, ``numba``).
+        extra: the pip extra that installs it.
+    """
+
+    name: str
+    summary: str
+    any_robot: bool
+    tasks: tuple[str, ...]
+    default_method: str | None
+    requires: str
+    extra: str | None = None
+
+    def available(self) -> bool:
+        """Whether its package is installed (cheap: looks, does not import)."""
+        return importlib.util.find_spec(self.requires) is not None
+
+    def runs(self, task: str) -> bool:
+        """Whether it computes ``task`` (``inverse`` or ``simulate``)."""
+        return task in self.tasks
+
+
+#: Every backend, by name; the first is the default and the engine of record.
+BACKENDS: dict[str, Backend] = {
+    b.name: b
+    for b in (
+        Backend(
+            "pinocchio",
+            "Pinocchio's RNEA/ABA in C++, any URDF (the engine of record)",
+            any_robot=True,
+            tasks=("inverse", "simulate"),
+            default_method="odepack",
+            requires="pinocchio",
+        ),
+        Backend(
+            "symbolic",
+            "the chapter arm's generated closed-form numpy kernel",
+            any_robot=False,
+            tasks=("inverse",),
+            default_method=None,
+            requires="numpy",
+        ),
+        Backend(
+            "compiled",
+            "the chapter arm's kernel and integrators in machine code (numba)",
+            any_robot=False,
+            tasks=("inverse", "simulate"),
+            default_method="DOP853",
+            requires="numba",
+            extra="fast",
+        ),
+    )
+}
+
+
+def get(name: object, task: str | None = None) -> Backend:
+    """The backend called ``name`` (that computes ``task``, if given).
+
+    Raises:
+        InputError: unknown name, or a backend without that task.
+    """
+    backend = BACKENDS.get(name) if isinstance(name, str) else None
+    if backend is None or (task is not None and not backend.runs(task)):
+        valid = [b.name for b in BACKENDS.values() if task is None or b.runs(task)]
+        raise InputError(f"backend={name!r} is not one of {', '.join(valid)}")
+    return backend
+
+
+def names(task: str | None = None) -> tuple[str, ...]:
+    """Names of the backends (that compute ``task``)."""
+    return tuple(b.name for b in BACKENDS.values() if task is None or b.runs(task))

@@ -1,0 +1,37 @@
+"""``rrt-pin joints``: list a robot's joints, their kinds, columns and units."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from rrt_pin.commands._common import add_scene_arguments, params_from_args
+
+HELP = "list a robot's joints: kinds, CSV columns and units (the chapter's arm, a URDF or a known robot)"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Options of ``rrt-pin joints``."""
+    group = parser.add_mutually_exclusive_group()
+    group.add_argument("--urdf", metavar="PATH", help="a URDF file (default: the chapter's arm)")
+    group.add_argument(
+        "--robot",
+        metavar="NAME",
+        help="a robot known by name: rrt (the chapter's arm), or one of example-robot-data's "
+        "(ur5, panda, double_pendulum, double_pendulum_continuous, kinova)",
+    )
+    add_scene_arguments(parser)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Print the joint table."""
+    from rrt_pin import robots
+    from rrt_pin.robot import Robot
+
+    params = params_from_args(args)
+    if args.urdf is not None:
+        robot = Robot.from_urdf(args.urdf, g=params.g)
+    else:
+        robot = robots.get(args.robot or "rrt", params)
+    sys.stdout.write(robot.describe())
+    return 0

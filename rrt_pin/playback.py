@@ -1,0 +1,146 @@
+"""What the viewer plays: a robot's motion as keyframes, from a task or a CSV file.
+
+Pure functions of a :class:`~rrt_pin.robot.Robot` and plain values; the CLI's
+``rrt-pin view`` parses flags and calls :func:`motion_keyframes`. Coordinates
+are joint coordinates [rad or m] (angles for continuous joints); the viewer
+maps them to Pinocchio's configuration with :meth:`Robot.configuration`.
+"""
+
+from __future__ import annotations
+
+import os
+import warnings
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from rrt_pin.errors import InputError
+
+if TYPE_CHECKING:
+    from rrt_pin.robot import Robot
+
+__all__ = ["Keyframes", "csv_columns", "motion_keyframes", "read_trajectory_csv"]
+
+#: The sources a motion may come from besides a CSV path.
+SOURCES = ("inverse", "simulate")
+
+
+@dataclass(frozen=True)
+class Keyframes:
+    """A motion resampled for playback.
+
+    Attributes:
+        t: keyframe times from 0 [s], shape (N,).
+        q: Pinocchio configurations, shape (N, nq).
+        ghost: the configuration drawn as the target ghost (nq,), or None.
+    """
+
+    t: np.ndarray
+    q: np.ndarray
+    ghost: np.ndarray | None
+
+
+def csv_columns(robot: Robot, header: list[str], path: str = "CSV") -> list[str]:
+    """The columns of ``header`` holding the robot's joint coordinates.
+
+    Accepted, in order: the robot's coordinate names (``q1`` … or
+    ``q_<joint>``, as ``rrt-pin inverse`` writes them), the bare joint names,
+    and ``q1`` … ``qn``.
+
+    Raises:
+        InputError: a column is missing (naming it and what the file has).
+    """
+    names = list(robot.q_names)
+    choices = [names]
+    bare = [n.removeprefix("q_") for n in names]
+    if bare != names:
+        choices.append(bare)
+    numbered = [f"q{k + 1}" for k in range(robot.nv)]
+    if numbered != names:
+        choices.append(numbered)
+    for cols in choices:
+        if all(c in header for c in cols):
+            return cols
+    missing = next(c for c in names if c not in header)
+    raise InputError(
+        f"CSV {path!r} lacks column {missing!r}; it needs t and {','.join(names)}; "
+        f"it has {','.join(header)}"
+    )
+
+
+def read_trajectory_csv(path: str, robot: Robot) -> tuple[np.ndarray, np.ndarray]:
+    """Times (N,) [s] and joint coordinates (N, nv) [rad or m] from a CSV, validated.
+
+    Raises:
+        InputError: the file cannot be read, a column is missing, a value is
+            not a finite number, or the times do not increase strictly.
+    """
+    from rrt_pin.csvio import read_csv
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)  # numpy's "input contained no data"
+        header, data = read_csv(path, required=("t",))
+    cols = csv_columns(robot, header, path)
+    t = data[:, header.index("t")]
+    values = np.column_stack([data[:, header.index(c)] for c in cols])
+    steps = np.diff(t)
+    if (steps <= 0.0).any():
+        k = int(np.argmax(steps <= 0.0))
+        raise InputError(
+            f"CSV {path!r}: times must increase strictly, but t={float(t[k + 1])!r} s in row "
+            f"{k + 3} follows t={float(t[k])!r} s"
+        )
+    return t, values
+
+
+def motion_keyframes(robot: Robot, source: str, fps: float, tf: float | None = None) -> Keyframes:
+    """Keyframes of ``source`` at ``fps`` [1/s]: ``inverse`` (eq. (30) from the robot's
+    q0 to qf), ``simulate`` (the robot's regulator from q0), or a CSV path.
+
+    Args:
+        robot: the robot, with the defaults the task needs (q0, qf; gains to simulate).
+        source: ``inverse``, ``simulate`` or the path of a CSV file.
+        fps: keyframes per second [1/s].
+        tf: length of an ``inverse`` or ``simulate`` run [s] (default the robot's Tp).
+
+    Raises:
+        InputError: a missing default, an unreadable CSV, or bad values.
+    """
+    from rrt_pin.viewer.keyframes import keyframe_times, resample
+
+    d = robot.defaults
+    if source in SOURCES:
+        missing = [k for k in ("q0", "qf") if getattr(d, k) is None]
+        if source == "simulate":
+            missing += [k for k in ("kp", "kd") if getattr(d, k) is None]
+        if missing:
+            raise InputError(
+                f"--trajectory {source} for {robot.name} needs "
+                f"{', '.join('--' + m for m in missing)} (or give a CSV, e.g. from "
+                f"`rrt-pin {source} --urdf ... --csv`)"
+            )
+        Tp = d.Tp if d.Tp is not None else tf
+        if Tp is None:
+            raise InputError(f"--trajectory {source} for {robot.name} needs --tf")
+        t = keyframe_times(tf if tf is not None else Tp, fps)
+        if source == "inverse":
+            from rrt_pin.trajectory import rest_to_rest
+
+            values = np.asarray(rest_to_rest(d.q0, d.qf, Tp, t).q)
+        else:
+            from rrt_pin.simulate import simulate
+
+            values = np.asarray(simulate(robot, robot.regulator_law(), d.q0, d.qd0, t).q)
+        ghost = robot.configuration(np.asarray(d.qf, dtype=float))
+        return Keyframes(t, robot.configuration(values), ghost)
+    if not os.path.isfile(source):
+        raise InputError(
+            f"--trajectory {source!r}: expected {', '.join(SOURCES)} or the path of a CSV file"
+        )
+    t_csv, values = read_trajectory_csv(source, robot)
+    t, values = resample(t_csv, values, fps)
+    target = d.qf if d.qf is not None else values[-1]
+    ghost = robot.configuration(np.asarray(target, dtype=float))
+    return Keyframes(t - t[0], robot.configuration(values), ghost)
+

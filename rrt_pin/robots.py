@@ -1,0 +1,142 @@
+"""The robots rrt-pin knows by name: the chapter's RRT arm, and example-robot-data's arms.
+
+``get("rrt")`` is the chapter's arm (from :class:`~rrt_pin.params.Params`);
+``get("ur5")``, ``get("panda")``, ``get("double_pendulum_continuous")`` …
+load the URDFs that the ``example-robot-data`` package installs (when it is
+installed); any other URDF is :meth:`Robot.from_urdf(path) <rrt_pin.robot.Robot.from_urdf>`.
+"""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Callable
+from importlib.metadata import PackageNotFoundError, distribution
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from rrt_pin.errors import InputError
+from rrt_pin.robot import Joint, Robot, RobotDefaults
+
+if TYPE_CHECKING:
+    from rrt_pin.params import Params
+
+__all__ = [
+    "CHAPTER_COLUMNS",
+    "EXAMPLE_ROBOT_DATA",
+    "ROBOTS",
+    "chapter_arm",
+    "example_robot_data_dir",
+    "get",
+    "names",
+]
+
+#: The chapter's column names: coordinates, velocities, accelerations, efforts.
+CHAPTER_COLUMNS = (
+    ("q1", "q2", "q3"),
+    ("qd1", "qd2", "qd3"),
+    ("qdd1", "qdd2", "qdd3"),
+    ("T01x", "T12y", "F23z"),
+)
+
+_CHAPTER_JOINTS = (
+    Joint("q1", "revolute", idx_q=0, idx_v=0, effort_doc="torque of 0 on 1 about ı1"),
+    Joint("q2", "revolute", idx_q=1, idx_v=1, effort_doc="torque of 1 on 2 about ȷ2"),
+    Joint("q3", "prismatic", idx_q=2, idx_v=2, effort_doc="force of 2 on 3 along k2"),
+)
+
+
+def chapter_arm(params: Params | None = None) -> Robot:
+    """The chapter's RRT arm with ``params`` (the chapter's numbers when None).
+
+    Its defaults are the chapter's q0, qd0, qf, gains (γ as kp, β as kd) and Tp;
+    its regulator is eq. (31); all three backends compute it. The Pinocchio
+    model is generated from ``params`` on first use.
+    """
+    from rrt_pin.params import Params, param_names
+
+    p = params if params is not None else Params()
+    q, qd, qdd, eff = CHAPTER_COLUMNS
+
+    def build():  # noqa: ANN202
+        from rrt_pin.model import rrt_model
+
+        return rrt_model(p)
+
+    return Robot(
+        name="RRT arm",
+        joints=_CHAPTER_JOINTS,
+        q_names=q,
+        qd_names=qd,
+        qdd_names=qdd,
+        effort_names=eff,
+        defaults=RobotDefaults(q0=p.q0, qd0=p.qd0, qf=p.qf, kp=p.kp, kd=p.kd, Tp=p.Tp),
+        backends=("pinocchio", "symbolic", "compiled"),
+        parameters=tuple(param_names()),
+        params=p,
+        layout="chapter",
+        regulator="the chapter's feedback law, eq. (31)",
+        _build=build,
+    )
+
+
+#: Robot name -> URDF path inside example-robot-data's ``robots`` folder.
+EXAMPLE_ROBOT_DATA = {
+    "ur5": "ur_description/urdf/ur5_robot.urdf",
+    "panda": "panda_description/urdf/panda.urdf",
+    "double_pendulum": "double_pendulum_description/urdf/double_pendulum.urdf",
+    "double_pendulum_continuous": "double_pendulum_description/urdf/double_pendulum_continuous.urdf",
+    "kinova": "kinova_description/robots/kinova.urdf",
+}
+
+
+@functools.cache
+def example_robot_data_dir() -> Path | None:
+    """``…/share/example-robot-data/robots`` of the installed package, or None."""
+    try:
+        dist = distribution("example-robot-data")
+    except PackageNotFoundError:
+        return None
+    for f in dist.files or ():
+        parts = Path(str(f)).parts
+        if "robots" in parts and parts[-1].endswith(".urdf"):
+            i = parts.index("robots")
+            return Path(dist.locate_file(Path(*parts[: i + 1])))
+    return None
+
+
+def _example(name: str) -> Callable[[Params | None], Robot]:
+    def load(params: Params | None = None) -> Robot:
+        base = example_robot_data_dir()
+        if base is None:
+            raise InputError(
+                f"robot {name!r} comes from example-robot-data, which is not installed "
+                "(pip install example-robot-data)"
+            )
+        g = params.g if params is not None else 9.81
+        return Robot.from_urdf(base / EXAMPLE_ROBOT_DATA[name], g=g)
+
+    return load
+
+
+#: Every robot known by name -> a factory taking the chapter's Params (for g, Tp).
+ROBOTS: dict[str, Callable[[Params | None], Robot]] = {
+    "rrt": chapter_arm,
+    **{name: _example(name) for name in EXAMPLE_ROBOT_DATA},
+}
+
+
+def get(name: str, params: Params | None = None) -> Robot:
+    """The robot called ``name`` (see :data:`ROBOTS`).
+
+    Raises:
+        InputError: an unknown name (listing the known ones).
+    """
+    factory = ROBOTS.get(name)
+    if factory is None:
+        raise InputError(f"robot {name!r} is unknown; known: {', '.join(ROBOTS)}")
+    return factory(params)
+
+
+def names() -> tuple[str, ...]:
+    """The names :func:`get` knows."""
+    return tuple(ROBOTS)

@@ -1,0 +1,68 @@
+"""Direct dynamics: integrate M(q)·q̈ + b(q, q̇) = τ(t, q, q̇) under a controller.
+
+``rrt_pin.simulate`` is both this package and its main function: calling the
+package calls :func:`simulate` (so ``rrt_pin.simulate(robot, law, q0, qd0, t)``
+works however the package was imported).
+
+Layout (data flows down; nothing imports upwards):
+
+* :mod:`~rrt_pin.simulate.api`: :func:`simulate`, :func:`simulate_batch` —
+  inputs checked once (:mod:`rrt_pin.validate`), options resolved from the
+  registries (:mod:`~rrt_pin.simulate.options`), then a backend runs;
+* :mod:`~rrt_pin.simulate.pinocchio_backend` (ABA) with
+  :mod:`~rrt_pin.simulate.closed_loop` and :mod:`~rrt_pin.simulate.scipy_runs`;
+  the compiled backend is :mod:`rrt_pin.compiled.integrate`;
+* :mod:`~rrt_pin.simulate.results`: what both backends return.
+
+Methods (:data:`rrt_pin.methods.METHODS`): ``odepack`` (the Pinocchio default:
+ODEPACK's LSODA through ``odeint``), scipy's ``RK45``, ``DOP853``, ``LSODA``,
+``Radau``, ``BDF`` (the implicit ones get the analytic Jacobian of the closed
+loop from ``pin.computeABADerivatives`` and the controller's
+:meth:`~rrt_pin.control.Controller.jacobian`), the fixed-step
+``symplectic_euler``, ``rk4``, ``verlet`` and the symplectic ``leapfrog``.
+Default tolerances: ``rtol=1e-9``, ``atol=1e-11`` for one run and a batch.
+
+A run that produces a non-finite state or whose integrator fails raises
+:class:`~rrt_pin.errors.DivergenceError` with the time and the coordinate; no
+NaN is returned. Units are SI.
+"""
+
+from __future__ import annotations
+
+import importlib
+import sys
+import types
+from typing import Any
+
+__all__ = ["BatchResult", "SimulationResult", "as_robot", "simulate", "simulate_batch"]
+
+_LAZY = {
+    "simulate": "rrt_pin.simulate.api",
+    "simulate_batch": "rrt_pin.simulate.api",
+    "as_robot": "rrt_pin.simulate.api",
+    "SimulationResult": "rrt_pin.simulate.results",
+    "BatchResult": "rrt_pin.simulate.results",
+}
+
+
+def __getattr__(name: str) -> Any:
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module 'rrt_pin.simulate' has no attribute {name!r}")
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(__all__)
+
+
+class _CallablePackage(types.ModuleType):
+    """This package's type: calling it calls :func:`rrt_pin.simulate.api.simulate`."""
+
+    def __call__(self, *args: Any, **kwargs: Any) -> Any:
+        return __getattr__("simulate")(*args, **kwargs)
+
+
+sys.modules[__name__].__class__ = _CallablePackage

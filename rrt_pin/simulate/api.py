@@ -1,0 +1,298 @@
+"""``simulate`` and ``simulate_batch``: check the inputs once, then hand over to a backend."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from rrt_pin import validate
+from rrt_pin.errors import InputError
+from rrt_pin.simulate.options import resolve
+
+if TYPE_CHECKING:
+    from rrt_pin.params import Params
+    from rrt_pin.robot import Robot
+    from rrt_pin.simulate.results import BatchResult, SimulationResult
+
+__all__ = ["as_robot", "default_threads", "simulate", "simulate_batch"]
+
+
+def as_robot(model: Any, params: Params | None = None) -> Robot:
+    """The :class:`~rrt_pin.robot.Robot` of ``model`` (a Robot, or a Pinocchio model).
+
+    A Pinocchio model equal to the chapter's arm built from ``params`` becomes
+    that arm (so its closed-form backends apply).
+
+    Raises:
+        InputError: ``model`` is neither.
+    """
+    from rrt_pin.robot import Robot
+
+    if isinstance(model, Robot):
+        return model
+    robot = Robot.from_model(model)
+    if params is not None and robot.layout == "chapter":
+        from rrt_pin.robots import chapter_arm
+
+        arm = chapter_arm(params)
+        if bool(arm.model == model):
+            return arm
+    return robot
+
+
+def default_threads() -> int:
+    """The CPUs this process may run on (at least 1), capped by ``OMP_NUM_THREADS`` if set."""
+    from rrt_pin.inverse import default_num_threads
+
+    return default_num_threads()
+
+
+def _params_for(robot: Robot, params: Any, controllers: Sequence[Any]) -> Params:
+    """The chapter arm's Params for the compiled backend."""
+    from rrt_pin.params import Params
+
+    for candidate in (params, robot.params, *(getattr(c, "params", None) for c in controllers)):
+        if isinstance(candidate, Params):
+            return candidate
+    if params is not None:
+        raise InputError(f"params must be a Params, not {type(params).__name__}")
+    raise InputError(
+        "backend 'compiled' simulates the chapter's RRT arm from its Params: pass the arm "
+        "(rrt_pin.robots.chapter_arm(params)), params=…, or a chapter controller"
+    )
+
+
+def _compiled() -> Any:
+    from rrt_pin import backends
+
+    if not backends.get("compiled").available():
+        raise InputError(
+            "backend 'compiled' is not available: numba not found (pip install rrt-pin[fast])"
+        )
+    from rrt_pin.compiled import integrate
+
+    return integrate
+
+
+def simulate(
+    model: Any,
+    controller: Any,
+    q0: Sequence[float] | np.ndarray,
+    qd0: Sequence[float] | np.ndarray | None,
+    t_eval: Sequence[float] | np.ndarray,
+    *,
+    method: str | None = None,
+    rtol: float | None = None,
+    atol: float | None = None,
+    backend: str = "pinocchio",
+    step: float | None = None,
+    jacobian: str = "analytic",
+    params: Params | None = None,
+) -> SimulationResult:
+    """Simulate a robot under ``controller`` from (q0, qd0), sampled at ``t_eval``.
+
+    Args:
+        model: a :class:`~rrt_pin.robot.Robot` or a Pinocchio model (revolute,
+            continuous, prismatic joints…).
+        controller: a :class:`~rrt_pin.control.Controller`, an object with
+            ``efforts(t, q, qd)``, a function ``f(t, q, qd)`` (or ``f(q, qd)``),
+            or None (no effort: passive motion).
+        q0: initial joint coordinates (nv,) [rad or m] (angles for continuous
+            joints; Pinocchio's (nq,) configuration is accepted too).
+        qd0: initial velocities (nv,) [rad/s or m/s]; None for rest.
+        t_eval: increasing output times [s]; the run starts at ``t_eval[0]``.
+        method: a method of :data:`rrt_pin.methods.METHODS` that the backend
+            runs (default: the backend's, ``odepack`` on Pinocchio, ``DOP853``
+            compiled; the result says which).
+        rtol: relative tolerance of the adaptive methods, in (0, 1) (default 1e-9).
+        atol: absolute tolerance [rad, m, rad/s, m/s], in (0, 1) (default 1e-11).
+        backend: ``pinocchio`` (any robot) or ``compiled`` (the chapter's arm).
+        step: longest step of the fixed-step methods [s]; default the shortest
+            interval of ``t_eval``.
+        jacobian: ``analytic`` or ``finite-difference`` for LSODA, Radau, BDF.
+        params: the arm's parameters for the compiled backend (default: the
+            robot's, or the controller's).
+
+    Returns:
+        States and applied efforts at ``t_eval``, evaluation count and wall time.
+
+    Raises:
+        InputError: a bad robot, controller, state, time grid or option (named).
+        DivergenceError: the state became non-finite or the integrator failed.
+    """
+    from rrt_pin.control import as_controller
+
+    robot = as_robot(model, params)
+    _prepare(robot, backend)
+    start = time.perf_counter()
+    q0 = robot.as_coordinates("q0", q0)
+    qd0 = (
+        np.zeros(robot.nv)
+        if qd0 is None
+        else validate.vector("qd0", qd0, robot.nv, "rad/s or m/s")
+    )
+    t = validate.times(t_eval)
+    options = resolve(
+        t, backend=backend, method=method, rtol=rtol, atol=atol, step=step, jacobian=jacobian
+    )
+    if options.backend == "compiled":
+        if controller is not None:
+            as_controller(controller, robot.nv)  # the same checks as the other backend
+        integrate = _compiled()
+        p = _params_for(robot, params, [controller])
+        model = robot.model if robot.params is None or robot.params is not p else None
+        return integrate.simulate_compiled(
+            p,
+            controller,
+            q0,
+            qd0,
+            t,
+            options.method.name,
+            options.rtol,
+            options.atol,
+            options.step,
+            model=model,
+            start=start,
+        )
+    from rrt_pin.simulate.pinocchio_backend import run_one
+
+    law = _passive(robot) if controller is None else as_controller(controller, robot.nv)
+    return run_one(robot, law, q0, qd0, t, options, start)
+
+
+def _prepare(robot: Robot, backend: Any) -> None:
+    """Imports and model building, which are not simulation time."""
+    if backend == "pinocchio":
+        import scipy.integrate  # noqa: F401
+
+        robot.model  # noqa: B018  (builds the generated arm's model once)
+    elif backend == "compiled" and robot.params is not None:
+        from rrt_pin import backends
+
+        if backends.get("compiled").available():
+            from rrt_pin.compiled import ensure_compiled, integrate  # noqa: F401
+
+            ensure_compiled()
+
+
+def _passive(robot: Robot) -> Any:
+    from rrt_pin.control import Controller
+
+    class Passive(Controller):
+        nv = robot.nv  # type: ignore[assignment]
+
+        def efforts(self, t: float, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
+            return np.zeros(robot.nv)
+
+        def efforts_many(self, t: Any, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
+            return np.zeros(np.shape(q))
+
+    return Passive()
+
+
+def simulate_batch(
+    model: Any,
+    controllers: Any,
+    q0s: np.ndarray,
+    qd0s: np.ndarray | None,
+    t_eval: Sequence[float] | np.ndarray,
+    *,
+    method: str | None = None,
+    rtol: float | None = None,
+    atol: float | None = None,
+    backend: str = "pinocchio",
+    step: float | None = None,
+    threads: int | None = None,
+    efforts: bool = True,
+    params: Params | Sequence[Params] | None = None,
+) -> BatchResult:
+    """Simulate B variants of a robot at once; the same defaults as :func:`simulate`.
+
+    Pinocchio backend: one model for every variant (``pin.abaInParallel`` over a
+    ``ModelPool``); variants differ in controllers (gains, targets, any law
+    following the contract) and initial states. Laws whose
+    :meth:`~rrt_pin.control.Controller.feedback` share a gravity term are
+    evaluated as arrays; others variant by variant. ``odepack``'s max-norm
+    error test holds every variant to the tolerance.
+
+    Compiled backend (the chapter's arm): variants run one after the other in
+    machine code, each with its own step control, and may also differ in
+    parameters (``params``: one Params per variant).
+
+    Args:
+        model: a Robot or a Pinocchio model, shared by the variants.
+        controllers: one controller for all, or one per variant (see :func:`simulate`).
+        q0s: initial joint coordinates, shape (B, nv) [rad or m].
+        qd0s: initial velocities, shape (B, nv) [rad/s or m/s]; None for rest.
+        t_eval: increasing output times [s].
+        method: a method that runs in a batch on the backend (default: the backend's).
+        rtol: relative tolerance (default 1e-9), in (0, 1).
+        atol: absolute tolerance [rad, m, rad/s, m/s] (default 1e-11), in (0, 1).
+        backend: ``pinocchio`` or ``compiled``.
+        step: longest step of the fixed-step methods [s].
+        threads: OpenMP threads of ``pin.abaInParallel`` (default: the CPUs
+            available, capped by ``OMP_NUM_THREADS``); the compiled batch uses one.
+        efforts: also return the applied efforts at every output time.
+        params: the arm's Params for the compiled backend: one, or one per variant.
+
+    Returns:
+        States (B, T, nv) and efforts; ``result.variant(i)`` is one run.
+
+    Raises:
+        InputError: bad shapes, values, controllers or options.
+        DivergenceError: a variant's state became non-finite or the integrator
+            failed (the message names the coordinate and the variant).
+    """
+    from rrt_pin.control import as_controller
+
+    first_params = params[0] if isinstance(params, (list, tuple)) and params else params
+    robot = as_robot(model, first_params)  # type: ignore[arg-type]
+    _prepare(robot, backend)
+    start = time.perf_counter()
+    n = robot.nv
+    q0s = validate.states("q0s", q0s, n, "rad or m")
+    B = q0s.shape[0]
+    qd0s = np.zeros((B, n)) if qd0s is None else validate.states("qd0s", qd0s, n, "rad/s or m/s")
+    if qd0s.shape[0] != B:
+        raise InputError(f"q0s has {B} rows but qd0s has {qd0s.shape[0]}")
+    if controllers is None or callable(controllers) or not isinstance(controllers, Sequence):
+        controllers = [controllers] * B
+    controllers = list(controllers)
+    if len(controllers) != B:
+        raise InputError(f"{len(controllers)} controllers for {B} initial states")
+    t = validate.times(t_eval)
+    options = resolve(
+        t, backend=backend, method=method, rtol=rtol, atol=atol, step=step, batch=True
+    )
+    threads = default_threads() if threads is None else validate.positive_int("threads", threads)
+    laws = []
+    for i, c in enumerate(controllers):
+        try:
+            laws.append(_passive(robot) if c is None else as_controller(c, n))
+        except InputError as e:
+            raise InputError(f"controllers[{i}]: {e}") from e
+    if options.backend == "compiled":
+        integrate = _compiled()
+        if isinstance(params, (list, tuple)):
+            plants = list(params)
+        else:
+            plants = _params_for(robot, params, controllers)
+        return integrate.simulate_batch_compiled(
+            plants,
+            controllers,
+            q0s,
+            qd0s,
+            t,
+            options.method.name,
+            options.rtol,
+            options.atol,
+            options.step,
+            efforts,
+            start=start,
+        )
+    from rrt_pin.simulate.pinocchio_backend import run_batch
+
+    return run_batch(robot, laws, q0s, qd0s, t, options, threads, efforts, start)

@@ -1,0 +1,187 @@
+"""The closed loop on Pinocchio: accelerations a(t, q, q̇) = ABA(q, q̇, τ(t, q, q̇)), one run or a batch.
+
+Gravity folding: when a controller's :meth:`~rrt_pin.control.Controller.feedback`
+says its gravity term is exactly the model's generalized gravity G(q), then
+ABA(q, q̇, τ_PD + G(q)) = ABA₀(q, q̇, τ_PD) with ABA₀ on a copy of the model
+without gravity: one Pinocchio call per evaluation and no gravity terms. The
+efforts reported are always the controller's full output at the output times.
+
+Joint coordinates (angles for continuous joints) are mapped to Pinocchio's
+configuration by the robot (:meth:`rrt_pin.robot.Robot.configuration`), which
+is the identity when every joint has one configuration entry.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from rrt_pin.control import Controller
+    from rrt_pin.robot import Robot
+
+__all__ = ["BatchLoop", "ClosedLoop"]
+
+
+def _without_gravity(model):  # noqa: ANN001, ANN202
+    import pinocchio as pin
+
+    free = model.copy()
+    free.gravity = pin.Motion.Zero()
+    return free
+
+
+class ClosedLoop:
+    """Accelerations of one run, and their Jacobian."""
+
+    def __init__(self, robot: Robot, controller: Controller) -> None:
+        self.robot = robot
+        self.n = robot.nv
+        self.controller = controller
+        self.plain = not robot.has_continuous_joints
+        feedback = controller.feedback()
+        self.folded = feedback is not None and feedback.exact_for(robot.model)
+        if self.folded:
+            self.model = _without_gravity(robot.model)
+            self.kp, self.kd, self.qf = feedback.kp, feedback.kd, feedback.qf
+        else:
+            self.model = robot.model
+        self.data = self.model.createData()
+
+    def acceleration(self) -> Callable[[float, np.ndarray, np.ndarray], np.ndarray]:
+        """a(t, q, q̇) for one state (or a batch of one robot's states, fixed-step methods)."""
+        import pinocchio as pin
+
+        aba, model, data, to_q = pin.aba, self.model, self.data, self.robot.configuration
+        if self.folded:
+            kp, kd, qf = self.kp, self.kd, self.qf
+            return lambda t, q, v: aba(model, data, to_q(q), v, -kd * v - kp * (q - qf))
+        efforts = self.controller.efforts
+        return lambda t, q, v: aba(model, data, to_q(q), v, efforts(t, q, v))
+
+    def odeint_rhs(self) -> Callable[[np.ndarray, float], np.ndarray]:
+        """The f(y, t) of odeint, inlined; odeint copies the result, so one buffer serves all calls."""
+        import pinocchio as pin
+
+        aba, model, data, n = pin.aba, self.model, self.data, self.n
+        out = np.empty(2 * n)
+        if self.folded and n == 3 and self.plain:
+            # Three joints (the RRT arm): the PD efforts in Python floats cost less
+            # than four numpy operations on 3-vectors.
+            (k1, k2, k3), (b1, b2, b3) = self.kp.tolist(), self.kd.tolist()
+            c1, c2, c3 = (self.kp * self.qf).tolist()
+            array = np.array
+
+            def f(y: np.ndarray, t: float) -> np.ndarray:
+                q1, q2, q3, v1, v2, v3 = y.tolist()
+                v = y[3:]
+                out[:3] = v
+                tau = array(
+                    (c1 - b1 * v1 - k1 * q1, c2 - b2 * v2 - k2 * q2, c3 - b3 * v3 - k3 * q3)
+                )
+                out[3:] = aba(model, data, y[:3], v, tau)
+                return out
+
+            return f
+        acc = self.acceleration()
+
+        def g(y: np.ndarray, t: float) -> np.ndarray:
+            v = y[n:]
+            out[:n] = v
+            out[n:] = acc(t, y[:n], v)
+            return out
+
+        return g
+
+    def has_jacobian(self, t: float, q: np.ndarray, v: np.ndarray) -> bool:
+        """Whether the analytic Jacobian is available (the controller provides ∂τ)."""
+        return self.folded or self.controller.jacobian(t, q, v) is not None
+
+    def jacobian(self, t: float, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """∂(q̇, q̈)/∂(q, q̇), shape (2n, 2n), from ``pin.computeABADerivatives``."""
+        import pinocchio as pin
+
+        n = self.n
+        if self.folded:
+            tau = -self.kd * v - self.kp * (q - self.qf)
+            dtau_dq, dtau_dv = -np.diag(self.kp), -np.diag(self.kd)
+        else:
+            tau = self.controller.efforts(t, q, v)
+            dtau_dq, dtau_dv = self.controller.jacobian(t, q, v)  # type: ignore[misc]
+        x = self.robot.configuration(q)
+        da_dq, da_dv, minv = pin.computeABADerivatives(self.model, self.data, x, v, tau)
+        J = np.zeros((2 * n, 2 * n))
+        J[:n, n:] = np.eye(n)
+        J[n:, :n] = da_dq + minv @ dtau_dq
+        J[n:, n:] = da_dv + minv @ dtau_dv
+        return J
+
+
+class BatchLoop:
+    """Accelerations of B variants of one robot at once with ``pin.abaInParallel``.
+
+    Laws whose :meth:`~rrt_pin.control.Controller.feedback` share one gravity
+    term are evaluated as arrays (gains and targets stacked; folded into the
+    dynamics when that term is the model's G); other controllers are evaluated
+    variant by variant through ``efforts(t, q, qd)``.
+    """
+
+    def __init__(self, robot: Robot, controllers: Sequence[Controller], threads: int) -> None:
+        import pinocchio as pin
+
+        self.robot = robot
+        self.controllers = list(controllers)
+        self.threads = threads
+        feedbacks = [c.feedback() for c in self.controllers]
+        first = feedbacks[0]
+        self.stacked = all(f is not None and f.key == first.key for f in feedbacks)
+        self.folded = False
+        if self.stacked:
+            self.kp = np.array([f.kp for f in feedbacks])
+            self.kd = np.array([f.kd for f in feedbacks])
+            self.qf = np.array([f.qf for f in feedbacks])
+            self.gravity = first.gravity
+            self.folded = first.exact_for(robot.model)
+        plant = _without_gravity(robot.model) if self.folded else robot.model
+        self.pool = pin.ModelPool(plant, threads)
+
+    def acceleration(self) -> Callable[[float, np.ndarray, np.ndarray], np.ndarray]:
+        """a(t, q, q̇) for states of shape (B, n)."""
+        import pinocchio as pin
+
+        aba, pool, threads, to_q = pin.abaInParallel, self.pool, self.threads, self.robot.configuration
+        if self.stacked:
+            kp, kd, qf, gravity = self.kp, self.kd, self.qf, self.gravity
+            if self.folded:
+                return lambda t, q, v: aba(
+                    threads, pool, to_q(q).T, v.T, (-kd * v - kp * (q - qf)).T
+                ).T
+            return lambda t, q, v: aba(
+                threads, pool, to_q(q).T, v.T, (-kd * v - kp * (q - qf) + gravity(q)).T
+            ).T
+        laws = [c.efforts for c in self.controllers]
+
+        def acc(t: float, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+            tau = np.empty(q.shape)
+            for b, law in enumerate(laws):
+                tau[b] = law(t, q[b], v[b])
+            return aba(threads, pool, to_q(q).T, v.T, tau.T).T
+
+        return acc
+
+    def efforts(self, t: np.ndarray, Q: np.ndarray, V: np.ndarray) -> np.ndarray:
+        """Efforts at time-major states (T, B, n) -> (T, B, n); ``t`` the T times [s]."""
+        T, B, n = Q.shape
+        if not self.stacked:
+            tau = np.empty(Q.shape)
+            for b, c in enumerate(self.controllers):
+                tau[:, b] = c.efforts_many(t, Q[:, b], V[:, b])
+            return tau
+        tau = np.asarray(self.gravity(Q.reshape(T * B, n))).reshape(T, B, n)
+        for i in range(n):  # column by column: fewer passes over large arrays
+            column = tau[..., i]
+            column -= V[..., i] * self.kd[:, i]
+            column -= (Q[..., i] - self.qf[:, i]) * self.kp[:, i]
+        return tau

@@ -1,0 +1,117 @@
+"""What a simulation returns: one run, or a batch of variants (the bottom of the package).
+
+Both backends return these same types with the same fields. Units are SI:
+times [s], coordinates [rad or m], velocities [rad/s or m/s], efforts [N·m or N].
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from rrt_pin.errors import InputError
+
+__all__ = ["BatchResult", "SimulationResult"]
+
+
+@dataclass(frozen=True, eq=False)
+class _Run:
+    """Fields every result has.
+
+    Attributes:
+        t: output times, shape (N,) [s].
+        q: joint coordinates [rad or m]: (N, nv) for one run, (B, N, nv) for a batch.
+        qd: velocities [rad/s or m/s], same shape.
+        tau: efforts the controller applied at those states [N·m or N], same
+            shape (None for a batch run with ``efforts=False``).
+        n_evals: right-hand-side (forward dynamics) evaluations (a batch: each
+            evaluates all variants on the Pinocchio backend; the sum over the
+            variants on the compiled one).
+        wall_time: duration of the call [s].
+        method: the integration method (see :mod:`rrt_pin.methods`).
+        backend: ``"pinocchio"`` or ``"compiled"``.
+        rtol: relative tolerance (adaptive methods), else None.
+        atol: absolute tolerance [rad, m, rad/s, m/s] (adaptive methods), else None.
+        step: longest step [s] (fixed-step methods), else None.
+        n_jac: Jacobian evaluations (implicit methods with the analytic Jacobian).
+        threads: threads the run used.
+        q_names: coordinate names (``q1``…, or ``q_<joint>``).
+        qd_names: velocity names (``qd1``…, or ``qd_<joint>``).
+        tau_names: effort names (``T01x, T12y, F23z``, or ``tau_<joint>``).
+    """
+
+    t: np.ndarray
+    q: np.ndarray
+    qd: np.ndarray
+    tau: np.ndarray | None
+    n_evals: int
+    wall_time: float
+    method: str
+    backend: str = "pinocchio"
+    rtol: float | None = None
+    atol: float | None = None
+    step: float | None = None
+    n_jac: int = 0
+    threads: int = 1
+    q_names: tuple[str, ...] = ("q1", "q2", "q3")
+    qd_names: tuple[str, ...] = ("qd1", "qd2", "qd3")
+    tau_names: tuple[str, ...] = ("T01x", "T12y", "F23z")
+
+    def __post_init__(self) -> None:
+        for name in ("t", "q", "qd", "tau"):
+            value = getattr(self, name)
+            if value is None:
+                continue
+            arr = np.asarray(value, dtype=float)
+            arr.setflags(write=False)
+            object.__setattr__(self, name, arr)
+
+    @property
+    def header(self) -> tuple[str, ...]:
+        """Column names of a table: t, coordinates, velocities, efforts."""
+        return ("t", *self.q_names, *self.qd_names, *self.tau_names)
+
+
+@dataclass(frozen=True, eq=False)
+class SimulationResult(_Run):
+    """One simulated run, sampled at the output times (shapes (N, nv))."""
+
+    def table(self) -> np.ndarray:
+        """The run as rows ``t, q…, qd…, tau…`` (SI units), shape (N, 1 + 3·nv)."""
+        return np.column_stack((self.t, self.q, self.qd, self.tau))
+
+
+@dataclass(frozen=True, eq=False)
+class BatchResult(_Run):
+    """B variants sampled at the same output times (shapes (B, N, nv))."""
+
+    def __len__(self) -> int:
+        return int(self.q.shape[0])
+
+    def variant(self, i: int) -> SimulationResult:
+        """Variant ``i`` as a :class:`SimulationResult` (sharing the batch's cost figures).
+
+        Raises:
+            InputError: the batch ran with ``efforts=False`` (no efforts to hand over).
+        """
+        if self.tau is None:
+            raise InputError("this batch ran with efforts=False: rerun with efforts=True")
+        return SimulationResult(
+            t=self.t,
+            q=self.q[i],
+            qd=self.qd[i],
+            tau=self.tau[i],
+            n_evals=self.n_evals,
+            wall_time=self.wall_time,
+            method=self.method,
+            backend=self.backend,
+            rtol=self.rtol,
+            atol=self.atol,
+            step=self.step,
+            n_jac=self.n_jac,
+            threads=self.threads,
+            q_names=self.q_names,
+            qd_names=self.qd_names,
+            tau_names=self.tau_names,
+        )
