@@ -11,6 +11,7 @@ import importlib
 from typing import Any
 
 from rrt_pin._logging import logger as _logger  # noqa: F401  (installs the NullHandler)
+from rrt_pin._version import __version__
 from rrt_pin.errors import (
     DivergenceError,
     InputError,
@@ -20,7 +21,6 @@ from rrt_pin.errors import (
     UrdfError,
     ViewerError,
 )
-from rrt_pin._version import __version__
 from rrt_pin.params import Params
 
 _LAZY = {

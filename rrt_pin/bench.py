@@ -276,10 +276,10 @@ def direct_work_precision(
     """
     from rrt_pin.control import seed_controller
     from rrt_pin.grid import time_grid
+    from rrt_pin.methods import METHODS
     from rrt_pin.model import rrt_model
     from rrt_pin.params import Params
     from rrt_pin.reference import seed_reference
-    from rrt_pin.methods import METHODS
     from rrt_pin.simulate import simulate
 
     p = params if params is not None else Params()

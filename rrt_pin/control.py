@@ -116,7 +116,9 @@ class Controller(ABC):
             out[i] = self.efforts(float(ts[i]), q[i], qd[i])
         return out
 
-    def jacobian(self, t: float, q: np.ndarray, qd: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    def jacobian(
+        self, t: float, q: np.ndarray, qd: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray] | None:
         """(∂τ/∂q, ∂τ/∂q̇), each (nv, nv), or None when the law does not provide them."""
         return None
 
@@ -125,8 +127,10 @@ class Controller(ABC):
         return None
 
     def __call__(self, *args: Any) -> np.ndarray:
-        """``controller(t, q, qd)`` is :meth:`efforts`; the old ``controller(q, qd)`` (time 0)
-        is deprecated and kept for one release."""
+        """``controller(t, q, qd)`` is :meth:`efforts`.
+
+        The old ``controller(q, qd)`` (time 0) is deprecated and kept for one release.
+        """
         if len(args) == 2:
             return self.efforts(0.0, *args)
         return self.efforts(*args)
@@ -166,7 +170,9 @@ class _DuckController(Controller):
         many = getattr(self.obj, "efforts_many", None)
         return many(t, q, qd) if many is not None else super().efforts_many(t, q, qd)
 
-    def jacobian(self, t: float, q: np.ndarray, qd: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    def jacobian(
+        self, t: float, q: np.ndarray, qd: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray] | None:
         jac = getattr(self.obj, "jacobian", None)
         return jac(t, q, qd) if jac is not None else None
 
@@ -639,7 +645,9 @@ def pd_gravity_controller(
     return PDGravityController(kp=kp, kd=kd, qf=qf, model=model)  # type: ignore[arg-type]
 
 
-def tracking_controller(robot: Any, motion: Any, kp: Any = 100.0, kd: Any = 20.0) -> TrackingController:
+def tracking_controller(
+    robot: Any, motion: Any, kp: Any = 100.0, kd: Any = 20.0
+) -> TrackingController:
     """Computed torque along ``motion`` for ``robot`` (a Robot or a Pinocchio model).
 
     Raises:

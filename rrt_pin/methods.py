@@ -169,7 +169,9 @@ def get(name: object, backend: str | None = None, batch: bool = False) -> Method
     return method
 
 
-def names(backend: str | None = None, batch: bool = False, adaptive: bool | None = None) -> tuple[str, ...]:
+def names(
+    backend: str | None = None, batch: bool = False, adaptive: bool | None = None
+) -> tuple[str, ...]:
     """Names of the methods (of one backend, batch-capable, adaptive or fixed-step)."""
     return tuple(
         m.name

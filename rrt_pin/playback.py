@@ -95,8 +95,10 @@ def read_trajectory_csv(path: str, robot: Robot) -> tuple[np.ndarray, np.ndarray
 
 
 def motion_keyframes(robot: Robot, source: str, fps: float, tf: float | None = None) -> Keyframes:
-    """Keyframes of ``source`` at ``fps`` [1/s]: ``inverse`` (eq. (30) from the robot's
-    q0 to qf), ``simulate`` (the robot's regulator from q0), or a CSV path.
+    """Keyframes of ``source`` at ``fps`` [1/s].
+
+    ``inverse``: eq. (30) from the robot's q0 to qf; ``simulate``: the robot's
+    regulator from q0; else the path of a CSV file.
 
     Args:
         robot: the robot, with the defaults the task needs (q0, qf; gains to simulate).
@@ -143,4 +145,3 @@ def motion_keyframes(robot: Robot, source: str, fps: float, tf: float | None = N
     target = d.qf if d.qf is not None else values[-1]
     ghost = robot.configuration(np.asarray(target, dtype=float))
     return Keyframes(t - t[0], robot.configuration(values), ghost)
-

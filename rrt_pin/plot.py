@@ -76,8 +76,10 @@ def _groups(robot: Robot, units: Sequence[str]) -> list[tuple[str, list[int]]]:
 
 
 def effort_panels(robot: Robot, tau: np.ndarray, what: str = "") -> list[Panel]:
-    """Panels of a robot's efforts (N, nv): one per joint when each has a description
-    (the chapter's arm), else one per unit (N·m, N)."""
+    """Panels of a robot's efforts (N, nv).
+
+    One per joint when each has a description (the chapter's arm), else one per unit (N·m, N).
+    """
     docs = robot.effort_docs
     if all(docs):
         return [

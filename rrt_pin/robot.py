@@ -476,4 +476,3 @@ def _coordinate_labels(joints: tuple[Joint, ...]) -> list[str]:
     for j in joints:
         labels += [j.name] if j.nv == 1 else [f"{j.name}_{k}" for k in range(j.nv)]
     return labels
-

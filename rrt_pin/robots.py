@@ -12,7 +12,7 @@ import functools
 from collections.abc import Callable
 from importlib.metadata import PackageNotFoundError, distribution
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from rrt_pin.errors import InputError
 from rrt_pin.robot import Joint, Robot, RobotDefaults
@@ -26,6 +26,7 @@ __all__ = [
     "ROBOTS",
     "chapter_arm",
     "example_robot_data_dir",
+    "for_task",
     "get",
     "names",
 ]
@@ -140,3 +141,76 @@ def get(name: str, params: Params | None = None) -> Robot:
 def names() -> tuple[str, ...]:
     """The names :func:`get` knows."""
     return tuple(ROBOTS)
+
+
+#: The defaults each task needs, by task.
+TASK_NEEDS = {"inverse": ("q0", "qf"), "simulate": ("q0", "qf", "kp", "kd"), "view": ()}
+
+
+def _per_joint(name: str, value: Any, robot: Robot, gain: bool) -> list[float]:
+    """One value per joint (or, for gains, one for all); gains must be >= 0."""
+    from rrt_pin.errors import ParameterError
+
+    value = list(value)
+    n = robot.nv
+    if gain and len(value) == 1:
+        value = value * n
+    if len(value) != n:
+        extra = " (or one for all)" if gain else ""
+        names = ", ".join(robot.q_names)
+        raise InputError(
+            f"--{name} has {len(value)} values but the arm has {n} joints ({names}){extra}"
+        )
+    if gain:
+        for i, v in enumerate(value):
+            if v < 0.0:
+                raise ParameterError(f"--{name}[{i}]", v, "gain must be >= 0")
+    return value
+
+
+def for_task(
+    task: str,
+    params: Params,
+    *,
+    urdf: str | Path | None = None,
+    given: set[str] | frozenset[str] = frozenset(),
+    **values: Any,
+) -> Robot:
+    """The robot of one run: ``urdf`` or the chapter's arm, with start, target and gains set.
+
+    Args:
+        task: ``inverse``, ``simulate`` or ``view`` (what defaults it needs, see :data:`TASK_NEEDS`).
+        params: the chapter's parameters (the arm; g and Tp for a URDF).
+        urdf: a URDF file, or None for the chapter's arm.
+        given: the parameters the user set (a URDF accepts only g and Tp).
+        values: ``q0``, ``qd0``, ``qf`` [rad or m, rad/s or m/s], ``kp``, ``kd``
+            (one per joint; gains may be one for all), or None for the robot's default.
+
+    Raises:
+        InputError: a parameter that does not apply to the robot, a value list
+            of the wrong length, or a default the task needs and the robot lacks.
+        UrdfError: the URDF does not describe a usable robot.
+    """
+    if urdf is None:
+        robot = chapter_arm(params)
+    else:
+        robot = Robot.from_urdf(urdf, g=params.g, Tp=params.Tp if "Tp" in given else None)
+        unused = sorted(set(given) - set(robot.parameters))
+        if unused:
+            raise InputError(
+                f"parameter {unused[0]} describes the RRT arm and does not apply to --urdf "
+                f"(only {' and '.join(robot.parameters)} do)"
+            )
+    changes = {
+        name: _per_joint(name, value, robot, gain=name in ("kp", "kd"))
+        for name, value in values.items()
+        if value is not None
+    }
+    robot = robot.with_defaults(**changes) if changes else robot
+    missing = [f"--{k}" for k in TASK_NEEDS[task] if getattr(robot.defaults, k) is None]
+    if missing:
+        flags = ", ".join(missing[:-1]) + " and " + missing[-1] if len(missing) > 1 else missing[0]
+        raise InputError(
+            f"--urdf {urdf} needs {flags} ({robot.nv} values each: {', '.join(robot.q_names)})"
+        )
+    return robot

@@ -13,7 +13,9 @@ from rrt_pin.simulate.api import simulate, simulate_batch
 from rrt_pin.simulate.results import BatchResult, SimulationResult
 
 warnings.warn(
-    "rrt_pin.simulation is deprecated: import from rrt_pin.simulate", DeprecationWarning, stacklevel=2
+    "rrt_pin.simulation is deprecated: import from rrt_pin.simulate",
+    DeprecationWarning,
+    stacklevel=2,
 )
 
 __all__ = [

@@ -108,8 +108,10 @@ def leapfrog(
     q = np.array(q0, dtype=float)
     qd = np.array(qd0, dtype=float)
     pin_q = configuration if configuration is not None else (lambda x: x)
-    if q.shape != (model.nv,) or qd.shape != (model.nv,) or (
-        model.nq != model.nv and configuration is None
+    if (
+        q.shape != (model.nv,)
+        or qd.shape != (model.nv,)
+        or (model.nq != model.nv and configuration is None)
     ):
         raise InputError(f"{q.shape=} and {qd.shape=} must be ({model.nv},) with nq = nv")
     if not (np.isfinite(q).all() and np.isfinite(qd).all() and np.isfinite(t_eval).all()):

@@ -60,6 +60,7 @@ _RRT_COMPONENTS = (
 )
 RRT_WRENCH_COLUMNS = tuple(c[3] for c in _RRT_COMPONENTS)
 
+
 @dataclass(frozen=True)
 class JointWrenches:
     """Loads transmitted by each joint, in the joint's frame, about its origin.

@@ -34,10 +34,10 @@ from scipy.integrate import solve_ivp
 
 from rrt_pin.control import SeedController, seed_controller
 from rrt_pin.inverse import default_num_threads
+from rrt_pin.methods import METHODS
 from rrt_pin.model import rrt_model
 from rrt_pin.params import Params
 from rrt_pin.reference import reference_run, seed_reference
-from rrt_pin.methods import METHODS
 from rrt_pin.simulate import simulate, simulate_batch
 
 TARGET_ERROR = 1e-8  # max |q error| the defaults must reach [rad, m]

@@ -70,7 +70,7 @@ def test_mpmath_reference_agrees_with_pinocchio(seed_model, seed_params, rng):
     import pinocchio as pin
 
     from rrt_pin.bench import mpmath_inverse_reference
-    from tests.conftest import random_states
+    from tests.support import random_states
 
     q, qd, qdd = random_states(rng, 20)
     ref = mpmath_inverse_reference(q, qd, qdd, seed_params)

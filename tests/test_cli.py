@@ -8,7 +8,7 @@ import pytest
 from rrt_pin.cli import main
 from rrt_pin.params import Params
 from rrt_pin.urdf import urdf_xml
-from tests.robots import robot_urdf
+from tests.support import robot_urdf
 
 
 def run(argv, capsys):

@@ -18,9 +18,7 @@ from rrt_pin.model import load_urdf_model, rrt_model
 from rrt_pin.params import Params
 from rrt_pin.trajectory import rest_to_rest
 from rrt_pin.wrenches import RRT_WRENCH_COLUMNS, joint_wrenches, wrench_table
-from tests.conftest import DERIVED, TIGHT
-from tests.robots import robot_urdf
-from tests.seed_formulas import holding_efforts
+from tests.support import DERIVED, TIGHT, holding_efforts, robot_urdf
 
 HEADER = "t,q1,q2,q3,qd1,qd2,qd3,qdd1,qdd2,qdd3,T01x,T12y,F23z"
 HAS_KERNEL = importlib.util.find_spec("rrt_pin.kernel") is not None

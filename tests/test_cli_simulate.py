@@ -4,16 +4,15 @@ import numpy as np
 import pytest
 
 from rrt_pin.cli import main
-from rrt_pin.commands import simulate as command
-from rrt_pin.metrics import settling_times
 from rrt_pin.control import pd_gravity_controller, seed_controller
 from rrt_pin.csvio import read_csv
 from rrt_pin.grid import time_grid
+from rrt_pin.methods import METHODS
+from rrt_pin.metrics import settling_times
 from rrt_pin.model import load_urdf_model, rrt_model
 from rrt_pin.params import Params
-from rrt_pin.methods import METHODS
 from rrt_pin.simulate import simulate
-from tests.robots import robot_urdf
+from tests.support import robot_urdf
 
 HEADER = ["t", "q1", "q2", "q3", "qd1", "qd2", "qd3", "T01x", "T12y", "F23z"]
 

@@ -11,7 +11,7 @@ import pytest
 
 from rrt_pin.errors import InputError
 from rrt_pin.params import Params
-from tests.conftest import TIGHT, random_states
+from tests.support import TIGHT, random_states
 
 pytestmark = pytest.mark.skipif(
     importlib.util.find_spec("numba") is None, reason="numba not installed (rrt-pin[fast])"

@@ -15,9 +15,7 @@ from rrt_pin.control import (
 from rrt_pin.errors import InputError, ParameterError
 from rrt_pin.model import load_urdf_model, rrt_model
 from rrt_pin.params import Params
-from tests.conftest import TIGHT, random_states
-from tests.robots import robot_urdf
-from tests.seed_formulas import holding_efforts
+from tests.support import TIGHT, holding_efforts, random_states, robot_urdf
 
 
 def eq31(p: Params, q, qd):

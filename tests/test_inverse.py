@@ -2,22 +2,18 @@
 Lagrangian typed from the seed's T and V, the seed's holding efforts, other arms."""
 
 import importlib.util
-import sys
 
 import numpy as np
 import pinocchio as pin
 import pytest
 
-import rrt_pin
 from rrt_pin.errors import InputError
 from rrt_pin.grid import time_grid
 from rrt_pin.inverse import inverse_dynamics
 from rrt_pin.model import load_urdf_model, rrt_model
 from rrt_pin.params import Params
 from rrt_pin.trajectory import rest_to_rest
-from tests.conftest import DERIVED, TIGHT, random_states
-from tests.robots import robot_urdf
-from tests.seed_formulas import holding_efforts, kinetic_energy
+from tests.support import DERIVED, TIGHT, holding_efforts, kinetic_energy, random_states, robot_urdf
 
 HAS_KERNEL = importlib.util.find_spec("rrt_pin.kernel") is not None
 

@@ -11,32 +11,9 @@ from rrt_pin import kernel
 from rrt_pin.errors import InputError
 from rrt_pin.model import rrt_model
 from rrt_pin.params import Params
-from tests.conftest import DERIVED, TIGHT, random_states
-from tests.seed_formulas import holding_efforts
+from tests.support import DERIVED, TIGHT, holding_efforts, random_params, random_states, rel_err
 
 N_STATES = 120
-
-
-def random_params(rng: np.random.Generator) -> Params:
-    """Params with general (non-rod) central inertias; a, b, c >= 0 keep the triangle rule."""
-    values = {
-        "L1": rng.uniform(0.1, 1.0),
-        "L2": rng.uniform(0.1, 1.0),
-        "m1": rng.uniform(1.0, 100.0),
-        "m2": rng.uniform(1.0, 100.0),
-        "m3": rng.uniform(1.0, 100.0),
-        "g": rng.uniform(1.0, 20.0),
-    }
-    for body in "123":
-        a, b, c = rng.uniform(0.0, 5.0, 3)
-        values.update({f"I{body}x": b + c, f"I{body}y": a + c, f"I{body}z": a + b})
-    return Params(**values)
-
-
-def rel_err(a: np.ndarray, b: np.ndarray) -> float:
-    """Largest per-sample relative error ‖a − b‖ / ‖b‖ over the first axis."""
-    a, b = np.asarray(a).reshape(len(a), -1), np.asarray(b).reshape(len(b), -1)
-    return float(np.max(np.linalg.norm(a - b, axis=1) / np.linalg.norm(b, axis=1)))
 
 
 def pin_reference(model, q, qd, qdd):

@@ -8,8 +8,14 @@ from rrt_pin.errors import UrdfError
 from rrt_pin.model import build_geometry, load_urdf_model, model_from_xml, rrt_model
 from rrt_pin.params import Params
 from rrt_pin.urdf import urdf_xml
-from tests.conftest import TIGHT, random_states
-from tests.seed_formulas import holding_efforts, kinetic_energy, mass_centres, seed_to_world
+from tests.support import (
+    TIGHT,
+    holding_efforts,
+    kinetic_energy,
+    mass_centres,
+    random_states,
+    seed_to_world,
+)
 
 
 def test_dimensions_and_names(seed_model):

@@ -7,26 +7,23 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-import rrt_pin
-from rrt_pin.control import pd_gravity_controller, seed_controller
-from rrt_pin.errors import DivergenceError, InputError
+from rrt_pin.control import as_controller, pd_gravity_controller, seed_controller
+from rrt_pin.errors import DivergenceError, InputError, RrtPinError
+from rrt_pin.methods import METHODS, names
 from rrt_pin.model import load_urdf_model, rrt_model
 from rrt_pin.params import Params
 from rrt_pin.reference import reference_run, seed_reference
-from rrt_pin.control import as_controller
-from rrt_pin.errors import RrtPinError
-from rrt_pin.methods import METHODS, names
 from rrt_pin.robot import Robot
 from rrt_pin.simulate import SimulationResult, simulate
 from rrt_pin.simulate.closed_loop import ClosedLoop
+from tests.support import TIGHT, random_states, robot_urdf
 
 ADAPTIVE_METHODS = names(adaptive=True)
 
 
 def _ClosedLoop(model, controller):
     return ClosedLoop(Robot.from_model(model), as_controller(controller, model.nv))
-from tests.conftest import TIGHT, random_states
-from tests.robots import robot_urdf
+
 
 CHECK_TIMES = (1.0, 2.0, 5.0, 7.5, 10.0, 15.0)  # [s]
 MATCH = 1e-7  # |q − reference| at CHECK_TIMES [rad, m]
@@ -121,7 +118,9 @@ def test_gravity_folding_is_exact(seed_model, seed_params, rng):
     acc = loop.acceleration()
     for a, b in zip(q, qd, strict=True):
         expected = pin.aba(seed_model, data, a, b, c.efforts(0.0, a, b))
-        np.testing.assert_allclose(acc(0.0, a, b), expected, rtol=0, atol=TIGHT * np.abs(expected).max())
+        np.testing.assert_allclose(
+            acc(0.0, a, b), expected, rtol=0, atol=TIGHT * np.abs(expected).max()
+        )
 
 
 def test_plain_callable_controller_takes_the_general_path(seed_model, seed_params, seed_run):

@@ -15,7 +15,7 @@ import pytest
 
 from rrt_pin.model import rrt_model
 from rrt_pin.params import Params
-from tests.conftest import random_states
+from tests.support import random_states
 
 EPS_ALGO = 1e-14  # per unit of cond(M): the accuracy ABA/RNEA should keep
 N_RANDOM = 1000

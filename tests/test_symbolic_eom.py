@@ -13,8 +13,7 @@ from rrt_pin.params import Params  # noqa: E402
 from rrt_pin.symbolic import METHODS, EquationsOfMotion, equations_of_motion  # noqa: E402
 from rrt_pin.symbolic.simplify import trig_normal  # noqa: E402
 from rrt_pin.symbolic.symbols import L1, LB, to_plain  # noqa: E402
-from tests.conftest import DERIVED, TIGHT, random_states  # noqa: E402
-from tests.test_kernel import random_params, rel_err  # noqa: E402
+from tests.support import DERIVED, TIGHT, random_params, random_states, rel_err  # noqa: E402  # noqa: E402
 
 N_STATES = 150
 

@@ -54,7 +54,7 @@ def test_yourdfpy_loads_it():
     p = Params()
     robot.update_cfg(np.array(p.q0))
     # yourdfpy's forward kinematics: the slider's frame is C3 (seed: rC3 = rC2 + q3·k2).
-    from tests.seed_formulas import mass_centres, seed_to_world
+    from tests.support import mass_centres, seed_to_world
 
     T = robot.get_transform("link3", "world")
     np.testing.assert_allclose(T[:3, 3], seed_to_world(mass_centres(p, p.q0)[2]), atol=1e-14)

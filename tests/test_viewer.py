@@ -25,8 +25,7 @@ from rrt_pin.trajectory import rest_to_rest
 from rrt_pin.urdf import urdf_xml
 from rrt_pin.viewer import build_scene, keyframe_times, resample
 from rrt_pin.viewer.keyframes import frame_placements
-from tests.conftest import TIGHT
-from tests.seed_formulas import mass_centres, seed_to_world, unit_vectors
+from tests.support import TIGHT, mass_centres, seed_to_world, unit_vectors
 
 FPS = 30.0
 
@@ -314,7 +313,7 @@ def test_cylinders_turn_from_three_js_y_to_urdf_z(seed_scene):
 def test_meshes_of_another_urdf_become_meshcat_meshes():
     from rrt_pin.model import load_urdf_model
     from rrt_pin.viewer.meshcat_scene import shape_object
-    from tests.robots import robot_urdf
+    from tests.support import robot_urdf
 
     path = robot_urdf("ur5")
     model = load_urdf_model(path)
@@ -406,7 +405,7 @@ def test_bad_options_are_refused_in_one_line(capsys, argv, words):
 
 
 def test_urdf_needs_its_own_configurations(tmp_path, capsys):
-    from tests.robots import robot_urdf
+    from tests.support import robot_urdf
 
     path = str(robot_urdf("ur5"))
     code = main(["view", "--urdf", path, "--port", "0", "--serve-for", "0"])
@@ -499,7 +498,7 @@ def test_urdf_csv_columns(tmp_path):
     """q_<joint> (as `rrt-pin inverse --urdf` writes), the joint names and q1..qn all work."""
     from rrt_pin.playback import motion_keyframes
     from rrt_pin.robot import Robot
-    from tests.robots import robot_urdf
+    from tests.support import robot_urdf
 
     path = robot_urdf("ur5")
     robot = Robot.from_urdf(path)

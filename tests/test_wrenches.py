@@ -17,9 +17,7 @@ from rrt_pin.wrenches import (
     joint_wrenches,
     wrench_table,
 )
-from tests.conftest import DERIVED, TIGHT, random_states
-from tests.robots import robot_urdf
-from tests.seed_formulas import mass_centres, unit_vectors
+from tests.support import DERIVED, TIGHT, mass_centres, random_states, robot_urdf, unit_vectors
 
 I0 = np.array([1.0, 0.0, 0.0])  # the vertical ı0
 

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import math
-
 from typing import TYPE_CHECKING
 
 from rrt_pin.params import PARAM_DOCS, Params
@@ -165,8 +164,7 @@ def add_robot_arguments(parser: argparse.ArgumentParser, task: str) -> None:
         "--q0",
         type=float_list,
         metavar="A,B,...",
-        help="start configuration, one value per joint [rad or m] "
-        "(the arm's default: q10,q20,q30)",
+        help="start configuration, one value per joint [rad or m] (the arm's default: q10,q20,q30)",
     )
     if task in ("simulate", "view"):
         parser.add_argument(
@@ -198,66 +196,17 @@ def add_robot_arguments(parser: argparse.ArgumentParser, task: str) -> None:
         )
 
 
-def _values(flag: str, value: list[float], robot: Robot, gain: bool = False) -> list[float]:
-    """One value per joint (or, for gains, one for all); gains must be >= 0."""
-    from rrt_pin.errors import InputError, ParameterError
-
-    n = robot.nv
-    if gain and len(value) == 1:
-        value = value * n
-    if len(value) != n:
-        extra = " (or one for all)" if gain else ""
-        names = ", ".join(robot.q_names)
-        raise InputError(f"{flag} has {len(value)} values but the arm has {n} joints ({names}){extra}")
-    if gain:
-        for i, v in enumerate(value):
-            if v < 0.0:
-                raise ParameterError(f"{flag}[{i}]", v, "gain must be >= 0")
-    return list(value)
-
-
 def robot_from_args(args: argparse.Namespace, params: Params, task: str) -> Robot:
-    """The run's robot: ``--urdf PATH`` or the chapter's arm, with the flags' start, target, gains.
-
-    Raises:
-        InputError: a parameter that does not apply to the robot (``--set m1`` with
-            ``--urdf``), or a flag with the wrong number of values.
-        UrdfError: the URDF does not describe a usable robot.
-    """
-    from rrt_pin.errors import InputError
+    """The run's robot from the flags (``--urdf``, ``--q0`` …): see :func:`rrt_pin.robots.for_task`."""
     from rrt_pin.params import parse_overrides
-    from rrt_pin.robot import Robot
-    from rrt_pin.robots import chapter_arm
+    from rrt_pin.robots import for_task
 
-    if args.urdf is None:
-        robot = chapter_arm(params)
-    else:
-        given = set(parse_overrides(args.overrides))
-        scene = getattr(args, "scene_obj", None)
-        if scene is not None:
-            given |= set(scene.params)
-        robot = Robot.from_urdf(args.urdf, g=params.g, Tp=params.Tp if "Tp" in given else None)
-        unused = sorted(given - set(robot.parameters))
-        if unused:
-            raise InputError(
-                f"parameter {unused[0]} describes the RRT arm and does not apply to --urdf "
-                f"(only {' and '.join(robot.parameters)} do)"
-            )
-    changes = {}
-    for flag in ("q0", "qd0", "qf", "kp", "kd"):
-        value = getattr(args, flag, None)
-        if value is not None:
-            changes[flag] = _values(f"--{flag}", value, robot, gain=flag in ("kp", "kd"))
-    robot = robot.with_defaults(**changes) if changes else robot
-    d = robot.defaults
-    needed = {"inverse": ("q0", "qf"), "simulate": ("q0", "qf", "kp", "kd")}.get(task, ())
-    missing = [f"--{k}" for k in needed if getattr(d, k) is None]
-    if missing:
-        flags = ", ".join(missing[:-1]) + " and " + missing[-1] if len(missing) > 1 else missing[0]
-        raise InputError(
-            f"--urdf {args.urdf} needs {flags} ({robot.nv} values each: {', '.join(robot.q_names)})"
-        )
-    return robot
+    given = set(parse_overrides(args.overrides))
+    scene = getattr(args, "scene_obj", None)
+    if scene is not None:
+        given |= set(scene.params)
+    values = {k: getattr(args, k, None) for k in ("q0", "qd0", "qf", "kp", "kd")}
+    return for_task(task, params, urdf=args.urdf, given=given, **values)
 
 
 def resolve_backend(requested: str, robot: Robot, task: str, method: str | None = None) -> str:
@@ -276,9 +225,8 @@ def resolve_backend(requested: str, robot: Robot, task: str, method: str | None 
     """
     import sys
 
-    from rrt_pin.errors import InputError
-
     from rrt_pin import backends, methods
+    from rrt_pin.errors import InputError
 
     if requested == "auto":
         default = backends.get("pinocchio").default_method if task == "simulate" else None

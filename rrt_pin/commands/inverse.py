@@ -89,7 +89,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--backend",
         choices=(*backends.names("inverse"), "auto"),
         default="pinocchio",
-        help="; ".join(f"{b.name}: {b.summary}" for b in backends.BACKENDS.values() if b.runs("inverse"))
+        help="; ".join(
+            f"{b.name}: {b.summary}" for b in backends.BACKENDS.values() if b.runs("inverse")
+        )
         + " (loading compiled costs ~1 s per process, more than it saves here; reported on "
         "stderr); auto: compiled only when its code is already built, else pinocchio "
         "(default: pinocchio)",

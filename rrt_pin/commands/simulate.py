@@ -34,12 +34,15 @@ HELP = "direct dynamics under the chapter's feedback law, eq. (31) (SI units)"
 def _method_lines() -> str:
     lines = []
     for m in methods.METHODS.values():
-        on = "" if m.runs_on("pinocchio") and m.runs_on("compiled") else (
-            " (compiled only)" if not m.runs_on("pinocchio") else " (pinocchio only)"
+        on = (
+            ""
+            if m.runs_on("pinocchio") and m.runs_on("compiled")
+            else (" (compiled only)" if not m.runs_on("pinocchio") else " (pinocchio only)")
         )
         how = "adaptive: --rtol, --atol" if m.adaptive else "fixed step: --dt"
         lines.append(f"  {m.name:<17} {m.summary}; {how}{on}")
     return "\n".join(lines)
+
 
 _EPILOG = f"""\
 CSV columns (SI units), one row per sample, both ends of the grid included:

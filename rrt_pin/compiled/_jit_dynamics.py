@@ -40,6 +40,7 @@ import numpy as np
 from numba import float64, int64, types
 
 from rrt_pin import kernel
+from rrt_pin.compiled._cache import cache_dir
 from rrt_pin.compiled.codes import (
     KIND_CHAPTER,
     KIND_CHAPTER_FOLDED,
@@ -48,7 +49,6 @@ from rrt_pin.compiled.codes import (
     NC,
     NP,
 )
-from rrt_pin.compiled._cache import cache_dir
 
 __all__ = ["SIGNATURES", "jit"]
 

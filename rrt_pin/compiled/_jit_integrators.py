@@ -26,6 +26,7 @@ import numpy as np
 from numba import float64, int64, types
 
 from rrt_pin.compiled import _dop853_coefficients as dop
+from rrt_pin.compiled._jit_dynamics import as_tuple_c, as_tuple_p, closed_loop, effort, jit
 from rrt_pin.compiled.codes import (
     FIXED_STEP_FROM,
     METHOD_DOP853,
@@ -38,7 +39,6 @@ from rrt_pin.compiled.codes import (
     STATUS_SINGULAR_MASS,
     STATUS_STEP_UNDERFLOW,
 )
-from rrt_pin.compiled._jit_dynamics import as_tuple_c, as_tuple_p, closed_loop, effort, jit
 
 __all__ = ["integrate", "integrate_batch"]
 

@@ -130,9 +130,7 @@ def simulate(
     start = time.perf_counter()
     q0 = robot.as_coordinates("q0", q0)
     qd0 = (
-        np.zeros(robot.nv)
-        if qd0 is None
-        else validate.vector("qd0", qd0, robot.nv, "rad/s or m/s")
+        np.zeros(robot.nv) if qd0 is None else validate.vector("qd0", qd0, robot.nv, "rad/s or m/s")
     )
     t = validate.times(t_eval)
     options = resolve(

@@ -151,16 +151,21 @@ class BatchLoop:
         """a(t, q, q̇) for states of shape (B, n)."""
         import pinocchio as pin
 
-        aba, pool, threads, to_q = pin.abaInParallel, self.pool, self.threads, self.robot.configuration
+        aba, pool, threads, to_q = (
+            pin.abaInParallel,
+            self.pool,
+            self.threads,
+            self.robot.configuration,
+        )
         if self.stacked:
             kp, kd, qf, gravity = self.kp, self.kd, self.qf, self.gravity
             if self.folded:
-                return lambda t, q, v: aba(
-                    threads, pool, to_q(q).T, v.T, (-kd * v - kp * (q - qf)).T
-                ).T
-            return lambda t, q, v: aba(
-                threads, pool, to_q(q).T, v.T, (-kd * v - kp * (q - qf) + gravity(q)).T
-            ).T
+                return lambda t, q, v: (
+                    aba(threads, pool, to_q(q).T, v.T, (-kd * v - kp * (q - qf)).T).T
+                )
+            return lambda t, q, v: (
+                aba(threads, pool, to_q(q).T, v.T, (-kd * v - kp * (q - qf) + gravity(q)).T).T
+            )
         laws = [c.efforts for c in self.controllers]
 
         def acc(t: float, q: np.ndarray, v: np.ndarray) -> np.ndarray:

@@ -47,6 +47,7 @@ class _Watch:
         self.last: tuple[float, np.ndarray, np.ndarray] | None = None
 
     def __call__(self, t: float, y: np.ndarray) -> np.ndarray:
+        """f(t, y), counted."""
         self.calls += 1
         if self.calls > MAX_EVALS:
             raise _TooMuchWork(t)
@@ -87,6 +88,7 @@ def run_odeint(
     band: int | None = None,
     lean: Callable[[np.ndarray, float], np.ndarray] | None = None,
 ) -> tuple[np.ndarray, dict[str, Any], bool]:
+    """ODEPACK's LSODA through ``odeint``: (states, odeint's info, whether it succeeded)."""
     from scipy.integrate import ODEintWarning, odeint
 
     func = lean if lean is not None else (lambda y, s: f(s, y))
@@ -116,6 +118,7 @@ def run_solve_ivp(
     atol: float,
     jac: Callable[[float, np.ndarray], np.ndarray] | None,
 ) -> tuple[np.ndarray, str, bool, int]:
+    """``solve_ivp`` at the output times: (states, message, success, Jacobian evaluations)."""
     from scipy.integrate import solve_ivp
 
     implicit = methods.get(method).implicit
@@ -180,6 +183,7 @@ class Counted:
         self.f, self.calls = f, 0
 
     def __call__(self, t: float, y: np.ndarray) -> np.ndarray:
+        """f(t, y), counted."""
         self.calls += 1
         if self.calls > MAX_EVALS:
             raise _TooMuchWork(t)
