@@ -276,7 +276,7 @@ def direct_work_precision(
     """
     from rrt_pin.control import seed_controller
     from rrt_pin.grid import time_grid
-    from rrt_pin.methods import METHODS
+    from rrt_pin.methods import METHODS, names
     from rrt_pin.model import rrt_model
     from rrt_pin.params import Params
     from rrt_pin.reference import seed_reference
@@ -294,7 +294,7 @@ def direct_work_precision(
             from rrt_pin import compiled
 
             have_compiled = compiled.available()
-            compiled_methods = tuple(compiled.METHODS)
+            compiled_methods = names("compiled")
         except ImportError:
             have_compiled = False
     plan: list[tuple[str, str, str, dict]] = []

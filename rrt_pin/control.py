@@ -60,6 +60,7 @@ __all__ = [
     "as_controller",
     "chapter_controller",
     "pd_gravity_controller",
+    "regulator",
     "seed_controller",
     "tracking_controller",
 ]
@@ -658,6 +659,28 @@ def tracking_controller(
     if not isinstance(robot, Robot):
         robot = Robot.from_model(robot)
     return TrackingController(robot=robot, motion=motion, kp=kp, kd=kd)
+
+
+def regulator(robot: Robot, kp: Any = None, kd: Any = None, qf: Any = None) -> Controller:
+    """The robot's default feedback law to ``qf`` with gains ``kp``, ``kd``.
+
+    The chapter's arm: eq. (31) (gains and target from the robot's defaults
+    unless given). Any other robot: PD plus gravity compensation
+    (:class:`PDGravityController`), which needs all three.
+
+    Raises:
+        InputError: a value is missing or has the wrong length.
+    """
+    d = robot.defaults
+    kp = d.kp if kp is None else kp
+    kd = d.kd if kd is None else kd
+    qf = d.qf if qf is None else qf
+    missing = [n for n, v in (("kp", kp), ("kd", kd), ("qf", qf)) if v is None]
+    if missing:
+        raise InputError(f"{robot.name} has no default {', '.join(missing)}: give them")
+    if robot.params is not None:
+        return ChapterController(kp=kp, kd=kd, qf=qf, params=robot.params)
+    return PDGravityController(kp=kp, kd=kd, qf=qf, model=robot.model, robot=robot)
 
 
 #: Deprecated names (kept for one release): the chapter was called "the seed".

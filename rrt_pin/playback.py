@@ -131,9 +131,10 @@ def motion_keyframes(robot: Robot, source: str, fps: float, tf: float | None = N
 
             values = np.asarray(rest_to_rest(d.q0, d.qf, Tp, t).q)
         else:
+            from rrt_pin.control import regulator
             from rrt_pin.simulate import simulate
 
-            values = np.asarray(simulate(robot, robot.regulator_law(), d.q0, d.qd0, t).q)
+            values = np.asarray(simulate(robot, regulator(robot), d.q0, d.qd0, t).q)
         ghost = robot.configuration(np.asarray(d.qf, dtype=float))
         return Keyframes(t, robot.configuration(values), ghost)
     if not os.path.isfile(source):

@@ -31,7 +31,15 @@ if TYPE_CHECKING:
 
     from rrt_pin.params import Params
 
-__all__ = ["JOINT_KINDS", "Joint", "Robot", "RobotDefaults"]
+__all__ = ["CHAPTER_COLUMNS", "JOINT_KINDS", "Joint", "Robot", "RobotDefaults"]
+
+#: The chapter's column names: coordinates, velocities, accelerations, efforts.
+CHAPTER_COLUMNS = (
+    ("q1", "q2", "q3"),
+    ("qd1", "qd2", "qd3"),
+    ("qdd1", "qdd2", "qdd3"),
+    ("T01x", "T12y", "F23z"),
+)
 
 #: Joint kinds a Robot handles: (unit of the coordinate, unit of the effort).
 JOINT_KINDS: dict[str, tuple[str, str]] = {
@@ -220,8 +228,6 @@ class Robot:
             "prismatic",
         ]
         if chapter:
-            from rrt_pin.robots import CHAPTER_COLUMNS
-
             q, qd, qdd, eff = CHAPTER_COLUMNS
         else:
             coords = _coordinate_labels(joints)
@@ -369,28 +375,6 @@ class Robot:
         return validate.vector(name, value, self.nv, unit)
 
     # ------------------------------------------------------------------ feedback and motion
-    def regulator_law(self, kp: Any = None, kd: Any = None, qf: Any = None) -> Any:
-        """The robot's default feedback law to ``qf`` with gains ``kp``, ``kd``.
-
-        The chapter's arm: eq. (31) (its gains and target from :attr:`params`
-        unless given). Any other robot: PD plus gravity compensation
-        (:class:`~rrt_pin.control.PDGravityController`), which needs all three.
-
-        Raises:
-            InputError: a value is missing or has the wrong length.
-        """
-        from rrt_pin.control import ChapterController, PDGravityController
-
-        kp = self.defaults.kp if kp is None else kp
-        kd = self.defaults.kd if kd is None else kd
-        qf = self.defaults.qf if qf is None else qf
-        missing = [n for n, v in (("kp", kp), ("kd", kd), ("qf", qf)) if v is None]
-        if missing:
-            raise InputError(f"{self.name} has no default {', '.join(missing)}: give them")
-        if self.params is not None:
-            return ChapterController(kp=kp, kd=kd, qf=qf, params=self.params)
-        return PDGravityController(kp=kp, kd=kd, qf=qf, model=self.model, robot=self)
-
     def with_defaults(self, **changes: Any) -> Robot:
         """A copy with some defaults replaced (``q0``, ``qd0``, ``qf``, ``kp``, ``kd``, ``Tp``)."""
         from dataclasses import replace
@@ -426,11 +410,15 @@ class Robot:
         lines.append(f"  backends: {', '.join(self.backends)}")
         return "\n".join(lines) + "\n"
 
-    def wrench_table(self, wrenches: Any) -> tuple[tuple[str, ...], np.ndarray]:
-        """Column names and values of the joint loads (see :mod:`rrt_pin.wrenches`)."""
-        from rrt_pin.wrenches import wrench_table
-
-        return wrench_table(wrenches, rrt=self.layout == "chapter")
+    def load_labels(self) -> tuple[tuple[str, str], ...]:
+        """Per joint, names of the magnitudes of its transmitted force and moment (summaries)."""
+        if self.layout == "chapter":
+            return (
+                ("|F01| at A", "|T01| about A"),
+                ("|F12| at B", "|T12| about B"),
+                ("|F23| at C3", "|M23| about C3"),
+            )
+        return tuple((f"|f_{j.name}|", f"|m_{j.name}|") for j in self.joints)
 
     def xml(self) -> str:
         """The URDF text (generated for the arm, read from :attr:`source` otherwise)."""

@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from rrt_pin.errors import InputError
-from rrt_pin.robot import Joint, Robot, RobotDefaults
+from rrt_pin.robot import CHAPTER_COLUMNS, Joint, Robot, RobotDefaults
 
 if TYPE_CHECKING:
     from rrt_pin.params import Params
@@ -31,13 +31,6 @@ __all__ = [
     "names",
 ]
 
-#: The chapter's column names: coordinates, velocities, accelerations, efforts.
-CHAPTER_COLUMNS = (
-    ("q1", "q2", "q3"),
-    ("qd1", "qd2", "qd3"),
-    ("qdd1", "qdd2", "qdd3"),
-    ("T01x", "T12y", "F23z"),
-)
 
 _CHAPTER_JOINTS = (
     Joint("q1", "revolute", idx_q=0, idx_v=0, effort_doc="torque of 0 on 1 about ı1"),

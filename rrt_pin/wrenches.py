@@ -31,11 +31,14 @@ from rrt_pin.inverse import batch_arrays
 if TYPE_CHECKING:
     import pinocchio as pin
 
+    from rrt_pin.robot import Robot
+
 __all__ = [
     "RRT_WRENCH_COLUMNS",
     "JointWrenches",
     "generic_wrench_columns",
     "joint_wrenches",
+    "robot_wrench_table",
     "wrench_table",
 ]
 
@@ -136,3 +139,12 @@ def generic_wrench_columns(joint_names: tuple[str, ...] | list[str]) -> tuple[st
     return tuple(
         f"{c}{a}_{name}" for name in joint_names for c in ("f", "m") for a in ("x", "y", "z")
     )
+
+
+def robot_wrench_table(robot: Robot, wrenches: JointWrenches) -> tuple[tuple[str, ...], np.ndarray]:
+    """Column names and values of a robot's joint loads.
+
+    The chapter's frames and names for the arm (:data:`RRT_WRENCH_COLUMNS`),
+    ``fx_<joint>`` … for any other robot.
+    """
+    return wrench_table(wrenches, rrt=robot.layout == "chapter")

@@ -132,10 +132,10 @@ def run(args: argparse.Namespace) -> int:
     columns = [traj.t[:, None], traj.q, traj.qd, traj.qdd, tau]
     wrenches = None
     if args.wrenches:
-        from rrt_pin.wrenches import joint_wrenches
+        from rrt_pin.wrenches import joint_wrenches, robot_wrench_table
 
         wrenches = joint_wrenches(robot.model, robot.configuration(traj.q), traj.qd, traj.qdd)
-        names, table = robot.wrench_table(wrenches)
+        names, table = robot_wrench_table(robot, wrenches)
         header += names
         columns.append(table)
 
@@ -187,19 +187,10 @@ def summary(
         lines.append(peak(name, tau[:, k], unit))
     if wrenches is not None:
         lines.append(f"{'joint load':<24} {'peak magnitude':>16}  {'at t [s]':>10}")
-        labels = _CHAPTER_LOADS if robot.layout == "chapter" else None
-        for j, joint in enumerate(wrenches.joint_names):
-            f_name, m_name = labels[j] if labels else (f"|f_{joint}|", f"|m_{joint}|")
+        for j, (f_name, m_name) in enumerate(robot.load_labels()):
             lines.append(peak(f_name, np.linalg.norm(wrenches.force[:, j], axis=1), "N"))
             lines.append(peak(m_name, np.linalg.norm(wrenches.moment[:, j], axis=1), "N·m"))
     return "\n".join(lines) + "\n"
-
-
-_CHAPTER_LOADS = (
-    ("|F01| at A", "|T01| about A"),
-    ("|F12| at B", "|T12| about B"),
-    ("|F23| at C3", "|M23| about C3"),
-)
 
 
 def _plot(path: str, robot: Robot, t: np.ndarray, tau: np.ndarray) -> None:

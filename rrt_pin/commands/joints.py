@@ -26,12 +26,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     """Print the joint table."""
     from rrt_pin import robots
-    from rrt_pin.robot import Robot
 
     params = params_from_args(args)
-    if args.urdf is not None:
-        robot = Robot.from_urdf(args.urdf, g=params.g)
+    if args.robot:
+        robot = robots.get(args.robot, params)
     else:
-        robot = robots.get(args.robot or "rrt", params)
+        robot = robots.for_task("view", params, urdf=args.urdf)
     sys.stdout.write(robot.describe())
     return 0

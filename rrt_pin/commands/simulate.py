@@ -133,12 +133,13 @@ def run(args: argparse.Namespace) -> int:
     method = args.method or backends.get(args.backend).default_method
     fixed = not methods.get(method).adaptive
 
+    from rrt_pin.control import regulator
     from rrt_pin.simulate import simulate
 
     d = robot.defaults
     result = simulate(
         robot,
-        robot.regulator_law(),
+        regulator(robot),
         d.q0,
         d.qd0,
         t,

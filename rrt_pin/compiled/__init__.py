@@ -17,10 +17,10 @@ Public API (SI units throughout):
 * whole simulations: :func:`simulate_compiled` (the ``backend="compiled"`` of
   :func:`rrt_pin.simulate.simulate`) and :func:`simulate_batch_compiled` (many
   seed variants: gains, targets, initial states and masses per variant);
-* ``METHODS``: the methods of :data:`rrt_pin.methods.METHODS` that run
-  compiled: ``RK45``, ``DOP853`` (adaptive, step by step as SciPy's
-  ``solve_ivp``), ``symplectic_euler``, ``rk4``, ``verlet`` (fixed steps, as
-  :mod:`rrt_pin.integrators`).
+* methods: those of :data:`rrt_pin.methods.METHODS` that run compiled
+  (``rrt_pin.methods.names("compiled")``): ``RK45``, ``DOP853`` (adaptive,
+  step by step as SciPy's ``solve_ivp``), ``symplectic_euler``, ``rk4``,
+  ``verlet`` (fixed steps, as :mod:`rrt_pin.integrators`).
 """
 
 from __future__ import annotations
@@ -35,7 +35,6 @@ from pathlib import Path
 from typing import Any
 
 __all__ = [
-    "METHODS",
     "CompileReport",
     "available",
     "compile_report",
@@ -174,10 +173,6 @@ def compile_report() -> CompileReport | None:
 
 
 def __getattr__(name: str) -> Any:
-    if name == "METHODS":  # the registry's methods that run compiled
-        from rrt_pin.methods import names
-
-        return names("compiled")
     module = _LAZY.get(name)
     if module is None:
         raise AttributeError(f"module 'rrt_pin.compiled' has no attribute {name!r}")

@@ -580,7 +580,7 @@ def integrate(
 
     Returns:
         (status, coordinate, n_evals, n_steps, n_rejected, n_out, t): ``t`` is the
-        time reached, or the failure time when status != 0 [s]; n_out the number
+        time reached, or the failure time when the status is not STATUS_OK [s]; n_out the number
         of output rows filled.
     """
     if method < FIXED_STEP_FROM:

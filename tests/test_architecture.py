@@ -1,0 +1,209 @@
+"""The package's shape: imports flow one way, commands hold no robot-specific branch,
+the CLI and the compiled loop read the registries, and the public API is complete."""
+
+from __future__ import annotations
+
+import ast
+import re
+from pathlib import Path
+
+import pytest
+
+import rrt_pin
+from rrt_pin import backends, methods
+from rrt_pin.compiled import codes
+
+PACKAGE = Path(rrt_pin.__file__).parent
+
+
+def _module_name(path: Path) -> str:
+    parts = path.relative_to(PACKAGE.parent).with_suffix("").parts
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def _imports(path: Path) -> set[str]:
+    """Every rrt_pin module ``path`` imports, at module level or inside functions.
+
+    ``import a.b.c`` and ``from a.b import c`` also run the packages ``a`` and
+    ``a.b``: they count as imports of those packages.
+    """
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    me = _module_name(path)
+    package = me if path.name == "__init__.py" else me.rsplit(".", 1)[0]
+    found: set[str] = set()
+    for node in ast.walk(tree):
+        names: list[str] = []
+        if isinstance(node, ast.Import):
+            names = [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                base = ".".join(package.split(".")[: len(package.split(".")) - node.level + 1])
+                base = f"{base}.{node.module}" if node.module else base
+            names = [base] + [f"{base}.{a.name}" for a in node.names]
+        for name in names:
+            if name.startswith("rrt_pin"):
+                parts = name.split(".")
+                found |= {".".join(parts[: i + 1]) for i in range(len(parts))}
+    return found
+
+
+def _graph() -> dict[str, set[str]]:
+    """Module -> the rrt_pin modules it imports.
+
+    A module's own ancestor packages are left out as targets: Python has
+    initialised them before the module runs (so the root ``rrt_pin``, whose
+    ``__init__`` imports only leaf modules, checked below, never is one).
+    Another package's ``__init__`` counts (``rrt_pin.simulate`` for
+    ``rrt_pin.compiled.integrate``).
+    """
+    files = {_module_name(p): p for p in PACKAGE.rglob("*.py")}
+    graph = {}
+    for name, path in files.items():
+        ancestors = {name.rsplit(".", k)[0] for k in range(1, name.count(".") + 1)}
+        graph[name] = {m for m in _imports(path) if m in files and m not in ancestors | {name}}
+    return graph
+
+
+def _cycle(graph: dict[str, set[str]]) -> list[str] | None:
+    state: dict[str, int] = {}
+    stack: list[str] = []
+
+    def visit(node: str) -> list[str] | None:
+        state[node] = 1
+        stack.append(node)
+        for nxt in sorted(graph[node]):
+            if state.get(nxt) == 1:
+                return stack[stack.index(nxt) :] + [nxt]
+            if nxt not in state:
+                found = visit(nxt)
+                if found:
+                    return found
+        stack.pop()
+        state[node] = 2
+        return None
+
+    for node in sorted(graph):
+        if node not in state:
+            found = visit(node)
+            if found:
+                return found
+    return None
+
+
+def test_the_import_walker_sees_function_local_imports_and_finds_cycles():
+    graph = _graph()
+    # a function-local import, and the package that `import rrt_pin.simulate.results` runs
+    assert "rrt_pin.compiled.integrate" in graph["rrt_pin.simulate.api"]
+    assert "rrt_pin.simulate" in graph["rrt_pin.compiled.integrate"]
+    assert _cycle({"a": {"b"}, "b": {"c"}, "c": {"a"}}) == ["a", "b", "c", "a"]
+    assert _cycle({"a": {"b"}, "b": set()}) is None
+
+
+def test_no_import_cycle_in_the_package():
+    """Data flows one way: no module imports (even inside a function) one that imports it."""
+    graph = _graph()
+    assert _cycle(graph) is None
+    # the root package imports leaves only, so leaving it out above hides no cycle
+    for leaf in graph["rrt_pin"]:
+        assert graph[leaf] <= {"rrt_pin.errors"}, (leaf, graph[leaf])
+
+
+#: Names that would mean a command treats one robot apart (help strings may mention them).
+ROBOT_SPECIFIC = {
+    "is_rrt", "rrt", "is_chapter_arm", "layout", "T01x", "T12y", "F23z", "q1f",
+    "gamma01", "beta01", "rrt_model", "chapter_arm", "seed_controller", "chapter_controller",
+    "pd_gravity_controller", "ChapterController", "PDGravityController", "shortname",
+}  # fmt: skip
+
+
+def _code_names(path: Path) -> list[tuple[int, str]]:
+    """Identifiers and attribute names in code (strings and comments excluded)."""
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    out = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Name):
+            out.append((node.lineno, node.id))
+        elif isinstance(node, ast.Attribute):
+            out.append((node.lineno, node.attr))
+        elif isinstance(node, ast.Compare) and any(
+            isinstance(c, ast.Constant) and c.value is None for c in node.comparators
+        ):
+            if isinstance(node.left, ast.Attribute) and node.left.attr == "urdf":
+                out.append((node.lineno, "urdf is None"))
+    return out
+
+
+def test_commands_hold_no_robot_specific_branch():
+    """Commands parse, call the library, write: the robot decides columns, units and laws."""
+    for path in sorted((PACKAGE / "commands").glob("*.py")):
+        for line, name in _code_names(path):
+            assert name not in ROBOT_SPECIFIC, f"{path.name}:{line}: {name}"
+            assert name != "urdf is None", f"{path.name}:{line}"
+
+
+def test_the_branch_detector_can_fail(tmp_path):
+    bad = tmp_path / "bad.py"
+    bad.write_text("def run(args):\n    if args.urdf is None:\n        return rrt_model()\n")
+    names = {n for _, n in _code_names(bad)}
+    assert "urdf is None" in names and "rrt_model" in names
+
+
+def test_cli_choices_and_help_come_from_the_registries(capsys):
+    from rrt_pin.cli import build_parser
+
+    _, sub = build_parser()
+    for task in ("inverse", "simulate"):
+        action = next(a for a in sub[task]._actions if a.dest == "backend")
+        assert tuple(action.choices) == (*backends.names(task), "auto")
+        for b in backends.BACKENDS.values():
+            assert (b.summary in action.help) == b.runs(task)
+    epilog = sub["simulate"].epilog
+    for m in methods.METHODS.values():
+        assert m.name in epilog and m.summary in epilog
+
+
+def test_compiled_codes_have_one_source():
+    """The registry's codes are the compiled loop's, and the loop compares no literal codes."""
+    assert methods.get("DOP853").code == codes.METHOD_DOP853
+    assert methods.get("rk4").code == codes.METHOD_RK4
+    assert len({m.code for m in methods.METHODS.values() if m.code is not None}) == len(
+        methods.names("compiled")
+    )
+    for name in ("_jit_integrators.py", "_jit_dynamics.py", "integrate.py"):
+        text = (PACKAGE / "compiled" / name).read_text(encoding="utf-8")
+        assert not re.search(r"(method|kind|status)\s*[=!<>]=?\s*\d", text), name
+        assert "see _jit" not in text
+
+
+def test_every_method_has_a_runner():
+    """Each registry line is enough: scipy knows the adaptive names, fixed-step ones resolve."""
+    import importlib
+
+    import scipy.integrate
+
+    for m in methods.METHODS.values():
+        if m.family == methods.SCIPY:
+            assert m.name in scipy.integrate._ivp.ivp.METHODS
+        if m.family == methods.FIXED_STEP:
+            module, _, name = m.runner.partition(":")
+            assert callable(getattr(importlib.import_module(module), name))
+        assert (m.rtol is not None) == m.adaptive
+
+
+def test_public_api_is_complete():
+    for name in rrt_pin.__all__:
+        assert getattr(rrt_pin, name) is not None, name
+    assert re.fullmatch(r"\d+\.\d+\.\d+", rrt_pin.__version__)
+    assert callable(rrt_pin.simulate) and callable(rrt_pin.simulate.simulate_batch)
+    for module in ("control", "methods", "backends", "robots", "robot", "validate", "metrics"):
+        mod = __import__(f"rrt_pin.{module}", fromlist=["__all__"])
+        for name in mod.__all__:
+            assert hasattr(mod, name), f"rrt_pin.{module}.{name}"
+
+
+@pytest.mark.parametrize("name", ["seed_controller", "SeedController"])
+def test_deprecated_aliases_still_work(name):
+    import rrt_pin.control as control
+
+    assert getattr(control, name) in (control.chapter_controller, control.ChapterController)
