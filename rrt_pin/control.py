@@ -140,6 +140,19 @@ class Controller(ABC):
 # --------------------------------------------------------------------------
 # Adapting user objects
 # --------------------------------------------------------------------------
+def _checked(tau: Any, nv: int, who: str) -> np.ndarray:
+    """A user law's output as a float array of shape (nv,)."""
+    if tau is None:
+        raise InputError(f"the controller {who} returned None, not {nv} efforts")
+    try:
+        out = np.asarray(tau, dtype=float)
+    except (TypeError, ValueError) as e:
+        raise InputError(f"the controller {who} returned {tau!r}, not {nv} numbers") from e
+    if out.shape != (nv,):
+        raise InputError(f"the controller {who} returned shape {out.shape}; it must be ({nv},)")
+    return out
+
+
 class _FunctionController(Controller):
     """A plain function ``f(t, q, qd)`` (or a legacy ``f(q, qd)``) as a Controller."""
 
@@ -151,7 +164,8 @@ class _FunctionController(Controller):
         return self._nv
 
     def efforts(self, t: float, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
-        return self.f(t, q, qd) if self.timed else self.f(q, qd)
+        tau = self.f(t, q, qd) if self.timed else self.f(q, qd)
+        return _checked(tau, self._nv, getattr(self.f, "__name__", "function"))
 
 
 class _DuckController(Controller):
@@ -165,7 +179,7 @@ class _DuckController(Controller):
         return self._nv
 
     def efforts(self, t: float, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
-        return self.obj.efforts(t, q, qd)
+        return _checked(self.obj.efforts(t, q, qd), self._nv, type(self.obj).__name__)
 
     def efforts_many(self, t: Any, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
         many = getattr(self.obj, "efforts_many", None)
