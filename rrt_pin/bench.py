@@ -2,7 +2,7 @@
 
 Pure functions return rows of :class:`BenchRow`; :func:`run_bench` writes them
 (CSV + PNG) and is what ``rrt-pin bench`` calls. Times are medians of repeated
-runs [s]; errors are max |q − q_ref| over the seed's run [rad or m] for the
+runs [s]; errors are max |q − q_ref| over the chapter's run [rad or m] for the
 direct dynamics, and max relative effort error for the inverse dynamics.
 """
 
@@ -159,7 +159,7 @@ def inverse_backends(
     reference_stride: int = 1,
     progress: Progress | None = None,
 ) -> list[BenchRow]:
-    """Time each inverse-dynamics backend on the seed's trajectory (eq. 30).
+    """Time each inverse-dynamics backend on the chapter's trajectory (eq. 30).
 
     Backends: a Python loop over ``pin.rnea``, the batched Pinocchio path, the
     generated numpy kernel, and the compiled kernel when numba is available.
@@ -267,26 +267,26 @@ def direct_work_precision(
     backends: Sequence[str] = ("pinocchio", "compiled"),
     progress: Progress | None = None,
 ) -> tuple[list[BenchRow], list[BenchRow], float]:
-    """Every method of ``simulate`` × tolerances or steps, on the seed's run (0..15 s, 1,501 outputs).
+    """Every method of ``simulate`` × tolerances or steps, on the chapter's run (0..15 s, 1,501 outputs).
 
     Returns:
         The rows; the rows of ``simulate``'s default settings for each backend
         (measured the same way); and the disagreement of the reference's two
         methods [rad, m].
     """
-    from rrt_pin.control import seed_controller
+    from rrt_pin.control import chapter_controller
     from rrt_pin.grid import time_grid
     from rrt_pin.methods import METHODS, names
     from rrt_pin.model import rrt_model
     from rrt_pin.params import Params
-    from rrt_pin.reference import seed_reference
+    from rrt_pin.reference import chapter_reference
     from rrt_pin.simulate import simulate
 
     p = params if params is not None else Params()
     model = rrt_model(p)
-    ctrl = seed_controller(p)
+    ctrl = chapter_controller(p)
     t = time_grid(15.0, 0.01)
-    ref = seed_reference(p, tf=15.0, dt=0.01)
+    ref = chapter_reference(p, tf=15.0, dt=0.01)
     have_compiled = False
     compiled_methods: tuple[str, ...] = ()
     if "compiled" in backends:
@@ -377,7 +377,7 @@ def energy_drift(
     quick: bool = False,
     progress: Progress | None = None,
 ) -> list[BenchRow]:
-    """Energy drift of passive motion (τ = 0, gravity on) from the seed's q(0), per method.
+    """Energy drift of passive motion (τ = 0, gravity on) from the chapter's q(0), per method.
 
     ``max_error`` is max_t |E(t) − E(0)| / max_t T(t) (dimensionless), with E = T + V
     sampled every second; ``setting`` is the tolerance or step used.
@@ -497,7 +497,7 @@ def plot_work_precision(
     ax.set_yscale("log")
     ax.set_xlabel("median wall time of one 15 s run [s]")
     ax.set_ylabel("max |q − q_ref| over 0..15 s [rad, m]")
-    ax.set_title("Work–precision of the seed's direct dynamics (eq. 31)")
+    ax.set_title("Work–precision of the chapter's direct dynamics (eq. 31)")
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     fig.tight_layout()

@@ -25,7 +25,7 @@ class ParameterError(RrtPinError, ValueError):
     """A physical parameter is invalid.
 
     Attributes:
-        name: the parameter's name (the seed's symbol, e.g. ``m1``).
+        name: the parameter's name (the chapter's symbol, e.g. ``m1``).
         value: the rejected value.
     """
 

@@ -7,7 +7,7 @@ Radau (implicit Runge–Kutta, order 5) – on the plain right-hand side
 shortcut shared with :mod:`rrt_pin.simulate`), and reports how far the two
 disagree. The DOP853 solution is the reference.
 
-:func:`seed_reference` caches the seed's run in a ``.npz`` file (in
+:func:`chapter_reference` caches the chapter's run in a ``.npz`` file (in
 ``$RRT_PIN_CACHE`` or the system's temporary folder), keyed by the parameters,
 the grid and the versions of Pinocchio and scipy.
 """
@@ -34,7 +34,14 @@ if TYPE_CHECKING:
 
     from rrt_pin.control import Controller
 
-__all__ = ["REFERENCE_ATOL", "REFERENCE_RTOL", "Reference", "reference_run", "seed_reference"]
+__all__ = [
+    "REFERENCE_ATOL",
+    "REFERENCE_RTOL",
+    "Reference",
+    "chapter_reference",
+    "reference_run",
+    "seed_reference",
+]
 
 REFERENCE_RTOL = 1e-13
 #: Absolute tolerance of the reference [rad, m, rad/s, m/s].
@@ -127,17 +134,17 @@ def _cache_dir() -> Path:
     return Path(os.environ.get("RRT_PIN_CACHE") or Path(tempfile.gettempdir()) / "rrt-pin-cache")
 
 
-def seed_reference(
+def chapter_reference(
     params: Params | None = None,
     tf: float = 15.0,
     dt: float = 0.01,
     cache: bool = True,
     cache_dir: str | Path | None = None,
 ) -> Reference:
-    """The reference of the seed's run: eq. (31) on the RRT arm, 0..tf at step dt [s].
+    """The reference of the chapter's run: eq. (31) on the RRT arm, 0..tf at step dt [s].
 
     Args:
-        params: the arm, gains, target and initial state (the seed's by default).
+        params: the arm, gains, target and initial state (the chapter's by default).
         tf: final time [s].
         dt: output interval [s] (grid of :func:`rrt_pin.grid.time_grid`).
         cache: read and write the ``.npz`` cache.
@@ -157,7 +164,7 @@ def seed_reference(
         + t.tobytes()
     ).hexdigest()[:20]
     path = Path(cache_dir) if cache_dir is not None else _cache_dir()
-    path = path / f"seed-reference-{key}.npz"
+    path = path / f"chapter-reference-{key}.npz"
     if cache and path.exists():
         try:
             with np.load(path) as z:
@@ -192,3 +199,7 @@ def seed_reference(
         except OSError:
             pass  # a cache that cannot be written is not an error
     return ref
+
+
+#: Deprecated name of :func:`chapter_reference` (kept for one release).
+seed_reference = chapter_reference

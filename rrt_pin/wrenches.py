@@ -7,7 +7,7 @@ constraint (bearing) loads that do no work. After Pinocchio's RNEA,
 to its child body (with all that the child carries), gravity included,
 expressed in joint j's frame, about joint j's origin.
 
-For the RRT arm these frames are the seed's (see :mod:`rrt_pin.urdf`):
+For the RRT arm these frames are the chapter's (see :mod:`rrt_pin.urdf`):
 
 * joint q1: frame (1), origin A. The load of link 0 on link 1: force F01 at A
   and torque T01 = T01x·ı1 + T01y·ȷ1 + T01z·k1 about A.
@@ -121,7 +121,7 @@ def wrench_table(wrenches: JointWrenches, rrt: bool) -> tuple[tuple[str, ...], n
 
     Args:
         wrenches: as returned by :func:`joint_wrenches`.
-        rrt: True for the RRT arm: the seed's names (:data:`RRT_WRENCH_COLUMNS`,
+        rrt: True for the RRT arm: the chapter's names (:data:`RRT_WRENCH_COLUMNS`,
             axis components left out); False for any model: six columns per
             joint (see :func:`generic_wrench_columns`).
     """

@@ -5,14 +5,14 @@ Sections (medians over --repeat rounds; each round runs every side a few times
 back to back, see :func:`interleaved`):
 
 1. compile: numba's import and the compilation or cache load, apart from run times;
-2. direct: the seed's run (0..15 s, 1,501 outputs) — baseline ``solve_ivp(DOP853,
+2. direct: the chapter's run (0..15 s, 1,501 outputs) — baseline ``solve_ivp(DOP853,
    rtol=1e-10, atol=1e-12)`` on a Python right-hand side calling ``pin.aba`` — against
    ``simulate(..., backend="compiled")``; error = max |q − reference| with the
-   reference of ``rrt_pin.reference.seed_reference`` (DOP853 at rtol 1e-13,
+   reference of ``rrt_pin.reference.chapter_reference`` (DOP853 at rtol 1e-13,
    cross-checked with Radau). Targets: error <= 1e-8, <= 0.5 ms, >= 40x;
-3. inverse: the seed's 15,001 samples — a Python loop over ``pin.rnea`` against
+3. inverse: the chapter's 15,001 samples — a Python loop over ``pin.rnea`` against
    ``rrt_pin.compiled.inverse_dynamics``. Targets: <= 1 ms, >= 50x, same values to 1e-12;
-4. batch: --batch seed variants (gains, q0 and masses varied) with
+4. batch: --batch chapter variants (gains, q0 and masses varied) with
    ``simulate_batch_compiled``. Target: >= 2,000 simulations per second on one core;
 5. physics: the compiled M, c + G, G, RNEA and ABA against Pinocchio at 1,000
    seeded random states (target <= 1e-12 relative), and the compiled trajectories
@@ -90,7 +90,7 @@ def compile_line() -> str:
 
 
 def direct_rows(model, controller, p, t: np.ndarray) -> list[tuple[str, Run]]:
-    """(label, run) rows of the compiled backend on the seed's run; ``run()`` -> (q, evals)."""
+    """(label, run) rows of the compiled backend on the chapter's run; ``run()`` -> (q, evals)."""
     from rrt_pin.simulate import simulate
 
     print(f"compiled: {compile_line()}")
@@ -175,17 +175,17 @@ def baseline_direct(model, controller, q0, qd0, t) -> tuple[np.ndarray, int]:
 
 def section_direct(repeat: int) -> dict[str, bool]:
     from rrt_pin import compiled
-    from rrt_pin.control import seed_controller
+    from rrt_pin.control import chapter_controller
     from rrt_pin.model import rrt_model
     from rrt_pin.params import Params
-    from rrt_pin.reference import seed_reference
+    from rrt_pin.reference import chapter_reference
 
     p = Params()
-    model, ctrl = rrt_model(p), seed_controller(p)
-    ref = seed_reference()
+    model, ctrl = rrt_model(p), chapter_controller(p)
+    ref = chapter_reference()
     t = ref.t
     print(
-        f"\n2. direct dynamics, the seed's run: {t.size} outputs over {t[0]:g}..{t[-1]:g} s; "
+        f"\n2. direct dynamics, the chapter's run: {t.size} outputs over {t[0]:g}..{t[-1]:g} s; "
         f"reference {ref.methods[0]} vs {ref.methods[1]} at rtol {ref.rtol:g} differ by "
         f"{ref.difference_q:.1e}"
     )
@@ -247,15 +247,15 @@ def section_inverse(repeat: int) -> dict[str, bool]:
     funcs = {"loop": loop, "compiled": lambda: compiled.inverse_dynamics(q, qd, qdd, p)}
     results = {k: f() for k, f in funcs.items()}
     medians = interleaved(funcs, max(3, repeat // 3), inner=2)
-    print(f"\n3. inverse dynamics, the seed's {q.shape[0]} samples")
+    print(f"\n3. inverse dynamics, the chapter's {q.shape[0]} samples")
     for k, v in medians.items():
         print(f"{k:<44} {v * 1e3:>10.3f} ms {medians['loop'] / v:>8.1f}x")
     return inverse_verdict(medians, results)
 
 
 def seed_variants(count: int, seed: int = 7):
-    """``count`` seed variants: gains x0.8..1.25, q0 +-0.1, masses x0.8..1.25 (own Params each)."""
-    from rrt_pin.control import SeedController
+    """``count`` chapter variants: gains x0.8..1.25, q0 +-0.1, masses x0.8..1.25 (own Params each)."""
+    from rrt_pin.control import ChapterController
     from rrt_pin.params import Params
 
     rng = np.random.default_rng(seed)
@@ -266,7 +266,7 @@ def seed_variants(count: int, seed: int = 7):
         plant = base.with_overrides({"m1": m[0], "m2": m[1], "m3": m[2]})
         plants.append(plant)
         controllers.append(
-            SeedController(
+            ChapterController(
                 kp=tuple(np.array(base.kp) * rng.uniform(0.8, 1.25, 3)),
                 kd=tuple(np.array(base.kd) * rng.uniform(0.8, 1.25, 3)),
                 qf=base.qf,
@@ -299,7 +299,7 @@ def section_batch(count: int, repeat: int) -> dict[str, bool]:
         for i in checked
     )
     print(
-        f"\n4. batch: {count} seed variants (gains, q0, masses), 1,501 outputs each, DOP853 "
+        f"\n4. batch: {count} chapter variants (gains, q0, masses), 1,501 outputs each, DOP853 "
         f"rtol 1e-9: {medians['batch']:.3f} s -> {rate:,.0f} simulations/s; "
         f"{result.n_evals / count:.0f} evaluations per variant; max |q err| on variants "
         f"{checked}: {err:.1e}"
@@ -314,7 +314,7 @@ def section_physics() -> dict[str, bool]:
     import pinocchio as pin
 
     from rrt_pin import compiled
-    from rrt_pin.control import seed_controller
+    from rrt_pin.control import chapter_controller
     from rrt_pin.model import rrt_model
     from rrt_pin.params import Params
     from rrt_pin.simulate import simulate
@@ -356,7 +356,7 @@ def section_physics() -> dict[str, bool]:
         worst.values()
     ) <= TARGET_AGREEMENT}  # fmt: skip
     seed = Params()
-    ctrl, smodel = seed_controller(seed), rrt_model(seed)
+    ctrl, smodel = chapter_controller(seed), rrt_model(seed)
     t = np.linspace(0.0, 15.0, 1501)
     for method, tol in (("DOP853", 1e-10), ("RK45", 1e-10), ("rk4", 1e-12), ("verlet", 1e-12)):
         a = simulate(smodel, ctrl, seed.q0, seed.qd0, t, method=method)

@@ -1,14 +1,14 @@
 #!/usr/bin/env python
-"""Direct dynamics of the seed's run: speed and accuracy against the plain baseline.
+"""Direct dynamics of the chapter's run: speed and accuracy against the plain baseline.
 
 Baseline: ``scipy.integrate.solve_ivp(method="DOP853", rtol=1e-10, atol=1e-12)``
 on a Python right-hand side calling ``pin.aba`` with eq. (31)'s efforts.
 Accuracy: max |q error| over 0..15 s at the 1,501-point grid against the
-reference of ``rrt_pin.reference.seed_reference()`` (DOP853 and Radau at rtol
+reference of ``rrt_pin.reference.chapter_reference()`` (DOP853 and Radau at rtol
 1e-13; their difference is printed).
 
 Part 1 times single runs (medians of --repeat runs, both sides in this run);
-part 2 times a batch of --batch seed variants (other gains and initial states)
+part 2 times a batch of --batch chapter variants (other gains and initial states)
 against the baseline run once per variant (estimated from --baseline-runs runs);
 the target row returns states only, like the baseline; a second row adds the
 applied efforts at every sample.
@@ -32,12 +32,12 @@ import numpy as np
 import pinocchio as pin
 from scipy.integrate import solve_ivp
 
-from rrt_pin.control import SeedController, seed_controller
+from rrt_pin.control import ChapterController, chapter_controller
 from rrt_pin.inverse import default_num_threads
 from rrt_pin.methods import METHODS
 from rrt_pin.model import rrt_model
 from rrt_pin.params import Params
-from rrt_pin.reference import reference_run, seed_reference
+from rrt_pin.reference import reference_run, chapter_reference
 from rrt_pin.simulate import simulate, simulate_batch
 
 TARGET_ERROR = 1e-8  # max |q error| the defaults must reach [rad, m]
@@ -47,7 +47,7 @@ TARGET_BATCH_SPEEDUP = 20.0  # batch throughput, against the baseline run per va
 
 @dataclass
 class Row:
-    """One way of computing the seed's run: ``run()`` returns (q at the grid, evaluations)."""
+    """One way of computing the chapter's run: ``run()`` returns (q at the grid, evaluations)."""
 
     label: str
     run: Callable[[], tuple[np.ndarray, int]]
@@ -140,12 +140,12 @@ def interleaved(rows: list[Row], repeat: int) -> dict[str, tuple[list[float], np
     return out
 
 
-def variants(p: Params, count: int, seed: int = 7) -> tuple[list[SeedController], np.ndarray]:
-    """``count`` seed variants: gains scaled by 0.8..1.25, q0 moved by up to ±0.1 rad/m."""
+def variants(p: Params, count: int, seed: int = 7) -> tuple[list[ChapterController], np.ndarray]:
+    """``count`` chapter variants: gains scaled by 0.8..1.25, q0 moved by up to ±0.1 rad/m."""
     rng = np.random.default_rng(seed)
-    base = seed_controller(p)
+    base = chapter_controller(p)
     controllers = [
-        SeedController(
+        ChapterController(
             kp=tuple(np.array(base.kp) * rng.uniform(0.8, 1.25, 3)),
             kd=tuple(np.array(base.kd) * rng.uniform(0.8, 1.25, 3)),
             qf=base.qf,
@@ -174,9 +174,9 @@ def main() -> int:
 
     p = Params()
     model = rrt_model(p)
-    controller = seed_controller(p)
+    controller = chapter_controller(p)
     start = time.perf_counter()
-    ref = seed_reference()
+    ref = chapter_reference()
     t = ref.t
     print(
         f"reference: {ref.methods[0]} vs {ref.methods[1]} at rtol {ref.rtol:g}, atol {ref.atol:g}: "
@@ -215,7 +215,7 @@ def main() -> int:
     rounds = max(1, args.batch_repeat)
     per_round = -(-max(1, min(args.baseline_runs, B)) // rounds)
     print(
-        f"\nbatch of {B} seed variants (gains x0.8..1.25, q0 +-0.1), "
+        f"\nbatch of {B} chapter variants (gains x0.8..1.25, q0 +-0.1), "
         f"threads={args.threads or default_num_threads()}; "
         f"{rounds} rounds, each: the baseline on {per_round} variants, then each batch row once"
     )

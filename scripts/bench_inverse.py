@@ -1,5 +1,5 @@
 #!/usr/bin/env python
-"""Inverse dynamics of the seed's run (eq. 30, 15,001 samples): speed and agreement.
+"""Inverse dynamics of the chapter's run (eq. 30, 15,001 samples): speed and agreement.
 
 Times, in ONE run, interleaved round by round and then blocked (so machine noise hits all
 sides alike), the medians of --repeat runs of:
@@ -164,7 +164,7 @@ def main() -> int:
     model = rrt_model(params)
     traj = rest_to_rest(params.q0, params.qf, params.Tp, time_grid(params.Tp, 0.001))
     print(
-        f"seed run: {len(traj)} samples; pinocchio {pin.__version__}; numpy {np.__version__}; "
+        f"chapter's run: {len(traj)} samples; pinocchio {pin.__version__}; numpy {np.__version__}; "
         f"{default_num_threads()} CPUs available"
     )
     funcs = sides(params, model, traj)

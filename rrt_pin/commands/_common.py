@@ -88,7 +88,7 @@ def float_list(text: str) -> list[float]:
 
 
 def add_scene_arguments(parser: argparse.ArgumentParser) -> None:
-    """Add ``--set NAME=VALUE`` (repeatable) and ``--scene PATH``."""
+    """Add ``--set NAME=VALUE`` (repeatable) and ``--config PATH`` (alias ``--scene``)."""
     names = ", ".join(PARAM_DOCS)
     parser.add_argument(
         "--set",
@@ -99,10 +99,13 @@ def add_scene_arguments(parser: argparse.ArgumentParser) -> None:
         help=f"override one of the chapter's parameters, SI units (repeatable); names: {names}",
     )
     parser.add_argument(
+        "--config",
         "--scene",
+        dest="scene",
         metavar="PATH",
         help="TOML run file: a [params] table (the chapter's symbols, SI units) and an "
-        "[options] table of defaults for this command's long options",
+        "[options] table of defaults for this command's long options (--scene is the old "
+        "name of this flag)",
     )
 
 

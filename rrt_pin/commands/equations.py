@@ -116,9 +116,9 @@ def _vector(step, fmt: str, sp) -> str:
 def _steps(steps, fmt: str, values: dict, sp) -> list[str]:
     out = []
     if fmt == "latex":
-        out += ["% Intermediate results (the seed's symbols; SI units)", r"\begin{align*}"]
+        out += ["% Intermediate results (the chapter's symbols; SI units)", r"\begin{align*}"]
     else:
-        out += ["# Intermediate results (the seed's symbols; SI units)"]
+        out += ["# Intermediate results (the chapter's symbols; SI units)"]
     for step in steps:
         if values:
             step = type(step)(

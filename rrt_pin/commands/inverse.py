@@ -1,4 +1,4 @@
-"""``rrt-pin inverse``: joint efforts along the seed's rest-to-rest motion (eq. 30).
+"""``rrt-pin inverse``: joint efforts along the chapter's rest-to-rest motion (eq. 30).
 
 Builds only what the outputs need: no geometry model, no meshcat or sympy,
 matplotlib only for ``--plot``, and not even Pinocchio for the RRT arm with

@@ -1,4 +1,4 @@
-"""``rrt-pin simulate``: direct dynamics under the seed's feedback law, eq. (31).
+"""``rrt-pin simulate``: direct dynamics under the chapter's feedback law, eq. (31).
 
 Builds only what the outputs need: no geometry model, no meshcat or sympy, and
 matplotlib only for ``--plot``. Importing this module stays cheap (no numpy).

@@ -21,7 +21,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=0.0,
         metavar="X",
         help="raise every principal moment of inertia to at least X [kg·m²] for engines "
-        "that refuse zero moments (MuJoCo); default 0 keeps the seed's I1z = I2z = 0",
+        "that refuse zero moments (MuJoCo); default 0 keeps the chapter's I1z = I2z = 0",
     )
     add_scene_arguments(parser)
 

@@ -16,7 +16,7 @@ Public API (SI units throughout):
   :func:`inverse_dynamics`, :func:`forward_dynamics`;
 * whole simulations: :func:`simulate_compiled` (the ``backend="compiled"`` of
   :func:`rrt_pin.simulate.simulate`) and :func:`simulate_batch_compiled` (many
-  seed variants: gains, targets, initial states and masses per variant);
+  chapter variants: gains, targets, initial states and masses per variant);
 * methods: those of :data:`rrt_pin.methods.METHODS` that run compiled
   (``rrt_pin.methods.names("compiled")``): ``RK45``, ``DOP853`` (adaptive,
   step by step as SciPy's ``solve_ivp``), ``symplectic_euler``, ``rk4``,

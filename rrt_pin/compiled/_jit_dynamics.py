@@ -10,11 +10,11 @@ compiled on their own. The public, validated wrappers are in
 Layouts shared with the integrators:
 
 * ``p``: the 15 physical parameters in ``rrt_pin.kernel.PARAM_ORDER`` (SI units);
-* a controller: ``kind`` 0 = no effort; 1 = eq. (31) of the seed with its own
+* a controller: ``kind`` 0 = no effort; 1 = eq. (31) of the chapter with its own
   parameters (another arm than the plant's); 2 = PD plus the plant's own G(q)
   (one kernel evaluation serves the dynamics and the compensation); 3 = eq. (31)
   with the plant's g, m2, m3, L2: its gravity terms are then exactly the plant's
-  G(q) (the seed's eq. (15)), so the dynamics fold them like kind 2, while the
+  G(q) (the chapter's eq. (15)), so the dynamics fold them like kind 2, while the
   efforts reported at the output times are eq. (31) as printed. ``c`` = (kp1,
   kp2, kp3, kd1, kd2, kd3, q1f, q2f, q3f, *p_law) with p_law the 15 parameters
   the law was built with (eq. (31) reads g, m2, m3 and L2 from them).
@@ -250,7 +250,7 @@ def control(kind, c, q1, q2, q3, qd1, qd2, qd3, G1, G2, G3):
     u2 = -c[4] * qd2 - c[1] * (q2 - c[7])
     u3 = -c[5] * qd3 - c[2] * (q3 - c[8])
     if kind == KIND_CHAPTER:
-        # Eq. (31): the gravity compensation written out with the seed's symbols.
+        # Eq. (31): the gravity compensation written out with the chapter's symbols.
         g = c[9 + _G]
         m2 = c[9 + _M2]
         m3 = c[9 + _M3]

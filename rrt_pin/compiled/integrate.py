@@ -16,7 +16,7 @@ Methods (those of :data:`rrt_pin.methods.METHODS` whose backends include ``compi
   :mod:`rrt_pin.integrators`, at most ``step`` [s] per step, landing on every
   output time.
 
-Controllers: :func:`~rrt_pin.control.seed_controller` (eq. (31), with its own
+Controllers: :func:`~rrt_pin.control.chapter_controller` (eq. (31), with its own
 parameters, which may differ from the plant's), :func:`~rrt_pin.control.pd_gravity_controller`
 on the RRT arm built from the plant's parameters, or None (no effort: passive
 motion). When eq. (31)'s g, m2, m3, L2 are the plant's, its gravity terms are
@@ -229,7 +229,7 @@ def simulate_compiled(
 
     Args:
         params: the arm (the plant) [SI units].
-        controller: ``seed_controller(...)``, ``pd_gravity_controller(rrt_model(params), ...)``
+        controller: ``chapter_controller(...)``, ``pd_gravity_controller(rrt_model(params), ...)``
             or None (no effort).
         q0: initial positions (3,) [rad, rad, m].
         qd0: initial velocities (3,) [rad/s, rad/s, m/s].

@@ -1,6 +1,6 @@
 """The RRT arm's equations of motion derived symbolically, by Lagrange and by Kane.
 
-Built with ``sympy.physics.mechanics`` following the seed chapter step by step:
+Built with ``sympy.physics.mechanics`` following the chapter chapter step by step:
 frames (eqs. 1–4), angular velocities and accelerations (5–8), velocities and
 accelerations of the mass centres (9–14), generalized active forces (15),
 kinetic energies, Lagrange's equations, and Kane's generalized inertia forces

@@ -157,7 +157,7 @@ __all__ = [
     "terms",
 ]
 
-#: The parameters of ``terms``, in order (the seed's symbols, SI units).
+#: The parameters of ``terms``, in order (the chapter's symbols, SI units).
 PARAM_ORDER = {param_order}
 
 

@@ -2,7 +2,7 @@
 
 :func:`equations_of_motion` builds the equations of motion of the RRT arm by
 Kane's method (eqs. 16–29) or by Lagrange's equations, in plain symbols
-q1, q2 [rad], q3 [m], q̇ (``qdot1``…) and q̈ (``qddot1``…), with the seed's
+q1, q2 [rad], q3 [m], q̇ (``qdot1``…) and q̈ (``qddot1``…), with the chapter's
 LB = 2·L1 substituted. Derivations are cached: each is paid for once per
 process.
 """

@@ -1,6 +1,6 @@
 """Generalized active forces Q1, Q2, Q3 from the driving efforts and gravity, eq. (15).
 
-Each link's contribution follows the seed's remark: a set of forces
+Each link's contribution follows the chapter's remark: a set of forces
 equivalent to a couple T and a force R applied at P contributes
 ∂ω/∂q̇r · T + ∂vP/∂q̇r · R to Qr. Link 1 carries T01 and the reaction −T12,
 link 2 carries T12 and the reaction −F23 at C32, link 3 carries F23 at C3;

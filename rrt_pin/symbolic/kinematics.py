@@ -1,6 +1,6 @@
-"""Angular and linear velocities and accelerations, eqs. (5)–(14), as the seed derives them.
+"""Angular and linear velocities and accelerations, eqs. (5)–(14), as the chapter derives them.
 
-Every velocity and acceleration comes from the transport theorem the seed
+Every velocity and acceleration comes from the transport theorem the chapter
 uses, d/dt X = ⁽ⁿ⁾d/dt X + ωn0 × X, with X written in the components of the
 frame (n) in which it was given (link 1: frame (1); links 2 and 3: frame (2)).
 Units: ω [rad/s], α [rad/s²], r [m], v [m/s], a [m/s²].

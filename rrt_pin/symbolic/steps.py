@@ -1,7 +1,7 @@
-"""The intermediate results of the derivation, in the seed's order, for display.
+"""The intermediate results of the derivation, in the chapter's order, for display.
 
 Vectors are written as sums of components times unit-vector symbols (``i2``,
-``j2``, ``k2``…) in the frame the seed uses for them; every expression is in
+``j2``, ``k2``…) in the frame the chapter uses for them; every expression is in
 plain symbols (``qdot1`` for q̇1, ``qddot1`` for q̈1) with its trigonometric
 normal form.
 """
@@ -42,8 +42,8 @@ class Step:
     """One intermediate result.
 
     Attributes:
-        name: the seed's symbol, e.g. ``vC2``.
-        label: where the seed states it, e.g. ``eq. (10)``.
+        name: the chapter's symbol, e.g. ``vC2``.
+        label: where the chapter states it, e.g. ``eq. (10)``.
         value: a sympy expression or matrix; for a vector, its 3×1 matrix of
             components along ``basis``.
         latex: the symbol in LaTeX, e.g. ``v_{C_2}``.
@@ -93,7 +93,7 @@ def _vstep(name: str, label: str, vector: Vector, frame: ReferenceFrame, tex: st
 
 @cache
 def derivation_steps(method: str = "kane") -> tuple[Step, ...]:
-    """The seed's intermediate results, then those of ``method`` ("kane" or "lagrange").
+    """The chapter's intermediate results, then those of ``method`` ("kane" or "lagrange").
 
     Kinematics and generalized active forces come first (eqs. 2–15), then the
     kinetic energies; Kane adds the inertia moments and the generalized inertia

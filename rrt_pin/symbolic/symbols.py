@@ -1,4 +1,4 @@
-"""The symbols of the derivation, with the seed's names.
+"""The symbols of the derivation, with the chapter's names.
 
 Generalized coordinates q1 [rad], q2 [rad], q3 [m] are functions of time t [s]
 (``sympy.physics.mechanics.dynamicsymbols``); their derivatives are the
@@ -83,7 +83,7 @@ I1x, I1y, I1z, I2x, I2y, I2z, I3x, I3y, I3z = sp.symbols(
 g = sp.Symbol("g", positive=True)
 #: The parameter symbols, in the order of :data:`PARAM_NAMES`.
 PARAMS = (L1, L2, m1, m2, m3, I1x, I1y, I1z, I2x, I2y, I2z, I3x, I3y, I3z, g)
-#: Distance A→B [m]; the seed's LB = 2·L1, kept as a symbol in the kinematics.
+#: Distance A→B [m]; the chapter's LB = 2·L1, kept as a symbol in the kinematics.
 LB = sp.Symbol("LB", positive=True)
 
 #: Components of the torque T01 [N·m] from 0 on 1, in frame (1).
