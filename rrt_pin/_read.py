@@ -45,7 +45,7 @@ def read_text_capped(path: str | Path, *, cap: int, what: str, error: type[RrtPi
         if stat.S_ISREG(mode):
             size = os.fstat(fd).st_size
             if size > cap:
-                raise error(f"{what} {name!r} is {_mb(size)}, larger than the {_mb(cap)} allowed")
+                raise error(f"{what} {name!r} is {size} bytes, larger than the {_mb(cap)} allowed")
         elif not (stat.S_ISFIFO(mode) or (stat.S_ISCHR(mode) and os.isatty(fd))):
             kind = _kind(mode)
             raise error(f"cannot read {what} {name!r}: it is {kind}, not a regular file")

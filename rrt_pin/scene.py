@@ -79,7 +79,10 @@ def load_scene(path: str | Path) -> Scene:
                 f"valid names: {', '.join(param_names())}"
             )
         if isinstance(value, str):
-            value = parse_number(value, name)
+            try:
+                value = parse_number(value, name)
+            except SceneError as e:
+                raise SceneError(f"scene file {str(path)!r}: {e}") from None
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise SceneError(f"scene file {str(path)!r}: {name}={value!r} is not a number")
         _check_int(path, name, value)

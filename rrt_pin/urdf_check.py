@@ -175,7 +175,10 @@ def _prescan(xml: str) -> None:
         if depth == 2 and tag in counts:
             counts[tag] += 1
             if counts[tag] > caps[tag]:
-                raise _Refused(f"URDF has more than {caps[tag]} <{tag}> elements; too many")
+                raise _Refused(
+                    f"URDF has more than {caps[tag]} <{tag}> elements; "
+                    f"at most {MAX_JOINTS} joints are supported"
+                )
 
     def end(_tag: str) -> None:
         nonlocal depth
