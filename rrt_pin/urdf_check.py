@@ -59,6 +59,10 @@ MimicPolicy = Literal["warn", "refuse", "allow"]
 
 _JOINT_TYPES = ("revolute", "continuous", "prismatic", "fixed", "floating", "planar")
 _NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?\Z")
+_ATTRIBUTE_VALUE = re.compile(r"""=[ \t\r\n]*(?:"[^"<]*"|'[^'<]*')""")
+_RAW_WHITESPACE_VALUE = re.compile(
+    r"""=[ \t\r\n]*(?:"[^"<]*[\t\r\n][^"<]*"|'[^'<]*[\t\r\n][^'<]*')"""
+)
 _NONFINITE = re.compile(r"[+-]?(?:nan|inf|infinity)\Z", re.IGNORECASE)
 
 # (element path below the link or joint, {attribute: count of numbers})
@@ -123,7 +127,7 @@ def check_urdf_xml(xml: str, *, mimic: MimicPolicy = "warn") -> ET.Element:
         )
     _prescan(xml)
     try:
-        root = ET.fromstring(xml)
+        root = ET.fromstring(_keep_attribute_whitespace(xml))
     except ET.ParseError as e:
         raise UrdfError(f"URDF does not parse: {e}") from None
     if root.tag != "robot":
@@ -198,6 +202,23 @@ def _prescan(xml: str) -> None:
         raise UrdfError("URDF does not parse: too large or nested too deeply") from None
 
 
+def _keep_attribute_whitespace(xml: str) -> str:
+    """``xml`` with tabs and line breaks inside attribute values as character references.
+
+    An XML parser turns them into spaces (attribute-value normalization), but
+    urdfdom's does not, and then fails to read ``xyz`` with a tab as numbers;
+    written as ``&#9;`` they reach the checks below as they reach urdfdom.
+    """
+    if not _RAW_WHITESPACE_VALUE.search(xml):
+        return xml
+
+    def escape(match: re.Match[str]) -> str:
+        text = match.group(0)
+        return text.replace("\t", "&#9;").replace("\n", "&#10;").replace("\r", "&#13;")
+
+    return _ATTRIBUTE_VALUE.sub(escape, xml)
+
+
 def _check_numbers(
     owner: str,
     parent: ET.Element,
@@ -232,7 +253,7 @@ def _number_problem(text: str, count: int) -> str | None:
         return _scalar_problem(text.lstrip())
     pieces = [p for p in text.split(" ") if p]
     for piece in pieces:
-        problem = _scalar_problem(piece)
+        problem = _scalar_problem(piece.lstrip())  # urdfdom skips leading whitespace only
         if problem:
             spaces = " (numbers are separated by spaces)" if re.search(r"[\s,;]", piece) else ""
             return f"{_quote(piece)} is {problem}{spaces}"
@@ -276,13 +297,12 @@ def _check_inertial(owner: str, inertial: ET.Element) -> None:
     moments = _eigenvalues([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
     if moments is None:
         raise UrdfError(f"{owner} <inertial><inertia>: too large (its moments overflow)")
-    biggest = max(abs(v) for v in moments)
-    if moments[0] < -1e-12 * max(1.0, biggest):
+    trace = sum(moments)
+    if moments[0] < -INERTIA_RTOL * max(trace, 0.0):
         raise UrdfError(
             f"{owner} <inertial><inertia>: negative principal moment of inertia "
             f"{moments[0]!r} kg·m²"
         )
-    trace = sum(moments)
     if moments[2] > moments[0] + moments[1] + INERTIA_RTOL * trace:
         a, b, c = (f"{v:.6g}" for v in moments)
         raise UrdfError(
