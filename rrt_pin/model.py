@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING
 
 from rrt_pin.errors import UrdfError
 from rrt_pin.params import Params
+from rrt_pin.urdf_check import MAX_URDF_BYTES, MimicPolicy, check_urdf_xml
 
 if TYPE_CHECKING:
     import pinocchio as pin
@@ -19,41 +20,60 @@ if TYPE_CHECKING:
 __all__ = ["build_geometry", "build_model", "load_urdf_model", "model_from_xml", "rrt_model"]
 
 
-def model_from_xml(xml: str) -> pin.Model:
+def model_from_xml(xml: str, *, mimic: MimicPolicy = "warn") -> pin.Model:
     """A Pinocchio model (fixed base) from URDF text.
 
+    The text is validated first (:func:`rrt_pin.urdf_check.check_urdf_xml`):
+    every number of the URDF, no DTD or entity, at most 1,000 joints and
+    20 MB, physical inertias. urdfdom's messages on stderr are captured and
+    logged at DEBUG level (the first one ends the error when parsing fails).
+
+    Args:
+        xml: the URDF text.
+        mimic: ``<mimic>`` joints are modelled as independent joints; ``"warn"``
+            (default) logs a warning naming them, ``"refuse"`` raises
+            UrdfError, ``"allow"`` says nothing.
+
     Raises:
-        UrdfError: the text does not parse, or the model has no degree of
-            freedom, a non-finite inertia, or a body with moving joints and no
-            mass.
+        UrdfError: the text does not parse or fails validation, or the model
+            has no degree of freedom, a non-finite inertia, or a body with
+            moving joints and no mass.
     """
     import pinocchio as pin
 
-    _check_xml(xml)
-    try:
-        model = pin.buildModelFromXML(xml)
-    except (RuntimeError, ValueError) as e:
-        first = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
-        raise UrdfError(f"URDF does not parse: {first}") from e
+    from rrt_pin._quiet import captured_stderr
+
+    check_urdf_xml(xml, mimic=mimic)
+    with captured_stderr("urdfdom") as said:
+        try:
+            model = pin.buildModelFromXML(xml)
+        except (RuntimeError, ValueError) as e:
+            error = e
+        else:
+            error = None
+    if error is not None:
+        text = str(error).strip()
+        first = text.splitlines()[0] if text else type(error).__name__
+        detail = said.first_line()
+        if detail and detail not in first:
+            first = f"{first} ({detail})"
+        raise UrdfError(f"URDF does not parse: {first}") from error
     _check_model(model)
     return model
 
 
-def load_urdf_model(path: str | Path) -> pin.Model:
-    """A Pinocchio model from a URDF file.
+def load_urdf_model(path: str | Path, *, mimic: MimicPolicy = "warn") -> pin.Model:
+    """A Pinocchio model from a URDF file (UTF-8, at most 20 MB; see :func:`model_from_xml`).
 
     Raises:
-        UrdfError: the file cannot be read or does not describe a usable model.
+        UrdfError: the file cannot be read, is larger than 20 MB, is a device
+            or a folder, is not UTF-8, or does not describe a usable model.
     """
-    path = Path(path)
+    from rrt_pin._read import read_text_capped
+
+    xml = read_text_capped(path, cap=MAX_URDF_BYTES, what="URDF", error=UrdfError)
     try:
-        xml = path.read_text(encoding="utf-8")
-    except OSError as e:
-        raise UrdfError(f"cannot read URDF {str(path)!r}: {e.strerror}") from e
-    except UnicodeDecodeError as e:
-        raise UrdfError(f"URDF {str(path)!r} is not UTF-8 text") from e
-    try:
-        return model_from_xml(xml)
+        return model_from_xml(xml, mimic=mimic)
     except UrdfError as e:
         raise UrdfError(f"{path}: {e}") from e
 
@@ -82,40 +102,34 @@ def build_model(params: Params | None = None, urdf: str | Path | None = None) ->
 def build_geometry(
     model: pin.Model, xml: str, package_dirs: list[str] | None = None
 ) -> pin.GeometryModel:
-    """The visual geometry model of ``xml`` for ``model`` (only the viewer needs it)."""
+    """The visual geometry model of ``xml`` for ``model`` (only the viewer needs it).
+
+    The text is validated as by :func:`model_from_xml` (silently for mimic
+    joints); urdfdom's and assimp's messages on stderr are captured and logged
+    at DEBUG level.
+
+    Raises:
+        UrdfError: the text fails validation or its geometry does not load.
+    """
     import pinocchio as pin
 
-    try:
-        return pin.buildGeomFromUrdfString(
-            model, xml, pin.GeometryType.VISUAL, package_dirs=package_dirs or []
-        )
-    except (RuntimeError, ValueError) as e:
-        raise UrdfError(f"URDF geometry does not load: {str(e).strip().splitlines()[0]}") from e
+    from rrt_pin._quiet import captured_stderr
 
-
-def _check_xml(xml: str) -> None:
-    """Refuse what Pinocchio would accept silently: malformed XML, zero joint axes."""
-    import xml.etree.ElementTree as ET
-
-    try:
-        root = ET.fromstring(xml)
-    except ET.ParseError as e:
-        raise UrdfError(f"URDF does not parse: {e}") from e
-    if root.tag != "robot":
-        raise UrdfError(f"URDF root element is <{root.tag}>, not <robot>")
-    for joint in root.iter("joint"):
-        axis = joint.find("axis")
-        if joint.get("type") in ("fixed", "floating", "planar") or axis is None:
-            continue
-        text = axis.get("xyz", "1 0 0")
+    check_urdf_xml(xml, mimic="allow")
+    with captured_stderr("urdfdom/assimp") as said:
         try:
-            xyz = [float(v) for v in text.split()]
-        except ValueError:
-            xyz = []
-        if len(xyz) != 3 or not all(math.isfinite(v) for v in xyz):
-            raise UrdfError(f"joint {joint.get('name')!r} has an invalid axis xyz={text!r}")
-        if math.hypot(*xyz) < 1e-12:
-            raise UrdfError(f"joint {joint.get('name')!r} has a zero axis xyz={text!r}")
+            geometry = pin.buildGeomFromUrdfString(
+                model, xml, pin.GeometryType.VISUAL, package_dirs=package_dirs or []
+            )
+        except (RuntimeError, ValueError) as e:
+            error = e
+        else:
+            error = None
+    if error is not None:
+        text = str(error).strip()
+        first = text.splitlines()[0] if text else said.first_line() or type(error).__name__
+        raise UrdfError(f"URDF geometry does not load: {first}") from error
+    return geometry
 
 
 def _check_model(model: pin.Model) -> None:

@@ -8,9 +8,8 @@ times [s], gains in N·m·s/rad and N·m/rad (joints 1, 2) or N·s/m and N/m
 
 from __future__ import annotations
 
-import ast
 import math
-import operator
+import numbers
 from collections.abc import Mapping
 from dataclasses import dataclass, field, fields, replace
 from typing import Any
@@ -56,6 +55,7 @@ PARAM_DOCS: dict[str, str] = {
 
 _POSITIVE = ("L1", "L2", "m1", "m2", "m3", "Tp")
 _NONNEGATIVE = ("beta01", "gamma01", "beta12", "gamma12", "beta23", "gamma23")
+_ROD_DEFAULTS = {"I1x": ("m1", "L1"), "I1y": ("m1", "L1"), "I2x": ("m2", "L2"), "I2y": ("m2", "L2")}
 _BODIES = {"1": ("I1x", "I1y", "I1z"), "2": ("I2x", "I2y", "I2z"), "3": ("I3x", "I3y", "I3z")}
 
 
@@ -67,9 +67,15 @@ class Params:
     (I1x = I1y = m1·L1²/3, I1z = 0; I2x = I2y = m2·L2²/3, I2z = 0) computed
     from the masses and lengths actually given, unless set explicitly.
 
+    Every value must be a real number: Python ints and floats, NumPy scalars
+    (``np.float32``...) and 0-d arrays are accepted and stored as Python floats;
+    booleans, strings and complex numbers are refused. Derived values (the rod
+    inertias m·L²/3, LB = 2·L1, a body's sum of moments) must be finite too.
+
     Raises:
-        ParameterError: a value is not finite, a mass, length or Tp is not
-            positive, a gain is negative, or a body's principal moments are
+        ParameterError: a value is not a real number, is too large for a float or
+            not finite, a mass, length or Tp is not positive, a gain is negative,
+            a derived value overflows, or a body's principal moments are
             negative or break the triangle inequality.
     """
 
@@ -108,21 +114,17 @@ class Params:
     def __post_init__(self) -> None:
         for f in fields(self):
             value = getattr(self, f.name)
-            if value is None:
+            if value is None and f.name in _ROD_DEFAULTS:
                 continue
-            if isinstance(value, bool) or not isinstance(value, (int, float)):
-                raise ParameterError(f.name, value, "must be a real number")
-            if not math.isfinite(value):
-                raise ParameterError(f.name, value, "must be finite")
-            object.__setattr__(self, f.name, float(value))
+            object.__setattr__(self, f.name, _real(f.name, value))
         for name in _POSITIVE:
             if getattr(self, name) <= 0.0:
                 raise ParameterError(name, getattr(self, name), "must be > 0")
-        rod1 = self.m1 * self.L1**2 / 3.0
-        rod2 = self.m2 * self.L2**2 / 3.0
-        for name, default in (("I1x", rod1), ("I1y", rod1), ("I2x", rod2), ("I2y", rod2)):
+        if not math.isfinite(self.LB):
+            raise ParameterError("L1", self.L1, "too large: LB = 2·L1 overflows")
+        for name, (mass, length) in _ROD_DEFAULTS.items():
             if getattr(self, name) is None:
-                object.__setattr__(self, name, default)
+                object.__setattr__(self, name, _rod_moment(self, mass, length, name))
         for name in _NONNEGATIVE:
             if getattr(self, name) < 0.0:
                 raise ParameterError(name, getattr(self, name), "gain must be >= 0")
@@ -131,9 +133,15 @@ class Params:
             for n, v in zip(names, moments, strict=True):
                 if v < 0.0:
                     raise ParameterError(n, v, "principal moment of inertia must be >= 0")
-            slack = 1e-12 * sum(moments)
+            total = sum(moments)
+            if not math.isfinite(total):
+                big = max(names, key=lambda n: getattr(self, n))
+                raise ParameterError(
+                    big, getattr(self, big), f"too large: {' + '.join(names)} overflows"
+                )
+            slack = 1e-12 * total
             for i, n in enumerate(names):
-                others = sum(moments) - moments[i]
+                others = total - moments[i]
                 if moments[i] > others + slack:
                     a, b = (names[j] for j in range(3) if j != i)
                     raise ParameterError(
@@ -197,9 +205,60 @@ class Params:
 
 
 def _rod_default(p: Params, name: str) -> float:
-    if name.startswith("I1"):
-        return p.m1 * p.L1**2 / 3.0
-    return p.m2 * p.L2**2 / 3.0
+    mass, length = _ROD_DEFAULTS[name]
+    try:
+        return getattr(p, mass) * getattr(p, length) ** 2 / 3.0
+    except OverflowError:
+        return math.inf
+
+
+def _rod_moment(p: Params, mass: str, length: str, name: str) -> float:
+    """The uniform rod's default moment m·L²/3, refused (naming the culprit) when it overflows."""
+    m, L = getattr(p, mass), getattr(p, length)
+    try:
+        square = L**2
+    except OverflowError:
+        square = math.inf
+    if not math.isfinite(square):
+        raise ParameterError(
+            length, L, f"too large: the rod inertia {name} = {mass}·{length}²/3 overflows"
+        )
+    value = m * square / 3.0
+    if not math.isfinite(value):
+        raise ParameterError(
+            mass,
+            m,
+            f"too large: the rod inertia {name} = {mass}·{length}²/3 overflows ({length}={L!r})",
+        )
+    return value
+
+
+def _real(name: str, value: object) -> float:
+    """``value`` as a finite Python float, or a ParameterError naming ``name``.
+
+    Accepts Python ints and floats, ``numbers.Real`` (e.g. ``Fraction``), NumPy
+    scalars and 0-d arrays of integer or float dtype (without importing NumPy);
+    refuses booleans, complex numbers, strings, and integers too large for a float.
+    """
+    if isinstance(value, bool) or type(value).__name__ in ("bool_", "bool"):
+        raise ParameterError(name, value, "must be a real number, not a boolean")
+    dtype = getattr(value, "dtype", None)
+    if dtype is not None and hasattr(value, "ndim") and hasattr(value, "item"):
+        kind = getattr(dtype, "kind", "")
+        if value.ndim != 0 or kind not in ("i", "u", "f"):  # type: ignore[attr-defined]
+            raise ParameterError(name, _shown(value), "must be a real number (a scalar)")
+        value = value.item()  # type: ignore[attr-defined]
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise ParameterError(name, _shown(value), "must be a real number")
+    try:
+        out = float(value)
+    except OverflowError:
+        raise ParameterError(
+            name, _shorten(value), "too large for a float (beyond ±1.8e308)"
+        ) from None
+    if not math.isfinite(out):
+        raise ParameterError(name, out, "must be finite")
+    return out
 
 
 def param_names() -> list[str]:
@@ -207,48 +266,52 @@ def param_names() -> list[str]:
     return [f.name for f in fields(Params)]
 
 
-_BINOPS = {
-    ast.Add: operator.add,
-    ast.Sub: operator.sub,
-    ast.Mult: operator.mul,
-    ast.Div: operator.truediv,
-    ast.Pow: operator.pow,
-}
-_UNOPS = {ast.USub: operator.neg, ast.UAdd: operator.pos}
-_NAMES = {"pi": math.pi, "tau": math.tau, "e": math.e}
-
-
 def parse_number(text: str, name: str = "value") -> float:
     """Parse a number or a small arithmetic expression such as ``pi/3``.
 
     Accepts floats (``nan`` and ``inf`` parse, to be refused by validation),
-    ``pi``, ``tau``, ``e``, ``+ - * / **`` and parentheses.
+    ``pi``, ``tau``, ``e``, ``+ - * / **`` and parentheses, evaluated in floats
+    by :func:`rrt_pin.expr.evaluate`: bounded in length (200 characters) and
+    nesting, so ``9**9**9`` is refused at once instead of computed for ever.
 
     Raises:
-        SceneError: the text is not such an expression.
+        SceneError: the text is not such an expression, or it overflows, is
+            complex, or is too long or too deeply nested; the message names
+            ``name`` and the text.
     """
+    from rrt_pin.expr import MAX_LENGTH, ExpressionError, evaluate
+
+    if isinstance(text, str) and len(text.strip()) > MAX_LENGTH:
+        raise SceneError(
+            f"{name}={_shorten(text)} is not a number ({len(text.strip())} characters long; "
+            f"at most {MAX_LENGTH} are allowed)"
+        )
     try:
         return float(text)
+    except OverflowError:
+        raise SceneError(f"{name}={_shorten(text)} is not a number (too large)") from None
     except (TypeError, ValueError):
         pass
     try:
-        return float(_eval(ast.parse(str(text).strip(), mode="eval").body))
-    except (SyntaxError, ValueError, TypeError, ZeroDivisionError, OverflowError) as e:
-        raise SceneError(f"{name}={text!r} is not a number ({e})") from e
+        return evaluate(str(text))
+    except ExpressionError as e:
+        raise SceneError(f"{name}={_shorten(text)} is not a number ({e})") from None
 
 
-def _eval(node: ast.AST) -> float:
-    if isinstance(node, ast.Constant) and isinstance(node.value, (int, float)):
-        if isinstance(node.value, bool):
-            raise ValueError("booleans are not numbers")
-        return node.value
-    if isinstance(node, ast.Name) and node.id in _NAMES:
-        return _NAMES[node.id]
-    if isinstance(node, ast.BinOp) and type(node.op) in _BINOPS:
-        return _BINOPS[type(node.op)](_eval(node.left), _eval(node.right))
-    if isinstance(node, ast.UnaryOp) and type(node.op) in _UNOPS:
-        return _UNOPS[type(node.op)](_eval(node.operand))
-    raise ValueError("only numbers, pi, tau, e and + - * / ** are allowed")
+def _shorten(value: object, limit: int = 60) -> str:
+    """``repr(value)``, cut to about ``limit`` characters (error messages stay one short line)."""
+    if isinstance(value, int) and not isinstance(value, bool) and value.bit_length() > 128:
+        digits = int(value.bit_length() * math.log10(2)) + 1
+        return f"<{'-' if value < 0 else ''}integer of about {digits} digits>"
+    text = repr(value)
+    return text if len(text) <= limit else text[: limit - 5] + "…" + text[-4:]
+
+
+def _shown(value: object, limit: int = 60) -> object:
+    """``value`` itself when its repr is short, else a shortened repr (for ParameterError)."""
+    if isinstance(value, int) and not isinstance(value, bool) and value.bit_length() > 128:
+        return _shorten(value, limit)
+    return value if len(repr(value)) <= limit else _shorten(value, limit)
 
 
 def parse_overrides(items: list[str] | None) -> dict[str, float]:

@@ -30,7 +30,7 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover - Python 3.10
     import tomli as tomllib
 
-__all__ = ["Scene", "load_scene", "resolve_params"]
+__all__ = ["MAX_SCENE_BYTES", "Scene", "load_scene", "resolve_params"]
 
 
 @dataclass(frozen=True)
@@ -41,20 +41,28 @@ class Scene:
     options: dict[str, Any] = field(default_factory=dict)
 
 
+#: Largest scene file accepted [bytes].
+MAX_SCENE_BYTES = 1 << 20
+
+
 def load_scene(path: str | Path) -> Scene:
-    """Read a TOML scene file.
+    """Read a TOML scene file (UTF-8, a byte-order mark allowed, at most 1 MB).
 
     Raises:
-        SceneError: the file cannot be read or parsed, has an unknown table or
-            parameter, or a value that is not a finite number where one is due.
+        SceneError: the file cannot be read, is larger than 1 MB, is not UTF-8
+            or not TOML, has an unknown table or parameter, or a value that is
+            not a finite number where one is due (or an integer beyond 64 bits).
     """
+    from rrt_pin._read import read_text_capped
+
     path = Path(path)
+    text = read_text_capped(path, cap=MAX_SCENE_BYTES, what="scene file", error=SceneError)
     try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except OSError as e:
-        raise SceneError(f"cannot read scene file {str(path)!r}: {e.strerror}") from e
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as e:
         raise SceneError(f"scene file {str(path)!r} is not valid TOML: {e}") from e
+    except (RecursionError, MemoryError):
+        raise SceneError(f"scene file {str(path)!r} is not valid TOML: nested too deeply") from None
     unknown = sorted(set(data) - {"params", "options"})
     if unknown:
         raise SceneError(
@@ -71,9 +79,13 @@ def load_scene(path: str | Path) -> Scene:
                 f"valid names: {', '.join(param_names())}"
             )
         if isinstance(value, str):
-            value = parse_number(value, name)
+            try:
+                value = parse_number(value, name)
+            except SceneError as e:
+                raise SceneError(f"scene file {str(path)!r}: {e}") from None
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise SceneError(f"scene file {str(path)!r}: {name}={value!r} is not a number")
+        _check_int(path, name, value)
         params[name] = float(value)
     options = data.get("options", {})
     if not isinstance(options, dict):
@@ -81,7 +93,18 @@ def load_scene(path: str | Path) -> Scene:
     for name, value in options.items():
         if isinstance(value, float) and not math.isfinite(value):
             raise SceneError(f"scene file {str(path)!r}: option {name}={value!r} must be finite")
+        _check_int(path, f"option {name}", value)
     return Scene(params=params, options=dict(options))
+
+
+def _check_int(path: Path, name: str, value: object) -> None:
+    """Refuse integers beyond TOML's 64-bit range (tomllib returns them unbounded)."""
+    if isinstance(value, int) and not isinstance(value, bool) and value.bit_length() > 63:
+        digits = int(value.bit_length() * math.log10(2)) + 1
+        raise SceneError(
+            f"scene file {str(path)!r}: {name} is an integer of about {digits} digits, "
+            "beyond TOML's 64-bit range"
+        )
 
 
 def resolve_params(scene: Scene | None = None, overrides: dict[str, float] | None = None) -> Params:

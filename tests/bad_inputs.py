@@ -35,6 +35,52 @@ def make_files(tmp: Path) -> None:
     (tmp / "missing.csv").write_text("t,q1,q2\n0,0.1,0.2\n1,0.1,0.2\n")
     (tmp / "bad.toml").write_text("[params\nm1 = 1\n")
     (tmp / "unknown.toml").write_text("[params]\nmass = 1\n")
+    # expressions and URDF files
+    mass = '<mass value="90.0"/>'
+    (tmp / "mass_ninety.urdf").write_text(good.replace(mass, '<mass value="ninety"/>'))
+    (tmp / "mass_nan.urdf").write_text(good.replace(mass, '<mass value="nan"/>'))
+    origin = '<origin xyz="0 0 0.4" rpy="0 0 0"/>\n      <mass'
+    (tmp / "origin_nan.urdf").write_text(
+        good.replace(origin, origin.replace("0 0 0.4", "0 nan 0.4"), 1)
+    )
+    (tmp / "entity.urdf").write_text(good.replace("<robot ", _LAUGHS + "<robot ", 1))
+    (tmp / "triangle.urdf").write_text(good.replace('izz="1.0"', 'izz="10.0"'))
+    (tmp / "chain10000.urdf").write_text(chain_urdf(10_000))
+    (tmp / "latin1.urdf").write_bytes(
+        good.replace("RRT arm", "RRT arm (caf\xe9)").encode("latin-1")
+    )
+    with open(tmp / "huge.urdf", "wb") as fh:  # sparse: 20 MB + 1 byte, no disk used
+        fh.truncate((20 << 20) + 1)
+    with open(tmp / "huge.toml", "wb") as fh:
+        fh.truncate((1 << 20) + 1)
+    (tmp / "latin1.toml").write_bytes("[params]\n# caf\xe9\nm3 = 50\n".encode("latin-1"))
+    (tmp / "deep.toml").write_text("[options]\nq0 = " + "[" * 3000 + "]" * 3000 + "\n")
+    (tmp / "bigint.toml").write_text("[params]\nm3 = 1" + "0" * 400 + "\n")
+    (tmp / "power.toml").write_text('[params]\nm3 = "9**9**9"\n')
+
+
+#: A "billion laughs" document type declaration.
+_LAUGHS = (
+    '<!DOCTYPE robot [<!ENTITY a "ha"><!ENTITY b "&a;&a;&a;&a;&a;&a;&a;&a;&a;&a;">'
+    '<!ENTITY c "&b;&b;&b;&b;&b;&b;&b;&b;&b;&b;">]>\n'
+)
+
+
+def chain_urdf(n: int) -> str:
+    """A URDF chain of ``n`` revolute joints (Pinocchio segfaults on 10,000 of them)."""
+    inertial = (
+        '<inertial><mass value="1"/>'
+        '<inertia ixx="0.1" ixy="0" ixz="0" iyy="0.1" iyz="0" izz="0.1"/></inertial>'
+    )
+    parts = ['<robot name="chain"><link name="l0"/>']
+    for i in range(1, n + 1):
+        parts.append(
+            f'<link name="l{i}">{inertial}</link><joint name="j{i}" type="revolute">'
+            f'<parent link="l{i - 1}"/><child link="l{i}"/><origin xyz="0 0 0.1"/>'
+            '<axis xyz="0 0 1"/><limit lower="-1" upper="1" effort="1" velocity="1"/></joint>'
+        )
+    parts.append("</robot>\n")
+    return "".join(parts)
 
 
 @dataclass(frozen=True)
@@ -148,4 +194,142 @@ CASES = (
         "cannot read",
     ),
     Case("output folder missing", ("inverse", "--csv", "{tmp}/no/such/dir/out.csv"), "no/such/dir"),
+    # expressions and URDF files
+    Case("power tower in --set", ("inverse", "--set", "L1=9**9**9", "--csv", OUT), "overflows"),
+    Case(
+        "power tower in --q0",
+        ("simulate", "--urdf", "{tmp}/rrt.urdf", "--q0", "10**10**10,0,0", "--csv", OUT),
+        "'10**10**10'",
+    ),
+    Case(
+        "deeply nested --set",
+        ("inverse", "--set", "L1=" + "(" * 100 + "1" + ")" * 100, "--csv", OUT),
+        "201 characters long",
+    ),
+    Case("complex --set", ("inverse", "--set", "L1=1j", "--csv", OUT), "complex numbers"),
+    Case(
+        "overflowing rod inertia (--set)",
+        ("inverse", "--set", "L1=1e200", "--csv", OUT),
+        "L1=1e+200: too large",
+    ),
+    Case(
+        "URDF mass not a number",
+        (
+            "inverse",
+            "--urdf",
+            "{tmp}/mass_ninety.urdf",
+            "--q0",
+            "0,0,0",
+            "--qf",
+            "0,0,0",
+            "--csv",
+            OUT,
+        ),
+        "link 'link1' <inertial><mass value=\"ninety\">: not a number",
+    ),
+    Case(
+        "URDF mass NaN",
+        (
+            "inverse",
+            "--urdf",
+            "{tmp}/mass_nan.urdf",
+            "--q0",
+            "0,0,0",
+            "--qf",
+            "0,0,0",
+            "--csv",
+            OUT,
+        ),
+        '<mass value="nan">: not finite',
+    ),
+    Case(
+        "URDF origin with NaN",
+        (
+            "inverse",
+            "--urdf",
+            "{tmp}/origin_nan.urdf",
+            "--q0",
+            "0,0,0",
+            "--qf",
+            "0,0,0",
+            "--csv",
+            OUT,
+        ),
+        "link 'link1' <inertial><origin xyz=\"0 nan 0.4\">",
+    ),
+    Case(
+        "URDF with entities",
+        ("inverse", "--urdf", "{tmp}/entity.urdf", "--q0", "0,0,0", "--qf", "0,0,0", "--csv", OUT),
+        "entities and DTDs are not accepted",
+    ),
+    Case(
+        "URDF inertia breaks the triangle inequality",
+        (
+            "inverse",
+            "--urdf",
+            "{tmp}/triangle.urdf",
+            "--q0",
+            "0,0,0",
+            "--qf",
+            "0,0,0",
+            "--csv",
+            OUT,
+        ),
+        "link 'link3' <inertial><inertia>",
+    ),
+    Case(
+        "URDF with 10,000 joints",
+        (
+            "inverse",
+            "--urdf",
+            "{tmp}/chain10000.urdf",
+            "--q0",
+            "0,0,0",
+            "--qf",
+            "0,0,0",
+            "--csv",
+            OUT,
+        ),
+        "at most 1000 joints are supported",
+    ),
+    Case(
+        "URDF not UTF-8",
+        ("inverse", "--urdf", "{tmp}/latin1.urdf", "--q0", "0,0,0", "--qf", "0,0,0", "--csv", OUT),
+        "not UTF-8",
+    ),
+    Case(
+        "URDF larger than 20 MB",
+        ("inverse", "--urdf", "{tmp}/huge.urdf", "--q0", "0,0,0", "--qf", "0,0,0", "--csv", OUT),
+        "larger than the 20 MB allowed",
+    ),
+    Case(
+        "URDF is a folder",
+        ("inverse", "--urdf", "{tmp}/", "--q0", "0,0,0", "--qf", "0,0,0", "--csv", OUT),
+        "it is a folder",
+    ),
+    Case(
+        "scene file larger than 1 MB",
+        ("inverse", "--scene", "{tmp}/huge.toml", "--csv", OUT),
+        "larger than the 1 MB allowed",
+    ),
+    Case(
+        "scene file not UTF-8",
+        ("inverse", "--scene", "{tmp}/latin1.toml", "--csv", OUT),
+        "not UTF-8",
+    ),
+    Case(
+        "scene file nested too deeply",
+        ("inverse", "--scene", "{tmp}/deep.toml", "--csv", OUT),
+        "nested too deeply",
+    ),
+    Case(
+        "scene integer beyond 64 bits",
+        ("inverse", "--scene", "{tmp}/bigint.toml", "--csv", OUT),
+        "beyond TOML's 64-bit range",
+    ),
+    Case(
+        "power tower in a scene file",
+        ("inverse", "--scene", "{tmp}/power.toml", "--csv", OUT),
+        "m3='9**9**9' is not a number",
+    ),
 )
