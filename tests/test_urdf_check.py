@@ -18,7 +18,7 @@ from rrt_pin.scene import load_scene
 from rrt_pin.urdf import urdf_xml
 from rrt_pin.urdf_check import MAX_DEPTH, MAX_JOINTS, check_urdf_xml, mimic_joints
 from tests.bad_inputs import _LAUGHS, chain_urdf
-from tests.robots import robot_urdf
+from tests.support import robot_urdf
 
 GOOD = urdf_xml()
 MASS = '<mass value="90.0"/>'
