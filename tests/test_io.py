@@ -587,8 +587,10 @@ def test_stdout_twice_is_refused(capfd):
 # --- through the CLI -------------------------------------------------------------------
 
 
-def test_cli_urdf_through_a_symlink_and_to_stdout(tmp_path, capfd):
+def test_cli_urdf_through_a_symlink_and_to_stdout(tmp_path, capfd, monkeypatch):
     from rrt_pin.cli import main
+
+    monkeypatch.chdir(tmp_path)  # a broken '-' would land here
 
     real = tmp_path / "arm.urdf"
     real.write_text("old")
@@ -600,6 +602,7 @@ def test_cli_urdf_through_a_symlink_and_to_stdout(tmp_path, capfd):
     capfd.readouterr()
     assert main(["urdf", "-o", "-"]) == 0
     assert capfd.readouterr().out == real.read_text()
+    assert names(tmp_path) == ["arm.urdf", "link.urdf"]
 
 
 def test_io_imports_only_the_standard_library():
