@@ -633,8 +633,8 @@ def write_outputs(outputs: Iterable[tuple[PathLike | None, str | None, Writer]])
         outputs: ``(path, flag, writer)`` triples. ``path`` is a path or ``-`` for
             stdout; a None path (an output not asked for) is skipped. ``flag`` is the
             option named in error messages (or None). ``writer`` writes the bytes to
-            the binary file it is given (it may not seek on stdout or a FIFO...: it
-            gets an in-memory buffer for those).
+            the binary file it is given: a temporary file, or an in-memory buffer
+            for stdout, FIFOs and devices (so it may always seek).
 
     Returns:
         The paths written, as given, in order.
