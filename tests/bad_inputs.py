@@ -332,4 +332,28 @@ CASES = (
         ("inverse", "--scene", "{tmp}/power.toml", "--csv", OUT),
         "m3='9**9**9' is not a number",
     ),
+    # output paths
+    Case(
+        "urdf -o into a missing folder",
+        ("urdf", "-o", "{tmp}/nofolder/x.urdf"),
+        "nofolder' does not exist",
+    ),
+    Case("urdf -o onto a folder", ("urdf", "-o", "{tmp}"), "it is a folder"),
+    Case("--csv onto a folder", ("simulate", "--csv", "{tmp}"), "--csv"),
+    Case("--csv ending in '/'", ("inverse", "--csv", "{tmp}/new/"), "names a folder"),
+    Case(
+        "urdf -o under a file",
+        ("urdf", "-o", "{tmp}/rrt.urdf/x.urdf"),
+        "rrt.urdf' is not a folder",
+    ),
+    Case(
+        "urdf -o file name over 255 bytes",
+        ("urdf", "-o", "{tmp}/" + "u" * 300 + ".urdf"),
+        "305 bytes long, over the 255",
+    ),
+    Case(
+        "--plot file name over 255 bytes",
+        ("inverse", "--plot", "{tmp}/" + "p" * 300 + ".png"),
+        "--plot",
+    ),
 )

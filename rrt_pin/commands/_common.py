@@ -133,21 +133,18 @@ def positive_seconds(flag: str, value: object) -> float:
 
 
 def check_writable(path: str, flag: str) -> None:
-    """Fail before any work when an output's folder does not exist or it names a folder.
+    """Fail before any work when an output cannot be written (``-`` is stdout: accepted).
+
+    Catches a missing folder, a folder, a name over the file system's limit (255
+    bytes), a read-only file system and a folder this process may not write; see
+    :func:`rrt_pin.io.check_output`.
 
     Raises:
-        InputError: naming the option and the path.
+        InputError: one line naming the option, the path and the problem.
     """
-    from pathlib import Path
+    from rrt_pin.io import check_output
 
-    from rrt_pin.errors import InputError
-
-    p = Path(path)
-    folder = p.parent if str(p.parent) else Path(".")
-    if not folder.is_dir():
-        raise InputError(f"cannot write {flag} {path!r}: folder {str(folder)!r} does not exist")
-    if p.is_dir():
-        raise InputError(f"cannot write {flag} {path!r}: it is a folder")
+    check_output(path, flag)
 
 
 def add_robot_arguments(parser: argparse.ArgumentParser, task: str) -> None:
