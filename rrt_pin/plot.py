@@ -12,7 +12,7 @@ import numpy as np
 if TYPE_CHECKING:
     from rrt_pin.robot import Robot
 
-__all__ = ["Panel", "effort_panels", "plot_panels", "position_panels"]
+__all__ = ["Panel", "effort_panels", "plot_panels", "position_panels", "render_panels"]
 
 
 @dataclass(frozen=True)
@@ -30,10 +30,14 @@ class Panel:
     title: str = ""
 
 
-def plot_panels(
-    path: str | Path, t: np.ndarray, panels: Sequence[Panel], title: str, xlabel: str = "t [s]"
-) -> Path:
-    """Plot stacked panels sharing the time axis and write a PNG atomically.
+def render_panels(
+    t: np.ndarray,
+    panels: Sequence[Panel],
+    title: str,
+    xlabel: str = "t [s]",
+    fmt: str = "png",
+) -> bytes:
+    """Stacked panels sharing the time axis, as the bytes of a PNG (or ``fmt``) image.
 
     Raises:
         ImportError: matplotlib is missing (``pip install rrt-pin[plot]``).
@@ -45,26 +49,41 @@ def plot_panels(
         import matplotlib.pyplot as plt
     except ImportError as e:  # pragma: no cover - depends on the install
         raise ImportError("matplotlib not found: pip install rrt-pin[plot]") from e
-    from rrt_pin.io import atomic_write
+    import io
 
     fig, axes = plt.subplots(len(panels), 1, sharex=True, figsize=(8, 2.4 * len(panels) + 0.8))
     axes = np.atleast_1d(axes)
-    for ax, panel in zip(axes, panels, strict=True):
-        for label, y in panel.curves.items():
-            ax.plot(t, y, label=label, linewidth=1.4)
-        ax.set_ylabel(panel.ylabel)
-        if panel.title:
-            ax.set_title(panel.title, fontsize=10)
-        ax.grid(True, alpha=0.3)
-        if len(panel.curves) > 1:
-            ax.legend(loc="best", fontsize=8)
-    axes[-1].set_xlabel(xlabel)
-    fig.suptitle(title)
-    fig.tight_layout()
     try:
-        return atomic_write(path, lambda fh: fig.savefig(fh, format="png", dpi=110))
+        for ax, panel in zip(axes, panels, strict=True):
+            for label, y in panel.curves.items():
+                ax.plot(t, y, label=label, linewidth=1.4)
+            ax.set_ylabel(panel.ylabel)
+            if panel.title:
+                ax.set_title(panel.title, fontsize=10)
+            ax.grid(True, alpha=0.3)
+            if len(panel.curves) > 1:
+                ax.legend(loc="best", fontsize=8)
+        axes[-1].set_xlabel(xlabel)
+        fig.suptitle(title)
+        fig.tight_layout()
+        buffer = io.BytesIO()
+        fig.savefig(buffer, format=fmt, dpi=110)
+        return buffer.getvalue()
     finally:
         plt.close(fig)
+
+
+def plot_panels(
+    path: str | Path, t: np.ndarray, panels: Sequence[Panel], title: str, xlabel: str = "t [s]"
+) -> Path:
+    """Plot stacked panels sharing the time axis and write a PNG atomically.
+
+    Raises:
+        ImportError: matplotlib is missing (``pip install rrt-pin[plot]``).
+    """
+    from rrt_pin.io import atomic_write_bytes
+
+    return atomic_write_bytes(path, render_panels(t, panels, title, xlabel))
 
 
 def _groups(robot: Robot, units: Sequence[str]) -> list[tuple[str, list[int]]]:

@@ -261,7 +261,7 @@ def test_wrenches_summary(capsys):
 def test_plot(tmp_path, capsys):
     png = tmp_path / "efforts.png"
     code, out, err = run(["inverse", "--dt", "0.05", "--plot", str(png)], capsys)
-    assert code == 0 and "T01x" in out and err == f"wrote {png}\n"
+    assert code == 0 and "T01x" in out and err == f"wrote {png} (backend pinocchio)\n"
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 

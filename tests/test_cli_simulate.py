@@ -196,15 +196,21 @@ def test_scene_options(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("command", ["simulate", "inverse"])
-def test_a_failed_csv_write_removes_the_plot_too(command, tmp_path, capsys, monkeypatch):
-    import rrt_pin.io
-
-    def broken(path, text):
-        raise OSError(28, "No space left on device")
-
-    monkeypatch.setattr(rrt_pin.io, "atomic_write_text", broken)
-    png, csv = tmp_path / "p.png", tmp_path / "r.csv"
+def test_a_full_disk_changes_no_output_of_the_run(command, tiny_fs, capsys):
+    """The CSV and the plot are written together or not at all: old files stay as they were."""
+    png, csv = tiny_fs / "p.png", tiny_fs / "r.csv"
+    png.write_bytes(b"old plot")
+    csv.write_text("old csv")
+    (tiny_fs / "filler").write_bytes(b"x" * 40_000)  # leaves less than a plot's size
     code = main([command, "--tf", "1", "--csv", str(csv), "--plot", str(png)])
     err = capsys.readouterr().err
-    assert code == 2 and err.strip().endswith("No space left on device")
+    assert code == 2 and err.count("\n") == 1 and "no space left on device" in err, err
+    assert png.read_bytes() == b"old plot" and csv.read_text() == "old csv"
+    assert sorted(p.name for p in tiny_fs.iterdir()) == ["filler", "p.png", "r.csv"]
+
+
+def test_csv_and_plot_naming_one_file_are_refused(tmp_path, capsys):
+    out = tmp_path / "same"
+    code = main(["simulate", "--csv", str(out), "--plot", str(out)])
+    assert code == 2 and "--csv and --plot name the same file" in capsys.readouterr().err
     assert list(tmp_path.iterdir()) == []

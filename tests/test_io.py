@@ -42,25 +42,6 @@ def names(folder: Path) -> list[str]:
     return sorted(p.name for p in folder.iterdir())
 
 
-def _mount(args: list[str], where: Path) -> None:
-    proc = subprocess.run(["mount", *args, str(where)], capture_output=True, text=True)
-    if proc.returncode != 0:
-        pytest.skip(f"cannot mount a tmpfs: {proc.stderr.strip()}")
-
-
-@pytest.fixture
-def tiny_fs(tmp_path):
-    """A 64 kB tmpfs inside tmp_path, unmounted afterwards."""
-    where = tmp_path / "tiny"
-    where.mkdir()
-    _mount(["-t", "tmpfs", "-o", "size=64k,mode=0755", "tmpfs"], where)
-    try:
-        yield where
-    finally:
-        if subprocess.run(["umount", str(where)], capture_output=True).returncode != 0:
-            subprocess.run(["umount", "-l", str(where)], capture_output=True)
-
-
 # --- regular files ---------------------------------------------------------------------
 
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import math
+from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 from rrt_pin.params import PARAM_DOCS, Params
@@ -24,6 +25,7 @@ __all__ = [
     "positive_seconds",
     "resolve_backend",
     "robot_from_args",
+    "write_run_outputs",
 ]
 
 
@@ -207,6 +209,22 @@ def robot_from_args(args: argparse.Namespace, params: Params, task: str) -> Robo
         given |= set(scene.params)
     values = {k: getattr(args, k, None) for k in ("q0", "qd0", "qf", "kp", "kd")}
     return for_task(task, params, urdf=args.urdf, given=given, **values)
+
+
+def write_run_outputs(
+    csv: str | None, table: Callable[[], str], plot: str | None, picture: Callable[[], bytes]
+) -> None:
+    """Build the CSV text and the plot image, then write both or neither (``rrt_pin.io``).
+
+    A failure (a writer, a full disk) leaves every pre-existing output as it was.
+    """
+    from rrt_pin.io import write_outputs
+
+    text = table().encode("utf-8") if csv else b""
+    image = picture() if plot else b""
+    write_outputs(
+        [(csv, "--csv", lambda fh: fh.write(text)), (plot, "--plot", lambda fh: fh.write(image))]
+    )
 
 
 def resolve_backend(requested: str, robot: Robot, task: str, method: str | None = None) -> str:

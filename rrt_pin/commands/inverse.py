@@ -9,21 +9,21 @@ from __future__ import annotations
 
 import argparse
 import sys
-from pathlib import Path
 from typing import TYPE_CHECKING
 
 from rrt_pin import backends
 from rrt_pin.commands._common import (
     add_robot_arguments,
     add_scene_arguments,
-    check_writable,
     finite_float,
     params_from_args,
     positive_seconds,
     resolve_backend,
     robot_from_args,
+    write_run_outputs,
 )
 from rrt_pin.errors import InputError
+from rrt_pin.io import check_outputs
 
 if TYPE_CHECKING:
     import numpy as np
@@ -103,9 +103,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     """Compute the efforts (and wrenches) and write or summarise them."""
     params = params_from_args(args)
-    for path, what in ((args.csv, "--csv"), (args.plot, "--plot")):
-        if path:
-            check_writable(path, what)
+    outputs = [(args.csv, "--csv"), (args.plot, "--plot")]
+    check_outputs(outputs)  # before any work: folders exist, no two name the same file
     robot = robot_from_args(args, params, "inverse")
     args.backend = resolve_backend(args.backend, robot, "inverse")
 
@@ -139,25 +138,19 @@ def run(args: argparse.Namespace) -> int:
         header += names
         columns.append(table)
 
-    text = None
-    if args.csv:
+    if args.csv or args.plot:
         from rrt_pin.csvio import csv_text
 
-        text = csv_text(header, np.hstack(columns))  # format first: a failure writes nothing
-    if args.plot:
-        _plot(args.plot, robot, traj.t, tau)
-        print(f"wrote {args.plot}", file=sys.stderr)
-    if text is not None:
-        from rrt_pin.io import atomic_write_text
-
-        try:
-            atomic_write_text(args.csv, text)
-        except OSError as e:
-            if args.plot:
-                Path(args.plot).unlink(missing_ok=True)
-            raise InputError(f"cannot write --csv {args.csv!r}: {e.strerror or e}") from e
-        print(f"wrote {args.csv} (backend {args.backend})", file=sys.stderr)
-    else:
+        write_run_outputs(
+            args.csv,
+            lambda: csv_text(header, np.hstack(columns)),
+            args.plot,
+            lambda: _picture(robot, traj.t, tau),
+        )
+        for path in (args.plot, args.csv):
+            if path:
+                print(f"wrote {path} (backend {args.backend})", file=sys.stderr)
+    if not args.csv:
         sys.stdout.write(summary(robot, traj.t, tau, args.backend, dt, wrenches))
     return 0
 
@@ -193,11 +186,8 @@ def summary(
     return "\n".join(lines) + "\n"
 
 
-def _plot(path: str, robot: Robot, t: np.ndarray, tau: np.ndarray) -> None:
-    from rrt_pin.plot import effort_panels, plot_panels
+def _picture(robot: Robot, t: np.ndarray, tau: np.ndarray) -> bytes:
+    from rrt_pin.plot import effort_panels, render_panels
 
     title = f"{robot.name}: joint efforts along {robot.motion}"
-    try:
-        plot_panels(path, t, effort_panels(robot, tau), title)
-    except OSError as e:
-        raise InputError(f"cannot write --plot {path!r}: {e.strerror or e}") from e
+    return render_panels(t, effort_panels(robot, tau), title)

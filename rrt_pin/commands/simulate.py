@@ -8,21 +8,20 @@ from __future__ import annotations
 
 import argparse
 import sys
-from pathlib import Path
 from typing import TYPE_CHECKING
 
 from rrt_pin import backends, methods
 from rrt_pin.commands._common import (
     add_robot_arguments,
     add_scene_arguments,
-    check_writable,
     params_from_args,
     positive_float,
     positive_seconds,
     resolve_backend,
     robot_from_args,
+    write_run_outputs,
 )
-from rrt_pin.errors import InputError
+from rrt_pin.io import check_outputs
 
 if TYPE_CHECKING:
     from rrt_pin.robot import Robot
@@ -119,9 +118,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     """Simulate, then write the CSV and plot or print the summary."""
     params = params_from_args(args)
-    for path, flag in ((args.csv, "--csv"), (args.plot, "--plot")):
-        if path:
-            check_writable(path, flag)
+    outputs = [(args.csv, "--csv"), (args.plot, "--plot")]
+    check_outputs(outputs)  # before any work: folders exist, no two name the same file
     from rrt_pin.grid import time_grid
 
     # Cheap checks first: loading the compiled backend costs about a second.
@@ -149,27 +147,22 @@ def run(args: argparse.Namespace) -> int:
         backend=args.backend,
         step=args.dt if fixed else None,
     )
-    text = None
-    if args.csv:
+    if args.csv or args.plot:
         from rrt_pin.csvio import csv_text
 
-        text = csv_text(result.header, result.table())  # format first: a failure writes nothing
-    if args.plot:
-        _plot(args.plot, robot, result)
-        print(f"wrote {args.plot}", file=sys.stderr)
-    if text is not None:
-        from rrt_pin.io import atomic_write_text
-
-        try:
-            atomic_write_text(args.csv, text)
-        except OSError as e:
-            if args.plot:
-                Path(args.plot).unlink(missing_ok=True)
-            raise InputError(f"cannot write --csv {args.csv!r}: {e.strerror or e}") from e
-        print(
-            f"wrote {args.csv} (method {result.method}, backend {result.backend})", file=sys.stderr
+        write_run_outputs(
+            args.csv,
+            lambda: csv_text(result.header, result.table()),
+            args.plot,
+            lambda: _picture(robot, result),
         )
-    else:
+        for path in (args.plot, args.csv):
+            if path:
+                print(
+                    f"wrote {path} (method {result.method}, backend {result.backend})",
+                    file=sys.stderr,
+                )
+    if not args.csv:
         sys.stdout.write(summary(robot, result))
     return 0
 
@@ -207,14 +200,12 @@ def summary(robot: Robot, result: SimulationResult) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _plot(path: str, robot: Robot, result: SimulationResult) -> None:
-    from rrt_pin.plot import effort_panels, plot_panels, position_panels
+def _picture(robot: Robot, result: SimulationResult) -> bytes:
+    from rrt_pin.plot import effort_panels, position_panels, render_panels
 
     panels = position_panels(robot, result.q) + effort_panels(
         robot, result.tau, what=": applied efforts"
     )
-    title = f"{robot.name} under {robot.regulator}: q(t) and efforts"
-    try:
-        plot_panels(path, result.t, panels, title)
-    except OSError as e:
-        raise InputError(f"cannot write --plot {path!r}: {e.strerror or e}") from e
+    return render_panels(
+        result.t, panels, f"{robot.name} under {robot.regulator}: q(t) and efforts"
+    )
