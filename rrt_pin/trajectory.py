@@ -21,6 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from rrt_pin import validate
 from rrt_pin.errors import InputError
 
 __all__ = ["RestToRest", "Trajectory", "rest_to_rest"]
@@ -52,17 +53,10 @@ class Trajectory:
 
 
 def _vector(name: str, value: Sequence[float] | np.ndarray) -> np.ndarray:
-    try:
-        arr = np.array(value, dtype=float)
-    except (TypeError, ValueError) as e:
-        raise InputError(f"{name}={value!r} is not a sequence of numbers") from e
+    arr = np.asarray(value)
     if arr.ndim != 1 or arr.size == 0:
         raise InputError(f"{name} must be a non-empty 1-D sequence, got shape {arr.shape}")
-    bad = ~np.isfinite(arr)
-    if bad.any():
-        i = int(np.argmax(bad))
-        raise InputError(f"{name}[{i}]={float(arr[i])!r} must be finite")
-    return arr
+    return validate.vector(name, value, arr.size, "rad or m")
 
 
 def rest_to_rest(
