@@ -105,7 +105,7 @@ def test_input_arrays_are_not_aliased():
         (([0.0], [1.0], 1.0, [0.0, math.nan]), "t[1]=nan must be finite"),
         (([0.0], [1.0], 1.0, [[0.0]]), "t must be a number or 1-D"),
         (([], [], 1.0, [0.0]), "q0 must be a non-empty 1-D sequence"),
-        ((["a"], [1.0], 1.0, [0.0]), "q0=['a'] is not a sequence of numbers"),
+        ((["a"], [1.0], 1.0, [0.0]), "q0 is not an array of numbers"),
     ],
 )
 def test_bad_input(args, words):
