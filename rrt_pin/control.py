@@ -76,8 +76,8 @@ class LinearFeedback:
         qf: target (nv,) [rad or m].
         gravity: G at configurations (…, nv) -> (…, nv) [N·m or N].
         key: laws with equal keys have the same G (a batch evaluates them together).
-        exact_for: whether G is exactly a model's generalized gravity (then a
-            simulation of that model may fold it into the dynamics).
+        exact_for: whether G is exactly a robot's generalized gravity (then a
+            simulation of that robot may fold it into the dynamics).
     """
 
     kp: np.ndarray
@@ -443,6 +443,13 @@ class ChapterController(_PDGravity):
         """
         return bool(model == _chapter_model(self.params))
 
+    def _exact_for(self, robot: Robot) -> bool:
+        plant = robot.params
+        if plant is not None:  # the chapter's arm: its G(q) depends on g, m2, m3, L2 only
+            p = self.params
+            return (plant.g, plant.m2, plant.m3, plant.L2) == (p.g, p.m2, p.m3, p.L2)
+        return self.compensates_gravity_of(robot.model)
+
     def feedback(self) -> LinearFeedback:
         """PD plus the printed gravity terms; batches share them when g, m2, m3, L2 agree."""
         p = self.params
@@ -452,7 +459,7 @@ class ChapterController(_PDGravity):
             qf=np.array(self.qf),
             gravity=self.gravity,
             key=("chapter", p.g, p.m2, p.m3, p.L2),
-            exact_for=self.compensates_gravity_of,
+            exact_for=self._exact_for,
         )
 
 
@@ -549,7 +556,7 @@ class PDGravityController(_PDGravity):
             qf=np.array(self.qf),
             gravity=self.gravity,
             key=_ModelKey(self.model),
-            exact_for=self.compensates_gravity_of,
+            exact_for=lambda robot: self.compensates_gravity_of(robot.model),
         )
 
 

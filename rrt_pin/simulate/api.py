@@ -166,6 +166,8 @@ def _prepare(robot: Robot, backend: Any) -> None:
     if backend == "pinocchio":
         import scipy.integrate  # noqa: F401
 
+        import rrt_pin.simulate.pinocchio_backend  # noqa: F401
+
         robot.model  # noqa: B018  (builds the generated arm's model once)
     elif backend == "compiled" and robot.params is not None:
         from rrt_pin import backends

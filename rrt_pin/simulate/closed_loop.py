@@ -42,7 +42,7 @@ class ClosedLoop:
         self.controller = controller
         self.plain = not robot.has_continuous_joints
         feedback = controller.feedback()
-        self.folded = feedback is not None and feedback.exact_for(robot.model)
+        self.folded = feedback is not None and feedback.exact_for(robot)
         if self.folded:
             self.model = _without_gravity(robot.model)
             self.kp, self.kd, self.qf = feedback.kp, feedback.kd, feedback.qf
@@ -143,7 +143,7 @@ class BatchLoop:
             self.kd = np.array([f.kd for f in feedbacks])
             self.qf = np.array([f.qf for f in feedbacks])
             self.gravity = first.gravity
-            self.folded = first.exact_for(robot.model)
+            self.folded = first.exact_for(robot)
         plant = _without_gravity(robot.model) if self.folded else robot.model
         self.pool = pin.ModelPool(plant, threads)
 
