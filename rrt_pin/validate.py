@@ -104,7 +104,7 @@ def _array(name: str, value: Any, unit: str) -> np.ndarray:
     if isinstance(value, (str, bytes)) or value is None:
         raise InputError(f"{name}={value!r} is not an array of numbers{_unit(unit)}")
     try:
-        arr = np.array(value)
+        arr = np.asarray(value)  # no copy of a float array: callers copy where they keep it
     except (TypeError, ValueError) as e:
         raise InputError(f"{name} is not an array of numbers{_unit(unit)}") from e
     if arr.dtype == bool or arr.dtype.kind not in "iuf":

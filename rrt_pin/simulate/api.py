@@ -33,6 +33,24 @@ def as_robot(model: Any, params: Params | None = None) -> Robot:
 
     if isinstance(model, Robot):
         return model
+    cached = _ROBOTS.get(id(model))
+    if cached is not None and cached[0] is model and cached[2] is params:
+        return cached[1]
+    robot = _as_robot(model, params)
+    if len(_ROBOTS) >= 8:
+        _ROBOTS.clear()
+    _ROBOTS[id(model)] = (model, robot, params)  # the model kept alive: its id stays its own
+    return robot
+
+
+#: The robots of the last few Pinocchio models given (a Robot describes the joints, which a
+#: model keeps; its gravity and inertias are read from the model itself at each run).
+_ROBOTS: dict[int, tuple[Any, Robot, Any]] = {}
+
+
+def _as_robot(model: Any, params: Params | None) -> Robot:
+    from rrt_pin.robot import Robot
+
     robot = Robot.from_model(model)
     if params is not None and robot.layout == "chapter":
         from rrt_pin.robots import chapter_arm
