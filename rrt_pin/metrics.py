@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["SETTLING_BAND", "settling_times"]
+__all__ = ["SETTLING_BAND", "batch_metrics", "settling_times"]
 
 #: The share of the initial distance to qf inside which a joint counts as settled.
 SETTLING_BAND = 0.02
@@ -34,4 +34,88 @@ def settling_times(
             out.append(None)
         else:
             out.append(float(t[outside[-1] + 1]))
+    return out
+
+
+def _last_true(mask: np.ndarray) -> np.ndarray:
+    """Index of the last True along axis 1 of (B, T, n), or -1 where there is none."""
+    T = mask.shape[1]
+    rev = mask[:, ::-1]
+    last = T - 1 - np.argmax(rev, axis=1)
+    return np.where(rev.any(axis=1), last, -1)
+
+
+def batch_metrics(
+    groups: tuple[str, ...],
+    t: np.ndarray,
+    q: np.ndarray,
+    qd: np.ndarray,
+    tau: np.ndarray | None,
+    qf: np.ndarray | None,
+    q_names: tuple[str, ...],
+    effort_names: tuple[str, ...],
+    band: float = SETTLING_BAND,
+    compiled: bool = False,
+) -> dict[str, np.ndarray]:
+    """Per-variant metrics of B runs sampled at ``t`` (shapes (B, T, n)), as named columns.
+
+    Groups (see :data:`rrt_pin.sweeps.spec.METRICS`): ``final_error`` (|q(tf) − qf|),
+    ``settling_time`` (as :func:`settling_times`; NaN when not settled), ``peak_effort``
+    (peak |τ| and its time), ``excursion`` (max |q(t) − q(0)|), ``control_energy``
+    (∫ Σ|τ·q̇| dt by the trapezoidal rule [J]). Units as the coordinates and efforts.
+    ``compiled``: one pass in machine code (numba; the same numbers, a few times faster).
+    """
+    if compiled and tau is not None and qf is not None:
+        return _compiled_metrics(groups, t, q, qd, tau, qf, q_names, effort_names, band)
+    out: dict[str, np.ndarray] = {}
+    n = q.shape[2]
+    if "final_error" in groups:
+        err = np.abs(q[:, -1, :] - qf)
+        for k in range(n):
+            out[f"final_error_{q_names[k]}"] = err[:, k]
+    if "settling_time" in groups:
+        dist = np.abs(q - qf[:, None, :])
+        scale = np.abs(q[:, 0, :] - qf)
+        scale = np.where(scale > 0, scale, dist.max(axis=1))
+        last = _last_true(dist > band * scale[:, None, :])
+        T = t.size
+        when = np.where(last == T - 1, np.nan, t[np.clip(last + 1, 0, T - 1)])
+        when = np.where(last == -1, t[0], when)
+        for k in range(n):
+            out[f"settling_time_{q_names[k]}"] = when[:, k]
+    if "peak_effort" in groups and tau is not None:
+        mag = np.abs(tau)
+        i = np.argmax(mag, axis=1)
+        peak = np.take_along_axis(mag, i[:, None, :], axis=1)[:, 0, :]
+        for k in range(n):
+            out[f"peak_effort_{effort_names[k]}"] = peak[:, k]
+            out[f"peak_effort_time_{effort_names[k]}"] = t[i[:, k]]
+    if "excursion" in groups:
+        exc = np.abs(q - q[:, :1, :]).max(axis=1)
+        for k in range(n):
+            out[f"excursion_{q_names[k]}"] = exc[:, k]
+    if "control_energy" in groups and tau is not None:
+        power = np.abs(tau * qd).sum(axis=2)
+        out["control_energy"] = (0.5 * (power[:, 1:] + power[:, :-1]) * np.diff(t)).sum(axis=1)
+    return out
+
+
+def _compiled_metrics(groups, t, q, qd, tau, qf, q_names, effort_names, band):  # noqa: ANN001, ANN202
+    from rrt_pin.sweeps import _jit_metrics
+
+    final, settle, peak, peak_t, excursion, energy = _jit_metrics.run(t, q, qd, tau, qf, band)
+    out: dict[str, np.ndarray] = {}
+    n = q.shape[2]
+    for group, arrays, names, prefixes in (
+        ("final_error", (final,), q_names, ("final_error",)),
+        ("settling_time", (settle,), q_names, ("settling_time",)),
+        ("peak_effort", (peak, peak_t), effort_names, ("peak_effort", "peak_effort_time")),
+        ("excursion", (excursion,), q_names, ("excursion",)),
+    ):
+        if group in groups:
+            for k in range(n):
+                for arr, prefix in zip(arrays, prefixes, strict=True):
+                    out[f"{prefix}_{names[k]}"] = arr[:, k]
+    if "control_energy" in groups:
+        out["control_energy"] = energy
     return out

@@ -6,4 +6,4 @@ imports (pinocchio, matplotlib, meshcat, sympy) belong inside ``run``.
 """
 
 #: Subcommands in the order ``--help`` lists them; a missing module is skipped.
-COMMANDS = ("urdf", "joints", "equations", "inverse", "simulate", "view", "bench")
+COMMANDS = ("urdf", "joints", "equations", "inverse", "simulate", "sweep", "view", "bench")

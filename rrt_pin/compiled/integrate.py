@@ -54,7 +54,14 @@ from rrt_pin.simulate.results import BatchResult, SimulationResult
 if TYPE_CHECKING:
     import pinocchio as pin
 
-__all__ = ["DEFAULT_METHOD", "MAX_STEPS", "simulate_batch_compiled", "simulate_compiled"]
+__all__ = [
+    "DEFAULT_METHOD",
+    "MAX_STEPS",
+    "failure",
+    "integrate_arrays",
+    "simulate_batch_compiled",
+    "simulate_compiled",
+]
 
 #: Method used when none is given.
 DEFAULT_METHOD = "DOP853"
@@ -429,3 +436,75 @@ def simulate_batch_compiled(
         step=step,
         threads=1,
     )
+
+
+def integrate_arrays(
+    P: np.ndarray,
+    kinds: np.ndarray,
+    C: np.ndarray,
+    Y0: np.ndarray,
+    t: np.ndarray,
+    method: str,
+    rtol: float | None,
+    atol: float | None,
+    step: float | None,
+    max_steps: int = MAX_STEPS,
+    out: tuple[np.ndarray, np.ndarray] | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Run B prepared variants in machine code; failures are reported per variant, not raised.
+
+    Args:
+        P: physical parameters (B, 15) in ``rrt_pin.kernel.PARAM_ORDER`` [SI units].
+        kinds: controller kinds (B,) of :mod:`rrt_pin.compiled.codes`.
+        C: controller parameters (B, 24): kp, kd, qf and the law's 15 parameters.
+        Y0: initial states (B, 6): q [rad, rad, m] then q̇.
+        t: increasing output times [s] (validated by the caller).
+        method, rtol, atol, step: as resolved by :func:`rrt_pin.simulate.options.resolve`.
+        max_steps: step budget of each variant.
+        out: buffers (≥ B, T, 6) and (≥ B, T, 3) to write the states and efforts into
+            (reused across calls, they keep memory flat and warm).
+
+    Returns:
+        ``(y, tau, info, t_reached)``: states (B, T, 6), efforts (B, T, 3), per-variant
+        (status, coordinate, n_evals, n_steps, n_rejected, n_out) and the time each
+        variant reached (its failure time when status != OK) [s].
+    """
+    ensure_compiled()
+    from rrt_pin.compiled import _jit_integrators as jit
+
+    count = Y0.shape[0]
+    if out is None:
+        out_y, out_tau = np.empty((count, t.size, 6)), np.empty((count, t.size, 3))
+    else:
+        out_y, out_tau = out[0][:count], out[1][:count]
+    info = np.zeros((count, 6), dtype=np.int64)
+    t_reached = np.zeros(count)
+    jit.integrate_batch(
+        methods.get(method).code,
+        np.ascontiguousarray(Y0, dtype=np.float64),
+        t,
+        step if step is not None else 0.0,
+        np.full(6, atol if atol is not None else 0.0),
+        rtol if rtol is not None else 0.0,
+        math.inf,
+        max_steps,
+        np.ascontiguousarray(P, dtype=np.float64),
+        np.ascontiguousarray(kinds, dtype=np.int64),
+        np.ascontiguousarray(C, dtype=np.float64),
+        out_y,
+        out_tau,
+        info,
+        t_reached,
+    )
+    return out_y, out_tau, info, t_reached
+
+
+def failure(
+    info: Sequence[int], t_fail: float, method: str, step: float | None, max_steps: int = MAX_STEPS
+) -> DivergenceError | None:
+    """The DivergenceError a variant's status stands for, or None when it succeeded."""
+    try:
+        _raise_status(info, t_fail, method, step, max_steps, None)
+    except DivergenceError as e:
+        return e
+    return None

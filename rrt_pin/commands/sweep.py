@@ -1,0 +1,71 @@
+"""``rrt-pin sweep``: many variants of a run (a spec file), locally or on a Dask cluster."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from rrt_pin.commands._common import positive_int
+
+HELP = "run a sweep spec (TOML): many variants, metrics to Parquet, locally or on Dask (SI units)"
+
+_EPILOG = """\
+The spec (TOML) names the base run, what varies (grids, ranges, random samples
+over the chapter's symbols, gains, q0, qd0, qf) and what to keep (metrics, a
+few dense trajectories); see rrt_pin/sweeps/spec.py or the README.
+OUT/chunks/chunk-NNNNNN.parquet holds, per variant: its index, the varied
+values and the metrics (units in the Parquet metadata, "rrt_pin.units"):
+  final_error_<q> [rad or m], settling_time_<q> [s] (NaN: not settled),
+  peak_effort_<effort> [N·m or N] and peak_effort_time_<effort> [s],
+  excursion_<q> [rad or m], control_energy [J], evaluations,
+  diverged, diverged_time [s], diverged_coordinate, diverged_reason.
+Read it with pandas: pandas.read_parquet("OUT/chunks").
+Without --scheduler one worker process per core runs the chunks (Dask's local
+cluster; --workers 1 runs them in this process). --resume finishes an
+interrupted sweep (the spec must be unchanged)."""
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Options of ``rrt-pin sweep``."""
+    parser.formatter_class = argparse.RawDescriptionHelpFormatter
+    parser.epilog = _EPILOG
+    parser.add_argument("spec", metavar="SPEC.toml", help="the sweep spec")
+    parser.add_argument("--out", required=True, metavar="DIR", help="output folder (created)")
+    parser.add_argument(
+        "--scheduler", metavar="ADDRESS", help="a Dask scheduler, e.g. tcp://10.0.0.5:8786"
+    )
+    parser.add_argument(
+        "--workers", type=positive_int, metavar="N", help="local worker processes (default: CPUs)"
+    )
+    parser.add_argument("--resume", action="store_true", help="finish a sweep started in --out")
+    parser.add_argument(
+        "--plot",
+        metavar="METRIC",
+        help="after the sweep, draw METRIC (a column, e.g. final_error_q3) over the varied "
+        "values: a line over one, a heat map over two (mean over the others); "
+        "written to OUT/METRIC.png",
+    )
+    parser.add_argument(
+        "--no-progress", action="store_true", help="no progress bar on stderr"
+    )
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the sweep, print its summary, draw the plot."""
+    from rrt_pin.sweeps.run import sweep
+
+    result = sweep(
+        args.spec,
+        args.out,
+        scheduler=args.scheduler,
+        workers=args.workers,
+        resume=args.resume,
+        progress=not args.no_progress,
+    )
+    sys.stdout.write(result.summary())
+    if args.plot:
+        from rrt_pin.sweeps.plot import plot_metric
+
+        path = plot_metric(result.out, args.plot)
+        print(f"wrote {path}", file=sys.stderr)
+    return 0

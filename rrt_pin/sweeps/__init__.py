@@ -1,0 +1,1 @@
+"""Sweeps: many variants of a run, chunked, on Dask, stored as Parquet."""
