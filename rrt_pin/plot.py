@@ -42,13 +42,7 @@ def render_panels(
     Raises:
         ImportError: matplotlib is missing (``pip install rrt-pin[plot]``).
     """
-    try:
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-    except ImportError as e:  # pragma: no cover - depends on the install
-        raise ImportError("matplotlib not found: pip install rrt-pin[plot]") from e
+    plt = _pyplot()
     import io
 
     fig, axes = plt.subplots(len(panels), 1, sharex=True, figsize=(8, 2.4 * len(panels) + 0.8))
@@ -71,6 +65,27 @@ def render_panels(
         return buffer.getvalue()
     finally:
         plt.close(fig)
+
+
+def _pyplot():  # noqa: ANN202
+    """matplotlib.pyplot on the Agg backend.
+
+    Raises:
+        InputError: matplotlib is missing (with how to install it).
+    """
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError as e:  # pragma: no cover - depends on the install
+        from rrt_pin.errors import InputError
+
+        raise InputError(
+            "matplotlib not found: pip install 'rrt-pin[plot]' "
+            "(from a checkout: .venv/bin/pip install -e '.[plot]')"
+        ) from e
+    return plt
 
 
 def plot_panels(

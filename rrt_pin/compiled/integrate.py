@@ -459,7 +459,10 @@ def integrate_arrays(
         C: controller parameters (B, 24): kp, kd, qf and the law's 15 parameters.
         Y0: initial states (B, 6): q [rad, rad, m] then q̇.
         t: increasing output times [s] (validated by the caller).
-        method, rtol, atol, step: as resolved by :func:`rrt_pin.simulate.options.resolve`.
+        method: a method that runs compiled (as resolved by ``rrt_pin.simulate.options``).
+        rtol: relative tolerance (adaptive methods).
+        atol: absolute tolerance [rad, m, rad/s, m/s] (adaptive methods).
+        step: longest step [s] (fixed-step methods).
         max_steps: step budget of each variant.
         out: buffers (≥ B, T, 6) and (≥ B, T, 3) to write the states and efforts into
             (reused across calls, they keep memory flat and warm).

@@ -140,7 +140,7 @@ def plan(spec: Spec) -> Plan:
     """
     import json
 
-    return _plan(spec.digest(), json.dumps(spec.source, sort_keys=True))
+    return _plan(spec.digest(), json.dumps(spec.source))
 
 
 # --------------------------------------------------------------------------- the arm

@@ -174,10 +174,14 @@ class Spec:
         return [(s, min(s + self.chunk, n)) for s in range(0, n, self.chunk)]
 
     def digest(self) -> str:
-        """A hash of what the sweep computes (the chunk size excluded: it changes no result)."""
-        src = {k: v for k, v in self.source.items() if k != "sweep"}
-        src["sweep"] = {k: v for k, v in self.source.get("sweep", {}).items() if k != "chunk"}
-        text = json.dumps(src, sort_keys=True, default=str)
+        """A hash of what the sweep computes (the chunk size excluded: it changes no result).
+
+        The order of the [vary] names counts: it orders the variants.
+        """
+        src = {k: self.source[k] for k in _SECTIONS if k in self.source and k != "sweep"}
+        sweep = self.source.get("sweep", {})
+        src["sweep"] = {k: sweep[k] for k in sorted(sweep) if k != "chunk"}
+        text = json.dumps(src, default=str)
         return hashlib.sha256(text.encode("utf-8")).hexdigest()[:16]
 
     # ------------------------------------------------------------------ values

@@ -109,7 +109,7 @@ class Store:
         return done
 
     def _write_manifest(self) -> None:
-        text = json.dumps(self.manifest, indent=1, sort_keys=True) + "\n"
+        text = json.dumps(self.manifest, indent=1) + "\n"
         atomic_write_bytes(self.manifest_path, text.encode("utf-8"), flag="--out")
 
     def write_chunk(self, k: int, result: dict[str, Any], units: dict[str, str]) -> None:
