@@ -291,26 +291,28 @@ def sweep(
         "columns": {"q": robot.q_names, "qd": robot.qd_names, "tau": robot.effort_names},
     }
     store = Store(out)
-    done = store.start(manifest, resume)
-    table = spec.random_table() if spec.random_axes else {}
-    jobs = [
-        (k, a, b, spec.random_rows(table, a, b) if table else None)
-        for k, (a, b) in enumerate(spec.chunks)
-        if k not in done
-    ]
-    units = _units(spec)
-    result = SweepResult(Path(out), spec.variants, len(spec.chunks), len(jobs), 0.0)
-    groups = spec.metrics
-    worst = _Worst(WORST)
-    result.metric = "max final_error" if "final_error" in groups else (
-        "control_energy" if "control_energy" in groups else "")  # fmt: skip
-    bar = _bar(progress, spec, done)
-    client = cluster = None
+    store.check(manifest, resume)  # before any work or any file: one line, nothing written
+    client = cluster = bar = None
+    if scheduler is not None or n_workers > 1:
+        client, cluster = _client(scheduler, n_workers)
     try:
-        if scheduler is None and n_workers == 1:
+        done = store.start(manifest, resume)
+        table = spec.random_table() if spec.random_axes else {}
+        jobs = [
+            (k, a, b, spec.random_rows(table, a, b) if table else None)
+            for k, (a, b) in enumerate(spec.chunks)
+            if k not in done
+        ]
+        units = _units(spec)
+        result = SweepResult(Path(out), spec.variants, len(spec.chunks), len(jobs), 0.0)
+        groups = spec.metrics
+        worst = _Worst(WORST)
+        result.metric = "max final_error" if "final_error" in groups else (
+            "control_energy" if "control_energy" in groups else "")  # fmt: skip
+        bar = _bar(progress, spec, done)
+        if client is None:
             stream = _in_process(spec, jobs)
         else:
-            client, cluster = _client(scheduler, n_workers)
             stream = _on_dask(client, spec, jobs, n_workers)
         for k, chunk in stream:
             store.write_chunk(k, chunk, units)
@@ -342,8 +344,9 @@ def sweep(
 def _ranked(cols: Mapping[str, np.ndarray]) -> np.ndarray | None:
     errors = [c for n, c in cols.items() if n.startswith("final_error_")]
     if errors:
-        with np.errstate(invalid="ignore"):
-            return np.nanmax(np.column_stack(errors), axis=1) if len(errors) > 1 else errors[0]
+        stacked = np.column_stack(errors)
+        # NaN (a diverged variant) ranks last: it has its own count in the summary
+        return np.where(np.isnan(stacked), -np.inf, stacked).max(axis=1)
     return cols.get("control_energy")
 
 

@@ -73,12 +73,12 @@ class Store:
         except (OSError, ValueError) as e:
             raise InputError(f"cannot read {str(self.manifest_path)!r}: {e}") from e
 
-    def start(self, manifest: dict[str, Any], resume: bool) -> set[int]:
-        """Open the folder for a sweep; the chunks already done (when resuming).
+    def check(self, manifest: dict[str, Any], resume: bool) -> None:
+        """Refuse, writing nothing, a folder this sweep cannot use.
 
         Raises:
-            InputError: the folder is a file; it holds another sweep and ``resume`` is
-                false; or ``resume`` is true and the spec differs.
+            InputError: the folder is a file or its parent is missing; it holds another
+                sweep and ``resume`` is false; or ``resume`` is true and the spec differs.
         """
         if self.folder.exists() and not self.folder.is_dir():
             raise InputError(f"--out {str(self.folder)!r} is not a folder")
@@ -98,8 +98,13 @@ class Store:
                 f"--resume: chunk={manifest['chunk']} but the sweep in {str(self.folder)!r} "
                 f"was started with chunk={old.get('chunk')}"
             )
-        if not self.folder.is_dir() and self.folder.parent.is_dir() is False:
+        if not self.folder.is_dir() and not self.folder.absolute().parent.is_dir():
             raise InputError(f"--out {str(self.folder)!r}: its folder does not exist")
+
+    def start(self, manifest: dict[str, Any], resume: bool) -> set[int]:
+        """Open the folder for a sweep (after :meth:`check`); the chunks already done."""
+        self.check(manifest, resume)
+        old = self.read_manifest() if self.folder.is_dir() else None
         (self.folder / "chunks").mkdir(parents=True, exist_ok=True)
         done = set()
         if old is not None:

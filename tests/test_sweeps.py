@@ -1,0 +1,276 @@
+"""Sweeps: specs, metrics equal to single runs, Dask workers (killed too), resume, determinism."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import pyarrow.parquet as pq
+import pytest
+
+from rrt_pin.cli import main
+from rrt_pin.errors import SceneError
+from rrt_pin.sweeps.run import sweep
+from rrt_pin.sweeps.spec import spec_from_dict
+
+ROOT = Path(__file__).resolve().parents[1]
+
+SPEC = {
+    "sweep": {"tf": 3.0, "dt": 0.02, "count": 700, "seed": 11, "chunk": 500},
+    "vary": {
+        "m3": [35.0, 45.0],
+        "gamma01": {"uniform": [225.0, 375.0]},
+        "q10": {"normal": [0.1745, 0.05]},
+        "beta23": {"lhs": [120.0, 180.0]},
+    },
+    "keep": {"trajectories": [3, 1000]},
+}
+
+
+def _rows(out: Path):
+    table = pq.read_table(out / "chunks").sort_by("variant")
+    return {name: table.column(name).to_numpy(zero_copy_only=False) for name in table.column_names}
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory):
+    """The sweep in this process (no Dask), chunks of 500."""
+    out = tmp_path_factory.mktemp("sweep") / "ref"
+    result = sweep(SPEC, out, workers=1, progress=False)
+    assert result.variants == 1400 and result.chunks == 3 and result.computed == 3
+    return out, _rows(out)
+
+
+def test_spec_values_are_a_grid_times_random_samples():
+    spec = spec_from_dict(SPEC)
+    assert spec.variants == 2 * 700 and spec.chunks[-1] == (1000, 1400)
+    v = spec.values(0, 1400)
+    assert set(np.unique(v["m3"])) == {35.0, 45.0} and (v["m3"][:700] == 35.0).all()
+    np.testing.assert_array_equal(v["gamma01"][:700], v["gamma01"][700:])  # same samples
+    assert 225 <= v["gamma01"].min() and v["gamma01"].max() <= 375
+    # Latin hypercube: one sample in each of the 700 strata
+    strata = np.floor((v["beta23"][:700] - 120.0) / 60.0 * 700).astype(int)
+    assert sorted(strata) == list(range(700))
+    # a range's values never depend on how it is cut
+    parts = [spec.values(a, b) for a, b in ((0, 333), (333, 1400))]
+    for name in v:
+        np.testing.assert_array_equal(np.concatenate([p[name] for p in parts]), v[name])
+
+
+def test_metrics_equal_single_runs(reference):
+    """Every metric of sampled variants equals a single simulate() of its parameters (1e-9)."""
+    from rrt_pin.control import regulator
+    from rrt_pin.grid import time_grid
+    from rrt_pin.metrics import settling_times
+    from rrt_pin.params import Params
+    from rrt_pin.robots import chapter_arm
+    from rrt_pin.simulate import simulate
+
+    _, rows = reference
+    t = time_grid(3.0, 0.02)
+    for i in (0, 699, 700, 1399):
+        p = Params(**{n: float(rows[n][i]) for n in ("m3", "gamma01", "q10", "beta23")})
+        arm = chapter_arm(p)
+        for backend, tol in (("compiled", 0.0), ("pinocchio", 1e-9)):
+            run = simulate(arm, regulator(arm), p.q0, p.qd0, t, backend=backend, method="DOP853")
+            for k, name in enumerate(("q1", "q2", "q3")):
+                err = abs(run.q[-1, k] - p.qf[k])
+                assert abs(rows[f"final_error_{name}"][i] - err) <= tol
+                assert abs(rows[f"excursion_{name}"][i] - np.abs(run.q[:, k] - run.q[0, k]).max()) <= tol
+            settle = settling_times(run.t, run.q, p.q0, p.qf)
+            got = [rows[f"settling_time_{n}"][i] for n in ("q1", "q2", "q3")]
+            assert [np.nan if s is None else s for s in settle] == pytest.approx(got, nan_ok=True)
+            for k, name in enumerate(("T01x", "T12y", "F23z")):
+                j = int(np.argmax(np.abs(run.tau[:, k])))
+                assert abs(rows[f"peak_effort_{name}"][i] - abs(run.tau[j, k])) <= 1e-9 * abs(run.tau[j, k]) + tol
+            power = np.abs(run.tau * run.qd).sum(axis=1)
+            energy = float(np.sum(0.5 * (power[1:] + power[:-1]) * np.diff(run.t)))
+            assert abs(rows["control_energy"][i] - energy) <= 1e-9 * energy
+            if backend == "compiled":
+                assert rows["evaluations"][i] == run.n_evals
+    assert not rows["diverged"].any() and (rows["variant"] == np.arange(1400)).all()
+
+
+def test_kept_trajectories_and_metadata(reference):
+    out, rows = reference
+    dense = pq.read_table(out / "trajectories" / "variant-1000.parquet")
+    assert dense.column_names[:4] == ["t", "q1", "q2", "q3"] and dense.num_rows == 151
+    q3 = dense.column("q3").to_numpy()
+    assert rows["excursion_q3"][1000] == pytest.approx(np.abs(q3 - q3[0]).max(), rel=1e-12)
+    meta = pq.read_schema(out / "chunks" / "chunk-000000.parquet").metadata
+    import json
+
+    units = json.loads(meta[b"rrt_pin.units"])
+    assert units["m3"] == "kg" and units["settling_time_q1"] == "s"
+    assert units["peak_effort_F23z"] == "N" and units["control_energy"] == "J"
+
+
+def test_two_dask_workers_and_another_chunk_size_give_the_same_bits(reference, tmp_path):
+    _, ref = reference
+    spec = {**SPEC, "sweep": {**SPEC["sweep"], "chunk": 256}}
+    result = sweep(spec, tmp_path / "two", workers=2, progress=False)
+    assert result.chunks == 6
+    rows = _rows(tmp_path / "two")
+    for name, col in ref.items():
+        np.testing.assert_array_equal(rows[name], col, err_msg=name)
+
+
+def test_a_killed_worker_loses_nothing(reference, tmp_path):
+    """SIGKILL one of two workers mid-sweep: Dask retries its chunk; every variant once."""
+    from distributed import Client, LocalCluster
+
+    _, ref = reference
+    spec = {**SPEC, "sweep": {**SPEC["sweep"], "chunk": 100}}
+    out = tmp_path / "killed"
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                      dashboard_address=None) as cluster, Client(cluster) as client:  # fmt: skip
+        pids = list(client.run(os.getpid).values())
+        killed = []
+
+        def killer():
+            deadline = time.monotonic() + 60
+            while time.monotonic() < deadline and not killed:
+                if len(list((out / "chunks").glob("*.parquet"))) >= 2:
+                    os.kill(pids[0], signal.SIGKILL)
+                    killed.append(pids[0])
+                time.sleep(0.01)
+
+        thread = threading.Thread(target=killer)
+        thread.start()
+        result = sweep(spec, out, scheduler=cluster.scheduler_address, progress=False)
+        thread.join()
+    assert killed and result.computed == 14
+    rows = _rows(out)
+    assert (rows["variant"] == np.arange(1400)).all()
+    for name, col in ref.items():
+        np.testing.assert_array_equal(rows[name], col, err_msg=name)
+
+
+def test_resume_after_a_kill_computes_only_what_is_missing(reference, tmp_path):
+    _, ref = reference
+    spec_file = tmp_path / "spec.toml"
+    spec_file.write_text(
+        "[sweep]\ntf = 3.0\ndt = 0.02\ncount = 700\nseed = 11\nchunk = 100\n"
+        "[vary]\nm3 = [35.0, 45.0]\ngamma01 = { uniform = [225.0, 375.0] }\n"
+        "q10 = { normal = [0.1745, 0.05] }\nbeta23 = { lhs = [120.0, 180.0] }\n"
+        "[keep]\ntrajectories = [3, 1000]\n"
+    )
+    out = tmp_path / "out"
+    argv = [sys.executable, "-m", "rrt_pin", "sweep", str(spec_file), "--out", str(out)]
+    proc = subprocess.Popen([*argv, "--workers", "1", "--no-progress"], cwd=ROOT,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)  # fmt: skip
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline and len(list(out.glob("chunks/*.parquet"))) < 3:
+        time.sleep(0.01)
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    before = len(list(out.glob("chunks/*.parquet")))
+    assert 3 <= before < 14
+    # without --resume the folder is refused; a changed spec is refused
+    assert main([*argv[3:], "--workers", "1", "--no-progress"]) == 2
+    changed = tmp_path / "changed.toml"
+    changed.write_text(spec_file.read_text().replace("seed = 11", "seed = 12"))
+    assert main(["sweep", str(changed), "--out", str(out), "--resume", "--no-progress"]) == 2
+    result = sweep(spec_file, out, workers=1, resume=True, progress=False)
+    assert result.computed <= 14 - before + 1  # at most the chunk being written when killed
+    rows = _rows(out)
+    for name, col in ref.items():
+        np.testing.assert_array_equal(rows[name], col, err_msg=name)
+
+
+def test_diverging_variants_are_rows_not_crashes(tmp_path):
+    spec = {
+        "sweep": {"tf": 2.0, "dt": 0.05, "method": "rk4"},
+        "vary": {"gamma23": [50.0, 1e9]},  # stiff: rk4 at 50 ms blows up
+    }
+    result = sweep(spec, tmp_path / "d", workers=1, progress=False)
+    rows = _rows(tmp_path / "d")
+    assert list(rows["diverged"]) == [False, True] and result.diverged == 1
+    assert rows["diverged_time"][1] > 0 and rows["diverged_coordinate"][1].startswith(("q", "qd"))
+    assert np.isnan(rows["final_error_q1"][1]) and np.isfinite(rows["final_error_q1"][0])
+
+
+def test_a_urdf_sweep_runs_on_pinocchio_batches(tmp_path):
+    from tests.support import robot_urdf
+
+    spec = {
+        "sweep": {"urdf": str(robot_urdf("ur5")), "tf": 1.0, "dt": 0.05, "chunk": 10},
+        "base": {"q0": 0.0, "qf": [0.3, -0.4, 0.5, 0.0, 0.2, 0.1], "kp": 100.0, "kd": 20.0},
+        "vary": {"kp_1": {"linspace": [50.0, 150.0, 70]}},
+        "keep": {"metrics": ["final_error", "evaluations"]},
+    }
+    a = sweep(spec, tmp_path / "a", workers=1, progress=False)
+    assert a.chunks == 2  # chunks of 64 (a URDF sweep's block), whatever was asked
+    b_spec = {**spec, "sweep": {**spec["sweep"], "chunk": 200}}
+    sweep(b_spec, tmp_path / "b", workers=1, progress=False)
+    ra, rb = _rows(tmp_path / "a"), _rows(tmp_path / "b")
+    for name in ra:
+        np.testing.assert_array_equal(ra[name], rb[name], err_msg=name)
+    # a variant against a single run of its own parameters
+    from rrt_pin.control import pd_gravity_controller
+    from rrt_pin.grid import time_grid
+    from rrt_pin.robot import Robot
+    from rrt_pin.simulate import simulate
+
+    robot = Robot.from_urdf(robot_urdf("ur5"))
+    qf = np.array(spec["base"]["qf"])
+    kp = np.full(6, 100.0)
+    kp[0] = ra["kp_1"][35]
+    run = simulate(robot, pd_gravity_controller(robot.model, kp, 20.0, qf), np.zeros(6), None,
+                   time_grid(1.0, 0.05))  # fmt: skip
+    errors = np.abs(run.q[-1] - qf)
+    assert abs(ra["final_error_q_shoulder_pan_joint"][35] - errors[0]) <= 1e-8
+    assert abs(ra["final_error_q_wrist_3_joint"][35] - errors[5]) <= 1e-8
+
+
+def test_an_inverse_sweep(tmp_path):
+    spec = {
+        "sweep": {"task": "inverse", "tf": 15.0, "dt": 0.01},
+        "vary": {"m3": {"linspace": [30.0, 50.0, 3]}},
+    }
+    sweep(spec, tmp_path / "inv", workers=1, progress=False)
+    rows = _rows(tmp_path / "inv")
+    peaks = rows["peak_effort_F23z"]
+    assert peaks[0] < peaks[1] < peaks[2]  # a heavier slider needs more force
+    assert abs(peaks[1] - 339.828) < 0.01  # the chapter's arm (m3 = 40 kg)
+
+
+def test_cli_summary_and_plot(tmp_path, capsys):
+    spec = tmp_path / "s.toml"
+    spec.write_text(
+        "[sweep]\ntf = 2.0\ndt = 0.05\n[vary]\ngamma01 = { linspace = [200, 400, 5] }\n"
+        "m3 = [30, 40]\n"
+    )
+    out = tmp_path / "out"
+    code = main(["sweep", str(spec), "--out", str(out), "--workers", "1", "--plot",
+                 "settling_time_q1", "--no-progress"])  # fmt: skip
+    captured = capsys.readouterr()
+    assert code == 0 and "sweep of 10 variants" in captured.out
+    assert "worst max final_error" in captured.out
+    assert (out / "settling_time_q1.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.mark.parametrize(
+    "change, words",
+    [
+        ({"vary": {"mass": [1.0]}}, "[vary] mass: unknown name"),
+        ({"vary": {"m3": []}}, "[vary] m3 is an empty list"),
+        ({"vary": {"m3": {"uniform": [5.0, 5.0]}}}, "uniform needs low < high"),
+        ({"sweep": {"count": -3}, "vary": {"m3": {"uniform": [1.0, 2.0]}}}, "count=-3"),
+        ({"vary": {"m1": {"linspace": [-10.0, 10.0, 3]}}}, "[vary] m1 reaches -10: parameter m1"),
+        ({"keep": {"metrics": ["joy"]}}, "metric 'joy' is not one of"),
+        ({"vary": {"m3": {"uniform": [1.0, 2.0]}}}, "random axes need count"),
+    ],
+)
+def test_bad_specs_are_one_line(tmp_path, change, words):
+    spec = {**{"sweep": {"tf": 1.0, "dt": 0.1}}, **change}
+    with pytest.raises(SceneError) as info:
+        sweep(spec, tmp_path / "out", workers=1, progress=False)
+    assert words in str(info.value) and "\n" not in str(info.value)
+    assert not (tmp_path / "out").exists()
