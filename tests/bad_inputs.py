@@ -34,6 +34,14 @@ def make_files(tmp: Path) -> None:
     (tmp / "inf.csv").write_text("t,q1,q2,q3\n0,0.1,0.2,0.3\n1,0.1,inf,0.3\n")
     (tmp / "missing.csv").write_text("t,q1,q2\n0,0.1,0.2\n1,0.1,0.2\n")
     (tmp / "bad.toml").write_text("[params\nm1 = 1\n")
+    sweep = "[sweep]\ntf = 1.0\ndt = 0.1\n"
+    (tmp / "sweep_ok.toml").write_text(sweep + "[vary]\nm3 = [30, 40]\n")
+    (tmp / "sweep_unknown.toml").write_text(sweep + "[vary]\nmass = [1, 2]\n")
+    (tmp / "sweep_empty.toml").write_text(sweep + "[vary]\nm3 = []\n")
+    (tmp / "sweep_count.toml").write_text(
+        sweep.replace("dt = 0.1", "dt = 0.1\ncount = -5") + "[vary]\nm3 = { uniform = [1, 2] }\n"
+    )
+    (tmp / "sweep_mass.toml").write_text(sweep + "[vary]\nm1 = { linspace = [-10, 10, 5] }\n")
     (tmp / "unknown.toml").write_text("[params]\nmass = 1\n")
     # expressions and URDF files
     mass = '<mass value="90.0"/>'
@@ -355,5 +363,31 @@ CASES = (
         "--plot file name over 255 bytes",
         ("inverse", "--plot", "{tmp}/" + "p" * 300 + ".png"),
         "--plot",
+    ),
+    # sweeps
+    Case(
+        "sweep: unknown symbol",
+        ("sweep", "{tmp}/sweep_unknown.toml", "--out", "{tmp}/sweep"),
+        "[vary] mass: unknown name",
+    ),
+    Case(
+        "sweep: empty range",
+        ("sweep", "{tmp}/sweep_empty.toml", "--out", "{tmp}/sweep"),
+        "[vary] m3 is an empty list",
+    ),
+    Case(
+        "sweep: negative count",
+        ("sweep", "{tmp}/sweep_count.toml", "--out", "{tmp}/sweep"),
+        "count=-5 must be an integer >= 1",
+    ),
+    Case(
+        "sweep: a range that makes a mass negative",
+        ("sweep", "{tmp}/sweep_mass.toml", "--out", "{tmp}/sweep"),
+        "[vary] m1 reaches -10",
+    ),
+    Case(
+        "sweep: unreachable scheduler",
+        ("sweep", "{tmp}/sweep_ok.toml", "--out", "{tmp}/sweep", "--scheduler", "tcp://127.0.0.1:9"),
+        "cannot reach the Dask scheduler 'tcp://127.0.0.1:9'",
     ),
 )

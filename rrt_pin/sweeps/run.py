@@ -34,6 +34,8 @@ __all__ = ["SweepResult", "sweep"]
 IN_FLIGHT = 2
 #: Worst variants listed in the summary.
 WORST = 3
+#: How long to try reaching a scheduler before saying it cannot be reached.
+CONNECT_TIMEOUT = "5s"
 
 
 @dataclass
@@ -186,7 +188,7 @@ def _client(scheduler: str | None, workers: int) -> tuple[Any, Any]:
         ) from e
     if scheduler is not None:
         try:
-            return Client(scheduler, timeout="10s"), None
+            return Client(scheduler, timeout=CONNECT_TIMEOUT), None
         except (OSError, TimeoutError, ValueError) as e:
             raise InputError(f"cannot reach the Dask scheduler {scheduler!r}: {e}") from e
     cluster = LocalCluster(
