@@ -49,6 +49,8 @@ _LAZY = {
     "SimulationResult": "rrt_pin.simulate.results",
     "BatchResult": "rrt_pin.simulate.results",
     "equations_of_motion": "rrt_pin.symbolic",
+    "sweep": "rrt_pin.sweeps.run",
+    "load_spec": "rrt_pin.sweeps.spec",
 }
 #: Subpackages and modules reachable as attributes (``rrt_pin.simulate`` is callable).
 _MODULES = ("simulate", "robots", "methods", "backends", "control", "compiled")

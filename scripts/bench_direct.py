@@ -37,7 +37,7 @@ from rrt_pin.inverse import default_num_threads
 from rrt_pin.methods import METHODS
 from rrt_pin.model import rrt_model
 from rrt_pin.params import Params
-from rrt_pin.reference import reference_run, chapter_reference
+from rrt_pin.reference import chapter_reference, reference_run
 from rrt_pin.simulate import simulate, simulate_batch
 
 TARGET_ERROR = 1e-8  # max |q error| the defaults must reach [rad, m]

@@ -201,14 +201,16 @@ def _client(scheduler: str | None, workers: int) -> tuple[Any, Any]:
     return Client(cluster), cluster
 
 
-def _in_process(spec: Spec, jobs: list[tuple[int, int, int, dict]]) -> Iterator[tuple[int, dict]]:
+def _in_process(
+    spec: Spec, jobs: Iterator[tuple[int, int, int, dict]]
+) -> Iterator[tuple[int, dict]]:
     from rrt_pin.sweeps.compute import run_chunk
 
     for k, start, stop, rows in jobs:
         yield k, run_chunk(spec.source, start, stop, rows)
 
 
-def _on_dask(client: Any, spec: Spec, jobs: list[tuple[int, int, int, dict]],
+def _on_dask(client: Any, spec: Spec, jobs: Iterator[tuple[int, int, int, dict]],
              workers: int) -> Iterator[tuple[int, dict]]:  # fmt: skip
     from distributed import as_completed
 
@@ -300,13 +302,12 @@ def sweep(
     try:
         done = store.start(manifest, resume)
         table = spec.random_table() if spec.random_axes else {}
-        jobs = [
-            (k, a, b, spec.random_rows(table, a, b) if table else None)
-            for k, (a, b) in enumerate(spec.chunks)
-            if k not in done
-        ]
+        todo = [(k, a, b) for k, (a, b) in enumerate(spec.chunks) if k not in done]
+        jobs = (  # each chunk's random rows are cut when it is submitted: memory stays flat
+            (k, a, b, spec.random_rows(table, a, b) if table else None) for k, a, b in todo
+        )
         units = _units(spec)
-        result = SweepResult(Path(out), spec.variants, len(spec.chunks), len(jobs), 0.0)
+        result = SweepResult(Path(out), spec.variants, len(spec.chunks), len(todo), 0.0)
         groups = spec.metrics
         worst = _Worst(WORST)
         result.metric = "max final_error" if "final_error" in groups else (
