@@ -22,7 +22,7 @@ from rrt_pin.sweeps.spec import spec_from_dict
 ROOT = Path(__file__).resolve().parents[1]
 
 SPEC = {
-    "sweep": {"tf": 3.0, "dt": 0.02, "count": 700, "seed": 11, "chunk": 500},
+    "sweep": {"tf": 3.0, "dt": 0.02, "count": 1500, "seed": 11, "chunk": 1000},
     "vary": {
         "m3": [35.0, 45.0],
         "gamma01": {"uniform": [225.0, 375.0]},
@@ -43,22 +43,22 @@ def reference(tmp_path_factory):
     """The sweep in this process (no Dask), chunks of 500."""
     out = tmp_path_factory.mktemp("sweep") / "ref"
     result = sweep(SPEC, out, workers=1, progress=False)
-    assert result.variants == 1400 and result.chunks == 3 and result.computed == 3
+    assert result.variants == 3000 and result.chunks == 3 and result.computed == 3
     return out, _rows(out)
 
 
 def test_spec_values_are_a_grid_times_random_samples():
     spec = spec_from_dict(SPEC)
-    assert spec.variants == 2 * 700 and spec.chunks[-1] == (1000, 1400)
-    v = spec.values(0, 1400)
-    assert set(np.unique(v["m3"])) == {35.0, 45.0} and (v["m3"][:700] == 35.0).all()
-    np.testing.assert_array_equal(v["gamma01"][:700], v["gamma01"][700:])  # same samples
+    assert spec.variants == 2 * 1500 and spec.chunks[-1] == (2000, 3000)
+    v = spec.values(0, 3000)
+    assert set(np.unique(v["m3"])) == {35.0, 45.0} and (v["m3"][:1500] == 35.0).all()
+    np.testing.assert_array_equal(v["gamma01"][:1500], v["gamma01"][1500:])  # same samples
     assert 225 <= v["gamma01"].min() and v["gamma01"].max() <= 375
-    # Latin hypercube: one sample in each of the 700 strata
-    strata = np.floor((v["beta23"][:700] - 120.0) / 60.0 * 700).astype(int)
-    assert sorted(strata) == list(range(700))
+    # Latin hypercube: one sample in each of the 1500 strata
+    strata = np.floor((v["beta23"][:1500] - 120.0) / 60.0 * 1500).astype(int)
+    assert sorted(strata) == list(range(1500))
     # a range's values never depend on how it is cut
-    parts = [spec.values(a, b) for a, b in ((0, 333), (333, 1400))]
+    parts = [spec.values(a, b) for a, b in ((0, 333), (333, 3000))]
     for name in v:
         np.testing.assert_array_equal(np.concatenate([p[name] for p in parts]), v[name])
 
@@ -74,7 +74,7 @@ def test_metrics_equal_single_runs(reference):
 
     _, rows = reference
     t = time_grid(3.0, 0.02)
-    for i in (0, 699, 700, 1399):
+    for i in (0, 1499, 1500, 2999):
         p = Params(**{n: float(rows[n][i]) for n in ("m3", "gamma01", "q10", "beta23")})
         arm = chapter_arm(p)
         for backend, tol in (("compiled", 0.0), ("pinocchio", 1e-9)):
@@ -94,7 +94,7 @@ def test_metrics_equal_single_runs(reference):
             assert abs(rows["control_energy"][i] - energy) <= 1e-9 * energy
             if backend == "compiled":
                 assert rows["evaluations"][i] == run.n_evals
-    assert not rows["diverged"].any() and (rows["variant"] == np.arange(1400)).all()
+    assert not rows["diverged"].any() and (rows["variant"] == np.arange(3000)).all()
 
 
 def test_kept_trajectories_and_metadata(reference):
@@ -115,7 +115,7 @@ def test_two_dask_workers_and_another_chunk_size_give_the_same_bits(reference, t
     _, ref = reference
     spec = {**SPEC, "sweep": {**SPEC["sweep"], "chunk": 256}}
     result = sweep(spec, tmp_path / "two", workers=2, progress=False)
-    assert result.chunks == 6
+    assert result.chunks == 12
     rows = _rows(tmp_path / "two")
     for name, col in ref.items():
         np.testing.assert_array_equal(rows[name], col, err_msg=name)
@@ -126,7 +126,7 @@ def test_a_killed_worker_loses_nothing(reference, tmp_path):
     from distributed import Client, LocalCluster
 
     _, ref = reference
-    spec = {**SPEC, "sweep": {**SPEC["sweep"], "chunk": 100}}
+    spec = {**SPEC, "sweep": {**SPEC["sweep"], "chunk": 200}}
     out = tmp_path / "killed"
     with LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
                       dashboard_address=None) as cluster, Client(cluster) as client:  # fmt: skip
@@ -145,9 +145,9 @@ def test_a_killed_worker_loses_nothing(reference, tmp_path):
         thread.start()
         result = sweep(spec, out, scheduler=cluster.scheduler_address, progress=False)
         thread.join()
-    assert killed and result.computed == 14
+    assert killed and result.computed == 15
     rows = _rows(out)
-    assert (rows["variant"] == np.arange(1400)).all()
+    assert (rows["variant"] == np.arange(3000)).all()
     for name, col in ref.items():
         np.testing.assert_array_equal(rows[name], col, err_msg=name)
 
@@ -156,7 +156,7 @@ def test_resume_after_a_kill_computes_only_what_is_missing(reference, tmp_path):
     _, ref = reference
     spec_file = tmp_path / "spec.toml"
     spec_file.write_text(
-        "[sweep]\ntf = 3.0\ndt = 0.02\ncount = 700\nseed = 11\nchunk = 100\n"
+        "[sweep]\ntf = 3.0\ndt = 0.02\ncount = 1500\nseed = 11\nchunk = 200\n"
         "[vary]\nm3 = [35.0, 45.0]\ngamma01 = { uniform = [225.0, 375.0] }\n"
         "q10 = { normal = [0.1745, 0.05] }\nbeta23 = { lhs = [120.0, 180.0] }\n"
         "[keep]\ntrajectories = [3, 1000]\n"
@@ -171,14 +171,14 @@ def test_resume_after_a_kill_computes_only_what_is_missing(reference, tmp_path):
     proc.send_signal(signal.SIGKILL)
     proc.wait()
     before = len(list(out.glob("chunks/*.parquet")))
-    assert 3 <= before < 14
+    assert 3 <= before < 15
     # without --resume the folder is refused; a changed spec is refused
     assert main([*argv[3:], "--workers", "1", "--no-progress"]) == 2
     changed = tmp_path / "changed.toml"
     changed.write_text(spec_file.read_text().replace("seed = 11", "seed = 12"))
     assert main(["sweep", str(changed), "--out", str(out), "--resume", "--no-progress"]) == 2
     result = sweep(spec_file, out, workers=1, resume=True, progress=False)
-    assert result.computed <= 14 - before + 1  # at most the chunk being written when killed
+    assert result.computed <= 15 - before + 1  # at most the chunk being written when killed
     rows = _rows(out)
     for name, col in ref.items():
         np.testing.assert_array_equal(rows[name], col, err_msg=name)

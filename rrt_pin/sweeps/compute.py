@@ -283,6 +283,8 @@ def _urdf_simulate(p: Plan, values: dict, start: int, count: int, rows: list[int
         for i in range(count)
     ]  # fmt: skip
     options = {"method": p.method, "rtol": p.rtol, "atol": p.atol, "step": p.step}
+    # efforts only where a metric (or a kept trajectory) needs them
+    efforts = bool({"peak_effort", "control_energy"} & set(p.spec.metrics)) or bool(rows)
     edges = sorted({0, count, *range((-start) % BLOCK, count, BLOCK)})
     for a, b in zip(edges[:-1], edges[1:], strict=True):
         idx = [i for i in range(a, b) if not bad[i]]
@@ -290,8 +292,10 @@ def _urdf_simulate(p: Plan, values: dict, start: int, count: int, rows: list[int
             continue
         try:
             run = simulate_batch(robot, [laws[i] for i in idx], cols["q0"][idx], cols["qd0"][idx],
-                                 p.t, threads=1, **options)  # fmt: skip
-            q[idx], qd[idx], tau[idx] = run.q, run.qd, run.tau
+                                 p.t, threads=1, efforts=efforts, **options)  # fmt: skip
+            q[idx], qd[idx] = run.q, run.qd
+            if efforts:
+                tau[idx] = run.tau
             evals[idx] = run.n_evals
         except DivergenceError:  # find which: each variant on its own
             for i in idx:
