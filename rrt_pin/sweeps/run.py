@@ -18,7 +18,7 @@ import math
 import os
 import sys
 import time
-from collections.abc import Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -248,6 +248,7 @@ def sweep(
     workers: int | None = None,
     resume: bool = False,
     progress: bool = True,
+    on_chunk: Callable[[int, int], object] | None = None,
 ) -> SweepResult:
     """Run a sweep: every variant of ``spec``, chunk by chunk, into ``out``.
 
@@ -258,6 +259,7 @@ def sweep(
         workers: local worker processes (default: the CPUs available; 1: this process).
         resume: finish a sweep started in ``out`` (refused if its spec differs).
         progress: a progress bar on stderr (variants, rate, ETA).
+        on_chunk: called with (chunk index, its variant count) after each chunk is stored.
 
     Returns:
         A :class:`SweepResult` (counts, worst cases, ``.table()`` of every row).
@@ -332,6 +334,8 @@ def sweep(
                 worst.add(ranked, chunk["index"], chunk["values"])
             if bar is not None:
                 bar.update(len(chunk["index"]))
+            if on_chunk is not None:
+                on_chunk(k, len(chunk["index"]))
     finally:
         if bar is not None:
             bar.close()

@@ -9,7 +9,7 @@ A spec is a TOML file (or the same dict in Python)::
     dt = 0.01              # interval of the samples the metrics are computed from [s]
     count = 1000           # random samples (with random axes)
     seed = 1
-    chunk = 1024           # variants per chunk (one Parquet file each)
+    chunk = 8192           # variants per chunk (one Parquet file each)
 
     [base]                 # fixed values: the chapter's symbols (or q0, qf, kp, kd for a URDF)
     m3 = 40.0
@@ -76,6 +76,8 @@ _SECTIONS = ("sweep", "base", "vary", "keep")
 _SWEEP_KEYS = ("task", "urdf", "tf", "dt", "count", "seed", "chunk", "method", "rtol", "atol")
 _GRID = ("linspace", "logspace")
 _RANDOM = ("uniform", "normal", "lhs")
+#: Variants per chunk unless the spec says (a second or so of one core's work).
+DEFAULT_CHUNK = 8192
 #: Largest number of variants a spec may ask for.
 MAX_VARIANTS = 100_000_000
 _URDF_PREFIXES = ("q0", "qd0", "qf", "kp", "kd")
@@ -136,7 +138,7 @@ class Spec:
     dt: float = 0.01
     count: int = 1
     seed: int = 0
-    chunk: int = 1024
+    chunk: int = DEFAULT_CHUNK
     method: str | None = None
     rtol: float | None = None
     atol: float | None = None
@@ -315,7 +317,7 @@ def spec_from_dict(data: Mapping[str, Any], where: str = "spec") -> Spec:
     if tf / dt > 1_000_000:
         raise SceneError(f"{where}: tf/dt = {tf / dt:.3g} samples per variant is over 1e6")
     ints = {}
-    for key, default, low in (("count", None, 1), ("seed", 0, 0), ("chunk", 1024, 1)):
+    for key, default, low in (("count", None, 1), ("seed", 0, 0), ("chunk", DEFAULT_CHUNK, 1)):
         value = sweep.get(key, default)
         if value is None:
             continue
