@@ -177,7 +177,7 @@ def main() -> int:
                     out,
                     workers=args.workers,
                     progress=False,
-                    on_chunk=lambda k, m: marks.append((time.perf_counter(), m)),
+                    on_chunk=lambda k, m, marks=marks: marks.append((time.perf_counter(), m)),
                 )
             rate = n / result.wall_time
             eff = rate / (args.workers * core)
