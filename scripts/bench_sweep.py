@@ -177,16 +177,20 @@ def main() -> int:
                     out,
                     workers=args.workers,
                     progress=False,
-                    on_chunk=lambda k, m, marks=marks: marks.append((time.perf_counter(), m)),
+                    on_chunk=lambda k, c, marks=marks: marks.append(
+                        (time.perf_counter(), len(c["index"]), c["seconds"])
+                    ),
                 )
             rate = n / result.wall_time
             eff = rate / (args.workers * core)
             # steady state: after the first chunk is back (cluster start and warm-up excluded)
-            steady = (sum(m for _, m in marks[1:]) / (marks[-1][0] - marks[0][0])
+            steady = (sum(m[1] for m in marks[1:]) / (marks[-1][0] - marks[0][0])
                       if len(marks) > 2 else float("nan"))  # fmt: skip
+            busy = sum(m[2] for m in marks) / (args.workers * result.wall_time)
             rows.append((n, result.wall_time, rate, eff, mem.peak, steady / (args.workers * core)))
             print(f"{n:>10,} {result.wall_time:>9.1f} {rate:>11,.0f} {eff:>9.0%} "
-                  f"{rows[-1][5]:>8.0%} {mem.peak / 2**20:>7.0f} MiB", flush=True)  # fmt: skip
+                  f"{rows[-1][5]:>8.0%} {mem.peak / 2**20:>7.0f} MiB  workers busy {busy:.0%}",
+                  flush=True)  # fmt: skip
             last_out = (out, spec)
         pool_n = min(args.max, 100_000)
         pool_wall = pool_sweep(pool_n, args.workers)

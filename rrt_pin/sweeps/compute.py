@@ -400,10 +400,14 @@ def run_chunk(
             drawn here from the seed when None.
 
     Returns:
-        ``{"index", "values", "columns", "trajectories"}``: the variant indices,
-        their varied values and metric columns (numpy arrays), and the dense runs
-        of the variants the spec keeps (``{index: (t, q, qd, tau)}``).
+        ``{"index", "values", "columns", "trajectories", "seconds"}``: the variant
+        indices, their varied values and metric columns (numpy arrays), the dense
+        runs of the variants the spec keeps (``{index: (t, q, qd, tau)}``), and the
+        chunk's compute time [s].
     """
+    import time
+
+    began = time.perf_counter()
     spec = spec_from_dict(source)
     p = plan(spec)
     count = stop - start
@@ -420,4 +424,5 @@ def run_chunk(
         "values": values,
         "columns": result["columns"],
         "trajectories": {start + k: (p.t, *v) for k, v in result["keep"].items()},
+        "seconds": time.perf_counter() - began,
     }

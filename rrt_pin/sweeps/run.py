@@ -248,7 +248,7 @@ def sweep(
     workers: int | None = None,
     resume: bool = False,
     progress: bool = True,
-    on_chunk: Callable[[int, int], object] | None = None,
+    on_chunk: Callable[[int, dict[str, Any]], object] | None = None,
 ) -> SweepResult:
     """Run a sweep: every variant of ``spec``, chunk by chunk, into ``out``.
 
@@ -259,7 +259,8 @@ def sweep(
         workers: local worker processes (default: the CPUs available; 1: this process).
         resume: finish a sweep started in ``out`` (refused if its spec differs).
         progress: a progress bar on stderr (variants, rate, ETA).
-        on_chunk: called with (chunk index, its variant count) after each chunk is stored.
+        on_chunk: called with (chunk index, its result: ``index``, ``values``, ``columns``,
+            ``seconds`` of compute) after each chunk is stored.
 
     Returns:
         A :class:`SweepResult` (counts, worst cases, ``.table()`` of every row).
@@ -335,7 +336,7 @@ def sweep(
             if bar is not None:
                 bar.update(len(chunk["index"]))
             if on_chunk is not None:
-                on_chunk(k, len(chunk["index"]))
+                on_chunk(k, chunk)
     finally:
         if bar is not None:
             bar.close()
