@@ -127,6 +127,18 @@ def pool_sweep(n: int, workers: int) -> float:
     return time.perf_counter() - start
 
 
+def processes_sweep(n: int, workers: int, folder: Path) -> float:
+    """The sweep on a LocalCluster of single-threaded worker processes (started first) [s]."""
+    from distributed import LocalCluster
+
+    with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                      dashboard_address=None) as cluster:  # fmt: skip
+        start = time.perf_counter()
+        sweep(bench_spec(n), folder / "processes", scheduler=cluster.scheduler_address,
+              progress=False)  # fmt: skip
+        return time.perf_counter() - start
+
+
 def accuracy(out: Path, spec: dict) -> float:
     import pyarrow.parquet as pq
 
@@ -159,7 +171,8 @@ def main() -> int:
     print(f"   {args.workers} such processes at once (no Dask): "
           f"{', '.join(f'{r:,}' for r in both)} variants/s each, {sum(both):,} in all "
           f"({sum(both) / (args.workers * core):.0%} of {args.workers} × one alone)")  # fmt: skip
-    print(f"\n2. Dask LocalCluster, {args.workers} single-threaded worker processes, metrics only")
+    print(f"\n2. rrt_pin.sweep on Dask's LocalCluster (one worker, {args.workers} threads; the "
+          "default), metrics only, cluster start included")  # fmt: skip
     print(
         f"{'variants':>10} {'wall [s]':>9} {'variants/s':>11} {'efficiency':>10} {'peak RSS':>10}"
     )
@@ -192,10 +205,12 @@ def main() -> int:
                   f"{rows[-1][5]:>8.0%} {mem.peak / 2**20:>7.0f} MiB  workers busy {busy:.0%}",
                   flush=True)  # fmt: skip
             last_out = (out, spec)
-        pool_n = min(args.max, 100_000)
+        pool_n = min(args.max, 300_000)
         pool_wall = pool_sweep(pool_n, args.workers)
-        print(f"\n   a plain process pool (concurrent.futures), {pool_n:,} variants, nothing "
-              f"written: {pool_wall:.1f} s, {pool_n / pool_wall:,.0f} variants/s")  # fmt: skip
+        print(f"\n   the alternatives on {pool_n:,} variants: a plain process pool "
+              f"(concurrent.futures, nothing written) {pool_n / pool_wall:,.0f} variants/s; "
+              f"Dask with {args.workers} worker processes "
+              f"{pool_n / processes_sweep(pool_n, args.workers, folder):,.0f} variants/s")  # fmt: skip
         err = accuracy(*last_out)
         print(
             f"\n3. metrics of sampled variants vs single simulate() runs: max difference {err:.1e}"

@@ -20,8 +20,9 @@ values and the metrics (units in the Parquet metadata, "rrt_pin.units"):
   excursion_<q> [rad or m], control_energy [J], evaluations,
   diverged, diverged_time [s], diverged_coordinate, diverged_reason.
 Read it with pandas: pandas.read_parquet("OUT/chunks").
-Without --scheduler one worker process per core runs the chunks (Dask's local
-cluster; --workers 1 runs them in this process). --resume finishes an
+Without --scheduler Dask's local cluster runs the chunks with a thread per core
+(the compiled batch releases the GIL; --workers 1 runs them in this process without
+Dask). --resume finishes an
 interrupted sweep (the spec must be unchanged)."""
 
 

@@ -1,8 +1,10 @@
 """``rrt_pin.sweep``: run every chunk of a spec on Dask, store it, summarise it.
 
-Without a scheduler address a :class:`distributed.LocalCluster` of one
-single-threaded worker process per core runs the chunks (``workers=1`` runs
-them in this process, without Dask); with ``scheduler="tcp://host:port"`` the
+Without a scheduler address a :class:`distributed.LocalCluster` runs the
+chunks: one worker in this process with a thread per core, since the compiled
+batch and the metrics release the GIL (``scripts/bench_sweep.py`` measures it
+against worker processes and a plain process pool; ``workers=1`` runs the
+chunks in this process without Dask); with ``scheduler="tcp://host:port"`` the
 same chunks go to that cluster, whose workers need only ``pip install
 rrt-pin[sweep]``. Dask schedules, retries a chunk whose worker died, and moves
 the data; results come back to this process, which writes each chunk as one
@@ -191,10 +193,12 @@ def _client(scheduler: str | None, workers: int) -> tuple[Any, Any]:
             return Client(scheduler, timeout=CONNECT_TIMEOUT), None
         except (OSError, TimeoutError, ValueError) as e:
             raise InputError(f"cannot reach the Dask scheduler {scheduler!r}: {e}") from e
+    # One worker with a thread per core: the compiled batch and the metrics release the GIL,
+    # so threads need no copies between processes; measured in scripts/bench_sweep.py.
     cluster = LocalCluster(
-        n_workers=workers,
-        threads_per_worker=1,
-        processes=True,
+        n_workers=1,
+        threads_per_worker=workers,
+        processes=False,
         dashboard_address=None,
         silence_logs=logging.ERROR,
     )
