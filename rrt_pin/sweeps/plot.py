@@ -88,6 +88,9 @@ def plot_metric(out: str | Path, metric: str, path: str | Path | None = None) ->
             grid[count > 0] = total[count > 0] / count[count > 0]
             mesh = ax.pcolormesh(ca, cb, grid, shading="nearest", cmap="viridis")
             fig.colorbar(mesh, ax=ax, label=f"mean {label(metric)}")
+            if np.isnan(grid).any():
+                ax.text(0.01, 0.01, "blank: no finite value (not settled, diverged)",
+                        transform=ax.transAxes, fontsize=8, va="bottom")  # fmt: skip
             ax.set_xlabel(label(varied[0]))
             ax.set_ylabel(label(varied[1]))
         others = f" (mean over {', '.join(varied[2:])})" if len(varied) > 2 else ""

@@ -188,6 +188,9 @@ def _client(scheduler: str | None, workers: int) -> tuple[Any, Any]:
             "sweeps need dask.distributed: pip install 'rrt-pin[sweep]' "
             "(from a checkout: .venv/bin/pip install -e '.[sweep]')"
         ) from e
+    for name in ("distributed", "tornado", "bokeh"):  # Dask's chatter stays off the terminal
+        if logging.getLogger(name).getEffectiveLevel() < logging.ERROR:
+            logging.getLogger(name).setLevel(logging.ERROR)
     if scheduler is not None:
         try:
             return Client(scheduler, timeout=CONNECT_TIMEOUT), None
