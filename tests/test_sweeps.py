@@ -99,6 +99,10 @@ def test_metrics_equal_single_runs(reference):
 
 def test_kept_trajectories_and_metadata(reference):
     out, rows = reference
+    import pandas as pd  # as the README reads the results
+
+    frame = pd.read_parquet(out / "chunks")
+    assert len(frame) == 3000 and set(frame["variant"]) == set(range(3000))
     dense = pq.read_table(out / "trajectories" / "variant-1000.parquet")
     assert dense.column_names[:4] == ["t", "q1", "q2", "q3"] and dense.num_rows == 151
     q3 = dense.column("q3").to_numpy()
