@@ -73,26 +73,94 @@ def build_parser() -> tuple[argparse.ArgumentParser, dict[str, argparse.Argument
     return parser, subparsers
 
 
+def _option_value(where: str, action: argparse.Action, value: object) -> object:
+    """A run file's option value, checked and converted by the same parser as its flag."""
+    flag = action.option_strings[-1] if action.option_strings else action.dest
+    if isinstance(action, (argparse._StoreTrueAction, argparse._StoreFalseAction,
+                           argparse.BooleanOptionalAction)):  # fmt: skip
+        if not isinstance(value, bool):
+            raise SceneError(f"{where}: {flag} = {value!r} must be true or false")
+        if isinstance(action, argparse._StoreFalseAction):
+            return not value
+        return value
+    if isinstance(value, bool) or not isinstance(value, (str, int, float, list)):
+        raise SceneError(f"{where}: {flag} = {value!r} is not a value of {flag}")
+    if isinstance(value, list):
+        if not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value):
+            raise SceneError(f"{where}: {flag} = {value!r} must be a list of numbers")
+        text = ",".join(repr(float(v)) for v in value)
+    else:
+        text = str(value)
+    try:
+        converted = action.type(text) if action.type is not None else text
+    except (argparse.ArgumentTypeError, TypeError, ValueError) as e:
+        raise SceneError(f"{where}: {flag} = {value!r}: {e}") from None
+    if action.choices is not None and converted not in action.choices:
+        valid = ", ".join(map(str, action.choices))
+        raise SceneError(f"{where}: {flag} = {value!r} is not one of {valid}")
+    return converted
+
+
 def _apply_scene(args: argparse.Namespace, subparser: argparse.ArgumentParser) -> Scene:
-    """Load ``--scene`` and make its [options] the subparser's defaults."""
+    """Load ``--config`` and make its [options] the subparser's defaults.
+
+    Each value passes the same parser as its flag (type, range, choices): a value
+    from a file is held to what the same value on the command line is.
+    """
     from rrt_pin.scene import load_scene
 
     scene = load_scene(args.scene)
-    dests = {a.dest for a in subparser._actions if a.dest not in ("help", "scene", "overrides")}
-    for key, _value in scene.options.items():
+    actions = {
+        a.dest: a for a in subparser._actions if a.dest not in ("help", "scene", "overrides")
+    }
+    where = f"run file {args.scene!r}"
+    defaults = {}
+    for key, value in scene.options.items():
         dest = key.replace("-", "_")
-        if dest not in dests:
+        if dest not in actions:
             raise SceneError(
-                f"scene file {args.scene!r}: option {key!r} is not an option of "
-                f"'rrt-pin {args.command}'; valid: {', '.join(sorted(dests))}"
+                f"{where}: option {key!r} is not an option of "
+                f"'rrt-pin {args.command}'; valid: {', '.join(sorted(actions))}"
             )
-    subparser.set_defaults(**{k.replace("-", "_"): v for k, v in scene.options.items()})
+        defaults[dest] = _option_value(where, actions[dest], value)
+    subparser.set_defaults(**defaults)
     return scene
+
+
+#: Options whose value is a comma-separated list that may start with a minus sign.
+_LIST_OPTIONS = ("--q0", "--qd0", "--qf", "--kp", "--kd")
+
+
+def _join_negative_lists(argv: list[str]) -> list[str]:
+    """``--q0 -0.1,0.5,0.3`` as ``--q0=-0.1,0.5,0.3``: argparse takes the value for an option."""
+    out: list[str] = []
+    i = 0
+    while i < len(argv):
+        token = argv[i]
+        nxt = argv[i + 1] if i + 1 < len(argv) else None
+        if (
+            token in _LIST_OPTIONS
+            and nxt is not None
+            and nxt[:1] == "-"
+            and (nxt[1:2].isdigit() or nxt[1:2] == ".")
+        ):
+            out.append(f"{token}={nxt}")
+            i += 2
+            continue
+        out.append(token)
+        i += 1
+    return out
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the CLI; returns the exit status (0 success, 2 bad input or failure)."""
-    argv = list(sys.argv[1:] if argv is None else argv)
+    argv = _join_negative_lists(list(sys.argv[1:] if argv is None else argv))
+    for stream in (sys.stdout, sys.stderr):  # "N·m" on an ASCII terminal: never a traceback
+        if hasattr(stream, "reconfigure"):
+            try:
+                stream.reconfigure(errors="backslashreplace")
+            except (ValueError, OSError):  # pragma: no cover - a stream that cannot
+                pass
     try:
         parser, subparsers = build_parser()
         args = parser.parse_args(argv)

@@ -47,13 +47,18 @@ def read_csv(path: str | Path, required: Sequence[str] = ()) -> tuple[list[str],
     """
     path = Path(path)
     try:
-        with open(path, encoding="utf-8") as fh:
+        with open(path, encoding="utf-8-sig") as fh:  # a UTF-8 BOM is not part of the name
             header = [h.strip() for h in fh.readline().strip().split(",")]
             rows = fh.read()
     except OSError as e:
         raise InputError(f"cannot read CSV {str(path)!r}: {e.strerror}") from e
     except UnicodeDecodeError as e:
         raise InputError(f"CSV {str(path)!r} is not UTF-8 text") from e
+    seen: set[str] = set()
+    for name in header:
+        if name in seen:
+            raise InputError(f"CSV {str(path)!r} names column {name!r} twice")
+        seen.add(name)
     missing = [c for c in required if c not in header]
     if missing:
         raise InputError(
@@ -73,6 +78,7 @@ def read_csv(path: str | Path, required: Sequence[str] = ()) -> tuple[list[str],
     if bad.any():
         r, c = np.argwhere(bad)[0]
         raise InputError(
-            f"CSV {str(path)!r}: non-finite value {float(data[r, c])!r} in column {header[c]!r}, row {r + 2}"
+            f"CSV {str(path)!r}: non-finite value {float(data[r, c])!r} in column "
+            f"{header[c]!r}, row {r + 2}"
         )
     return header, data

@@ -99,8 +99,9 @@ def inverse_dynamics(
         the columns are (T01x, T12y, F23z).
 
     Raises:
-        InputError: bad shapes, non-finite values, an unknown backend, or a
-            backend that does not compute this robot or is not installed.
+        InputError: bad shapes, non-finite values (in or out: the first bad sample
+            and joint named), an unknown backend, or a backend that does not
+            compute this robot or is not installed.
     """
     from rrt_pin import backends
     from rrt_pin.robot import Robot
@@ -122,6 +123,7 @@ def inverse_dynamics(
         if robot is not None:
             q = robot.configuration(q)
         tau = _rnea_batch(pin_model, q, qd, qdd, num_threads)
+        _check_finite(tau, robot.effort_names if robot is not None else None)
         return tau[0] if single else tau
     if robot is not None:
         if not robot.supports(b.name):
@@ -153,7 +155,20 @@ def inverse_dynamics(
         from rrt_pin import compiled
 
         tau = np.asarray(compiled.inverse_dynamics(q, qd, qdd, params), dtype=float)
+    _check_finite(tau, ("T01x", "T12y", "F23z"))
     return tau[0] if single else tau
+
+
+def _check_finite(tau: np.ndarray, names: tuple[str, ...] | None) -> None:
+    """Refuse non-finite efforts (finite inputs beyond any sensible range overflow)."""
+    bad = ~np.isfinite(tau)
+    if bad.any():
+        i, k = (int(x) for x in np.argwhere(bad)[0])
+        name = names[k] if names is not None else f"joint {k}"
+        raise InputError(
+            f"the efforts overflow: {name} = {float(tau[i, k])!r} at sample {i} "
+            "(positions, velocities, accelerations or parameters beyond any sensible range)"
+        )
 
 
 def _same_count(*arrays: np.ndarray) -> None:

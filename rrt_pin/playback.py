@@ -22,6 +22,9 @@ if TYPE_CHECKING:
 
 __all__ = ["Keyframes", "csv_columns", "motion_keyframes", "read_trajectory_csv"]
 
+#: Largest magnitude of a played value (the page computes in single precision: 3.4e38
+#: overflows; no time [s], angle [rad] or position [m] comes near this).
+MAX_VALUE = 1e30
 #: The sources a motion may come from besides a CSV path.
 SOURCES = ("inverse", "simulate")
 
@@ -84,6 +87,13 @@ def read_trajectory_csv(path: str, robot: Robot) -> tuple[np.ndarray, np.ndarray
     cols = csv_columns(robot, header, path)
     t = data[:, header.index("t")]
     values = np.column_stack([data[:, header.index(c)] for c in cols])
+    for name, column in (("t", t), *zip(cols, values.T, strict=True)):
+        huge = np.flatnonzero(np.abs(column) > MAX_VALUE)
+        if huge.size:
+            raise InputError(
+                f"CSV {path!r}: value {float(column[huge[0]])!r} in column {name!r}, row "
+                f"{huge[0] + 2} is beyond ±{MAX_VALUE:g}"
+            )
     steps = np.diff(t)
     if (steps <= 0.0).any():
         k = int(np.argmax(steps <= 0.0))

@@ -34,6 +34,13 @@ def make_files(tmp: Path) -> None:
     (tmp / "inf.csv").write_text("t,q1,q2,q3\n0,0.1,0.2,0.3\n1,0.1,inf,0.3\n")
     (tmp / "missing.csv").write_text("t,q1,q2\n0,0.1,0.2\n1,0.1,0.2\n")
     (tmp / "bad.toml").write_text("[params\nm1 = 1\n")
+    (tmp / "opt_wrenches.toml").write_text('[options]\nwrenches = "false"\n')
+    (tmp / "opt_size.toml").write_text("[options]\nscreenshot-size = [100000, 100000]\n")
+    (tmp / "opt_serve.toml").write_text("[options]\nserve-for = -1\n")
+    (tmp / "opt_format.toml").write_text('[options]\nformat = "bogus"\n')
+    (tmp / "opt_q0.toml").write_text('[options]\nq0 = "a,b"\n')
+    (tmp / "twice.csv").write_text("t,q1,q1,q2,q3\n0,0,0,0,0\n1,1,1,1,1\n")
+    (tmp / "huge.csv").write_text("t,q1,q2,q3\n0,0,0,0\n1,1e308,0,0\n")
     sweep = "[sweep]\ntf = 1.0\ndt = 0.1\n"
     (tmp / "sweep_ok.toml").write_text(sweep + "[vary]\nm3 = [30, 40]\n")
     (tmp / "sweep_unknown.toml").write_text(sweep + "[vary]\nmass = [1, 2]\n")
@@ -387,7 +394,60 @@ CASES = (
     ),
     Case(
         "sweep: unreachable scheduler",
-        ("sweep", "{tmp}/sweep_ok.toml", "--out", "{tmp}/sweep", "--scheduler", "tcp://127.0.0.1:9"),
+        (
+            "sweep",
+            "{tmp}/sweep_ok.toml",
+            "--out",
+            "{tmp}/sweep",
+            "--scheduler",
+            "tcp://127.0.0.1:9",
+        ),
         "cannot reach the Dask scheduler 'tcp://127.0.0.1:9'",
+    ),
+    # run-file options pass the flags' own parsers
+    Case(
+        "run file: a flag's boolean as a string",
+        ("inverse", "--config", "{tmp}/opt_wrenches.toml", "--csv", OUT),
+        "--wrenches = 'false' must be true or false",
+    ),
+    Case(
+        "run file: a screenshot size out of range",
+        ("view", "--config", "{tmp}/opt_size.toml", "--serve-for", "0"),
+        "--screenshot-size = [100000, 100000]",
+    ),
+    Case(
+        "run file: a negative serve-for",
+        ("view", "--config", "{tmp}/opt_serve.toml"),
+        "--serve-for = -1: must be >= 0",
+    ),
+    Case(
+        "run file: a format not among the choices",
+        ("equations", "--config", "{tmp}/opt_format.toml"),
+        "--format = 'bogus' is not one of",
+    ),
+    Case(
+        "run file: q0 not numbers",
+        ("simulate", "--config", "{tmp}/opt_q0.toml", "--csv", OUT),
+        "--q0 = 'a,b'",
+    ),
+    # empty strings never change meaning
+    Case("empty --csv", ("inverse", "--csv", ""), "argument --csv: must not be empty"),
+    Case("empty --host", ("view", "--host", "", "--serve-for", "0"), "--host: must not be empty"),
+    Case("empty --config", ("simulate", "--config", "", "--csv", OUT), "must not be empty"),
+    # results that overflow, CSVs a viewer cannot use
+    Case(
+        "inverse efforts that overflow",
+        ("inverse", "--set", "q1f=1e300", "--csv", OUT),
+        "the efforts overflow: T01x",
+    ),
+    Case(
+        "CSV naming a column twice",
+        ("view", "--trajectory", "{tmp}/twice.csv", "--serve-for", "0"),
+        "names column 'q1' twice",
+    ),
+    Case(
+        "CSV value beyond ±1e30",
+        ("view", "--trajectory", "{tmp}/huge.csv", "--serve-for", "0"),
+        "is beyond ±1e+30",
     ),
 )

@@ -152,3 +152,42 @@ def test_compiled_backend_without_numba_is_one_line(monkeypatch, capsys):
         err
         == "rrt-pin: error: backend 'compiled' is not available: numba not found: pip install rrt-pin[fast]\n"
     )
+
+
+def test_negative_values_after_list_options(capsys):
+    """--q0 -0.1,0.5,0.3 is a value, not an option (negative joint values are everyday)."""
+    code = main(["simulate", "--q0", "-0.1,0.5,0.3", "--tf", "1", "--dt", "0.5"])
+    out = capsys.readouterr().out
+    assert code == 0 and "simulated the RRT arm" in out
+    code = main(["inverse", "--q0", "-0.1,0.5,0.3", "--qf", "-.2,0.5,0.3", "--dt", "0.5"])
+    assert code == 0
+
+
+def test_an_ascii_terminal_gets_no_traceback(tmp_path):
+    import os
+    import subprocess
+    import sys
+
+    env = {**os.environ, "PYTHONIOENCODING": "ascii"}
+    proc = subprocess.run([sys.executable, "-m", "rrt_pin", "inverse", "--dt", "0.5"],
+                          capture_output=True, text=False, env=env)  # fmt: skip
+    assert proc.returncode == 0 and b"Traceback" not in proc.stderr
+    assert b"N\\xb7m" in proc.stdout  # the unit, escaped rather than fatal
+
+
+def test_run_file_options_are_parsed_as_flags(tmp_path, capsys):
+    run_file = tmp_path / "run.toml"
+    run_file.write_text("[options]\nwrenches = true\ndt = 0.5\nq0 = [-0.1, 0.5, 0.3]\n")
+    code = main(["inverse", "--config", str(run_file)])
+    out = capsys.readouterr().out
+    assert code == 0 and "|F01| at A" in out and "3 samples" not in out
+    assert "31 samples" in out  # 15 s at 0.5 s
+
+
+def test_a_csv_with_a_byte_order_mark_reads(tmp_path):
+    from rrt_pin.csvio import read_csv
+
+    path = tmp_path / "bom.csv"
+    path.write_bytes("\ufefft,q1\n0,1\n".encode())
+    header, data = read_csv(path, required=("t",))
+    assert header == ["t", "q1"] and data.tolist() == [[0.0, 1.0]]

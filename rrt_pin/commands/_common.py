@@ -104,6 +104,7 @@ def add_scene_arguments(parser: argparse.ArgumentParser) -> None:
         "--config",
         "--scene",
         dest="scene",
+        type=nonempty,
         metavar="PATH",
         help="TOML run file: a [params] table (the chapter's symbols, SI units) and an "
         "[options] table of defaults for this command's long options (--scene is the old "
@@ -158,6 +159,7 @@ def add_robot_arguments(parser: argparse.ArgumentParser, task: str) -> None:
     }[task]
     parser.add_argument(
         "--urdf",
+        type=nonempty,
         metavar="PATH",
         help="another fixed-base robot (revolute, continuous, prismatic joints) instead of the "
         f"chapter's RRT arm; needs {needs} (list its joints: rrt-pin joints --urdf PATH)",
@@ -196,6 +198,13 @@ def add_robot_arguments(parser: argparse.ArgumentParser, task: str) -> None:
             help="damping gains >= 0 [N·m·s/rad or N·s/m], one per joint or one for all "
             "(the arm's default: beta01,beta12,beta23)",
         )
+
+
+def nonempty(text: str) -> str:
+    """Argparse type: a non-empty string (an empty path or host never changes meaning)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError("must not be empty")
+    return text
 
 
 def robot_from_args(args: argparse.Namespace, params: Params, task: str) -> Robot:

@@ -16,6 +16,7 @@ from rrt_pin.commands._common import (
     add_robot_arguments,
     add_scene_arguments,
     finite_float,
+    nonempty,
     params_from_args,
     positive_seconds,
     resolve_backend,
@@ -75,9 +76,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--dt", type=finite_float, default=0.001, metavar="S", help="time step [s] (default 0.001)"
     )
-    parser.add_argument("--csv", metavar="PATH", help="write the samples here (atomically)")
     parser.add_argument(
-        "--plot", metavar="PATH.png", help="write a PNG of the efforts against time (matplotlib)"
+        "--csv", type=nonempty, metavar="PATH", help="write the samples here (atomically)"
+    )
+    parser.add_argument(
+        "--plot",
+        type=nonempty,
+        metavar="PATH.png",
+        help="write a PNG of the efforts against time (matplotlib)",
     )
     parser.add_argument(
         "--wrenches",

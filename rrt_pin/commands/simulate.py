@@ -14,6 +14,7 @@ from rrt_pin import backends, methods
 from rrt_pin.commands._common import (
     add_robot_arguments,
     add_scene_arguments,
+    nonempty,
     params_from_args,
     positive_float,
     positive_seconds,
@@ -95,9 +96,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="absolute tolerance of the adaptive methods [rad, m, rad/s, m/s] "
         f"(default {methods.DEFAULT_ATOL:g})",
     )
-    parser.add_argument("--csv", metavar="PATH", help="write the samples here (atomically)")
     parser.add_argument(
-        "--plot", metavar="PATH.png", help="write a PNG of q(t) and the efforts (matplotlib)"
+        "--csv", type=nonempty, metavar="PATH", help="write the samples here (atomically)"
+    )
+    parser.add_argument(
+        "--plot",
+        type=nonempty,
+        metavar="PATH.png",
+        help="write a PNG of q(t) and the efforts (matplotlib)",
     )
     parser.add_argument(
         "--backend",

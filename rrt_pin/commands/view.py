@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING, Any
 from rrt_pin.commands._common import (
     add_robot_arguments,
     add_scene_arguments,
+    nonempty,
     nonnegative_float,
     params_from_args,
     positive_float,
@@ -99,6 +100,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--host",
+        type=nonempty,
         default="127.0.0.1",
         help="interface to listen on (default 127.0.0.1: this machine only; the page has no "
         "authentication)",
@@ -119,6 +121,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--screenshot",
+        type=nonempty,
         metavar="PATH.png",
         help="render the page in headless Chromium and save a PNG (atomically)",
     )

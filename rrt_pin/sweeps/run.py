@@ -219,28 +219,43 @@ def _in_process(
 
 def _on_dask(client: Any, spec: Spec, jobs: Iterator[tuple[int, int, int, dict]],
              workers: int) -> Iterator[tuple[int, dict]]:  # fmt: skip
+    import uuid
+    from concurrent.futures import CancelledError  # what a lost future raises
+
     from distributed import as_completed
 
     from rrt_pin.sweeps.compute import run_chunk
 
     queue = iter(jobs)
-    digest = spec.digest()
+    run = uuid.uuid4().hex[:12]  # keys unique to this call: a scheduler may serve many sweeps
+    pending: dict[int, tuple[int, int, int, dict]] = {}
+    attempts: dict[int, int] = {}
 
     def submit(job: tuple[int, int, int, dict]) -> Any:
         k, start, stop, rows = job
+        pending[k] = job
+        attempts[k] = attempts.get(k, 0) + 1
         future = client.submit(
-            run_chunk, spec.source, start, stop, rows, key=f"rrt-pin-{digest}-{k}-{start}",
-            retries=3, pure=False,
+            run_chunk, spec.source, start, stop, rows,
+            key=f"rrt-pin-sweep-{run}-chunk-{k}-{attempts[k]}", retries=3, pure=False,
         )  # fmt: skip
         future.chunk = k
         return future
 
-    first = [submit(j) for _, j in zip(range(IN_FLIGHT * workers), queue, strict=False)]
-    running = as_completed(first)
+    running = as_completed([submit(j) for _, j in zip(range(IN_FLIGHT * workers), queue,
+                                                      strict=False)])  # fmt: skip
     for future in running:
-        result = future.result()
         k = future.chunk
+        try:
+            result = future.result()
+        except CancelledError:
+            # the result died with its worker between computing and gathering: again
+            if attempts[k] > 3:
+                raise
+            running.add(submit(pending[k]))
+            continue
         future.release()
+        del pending[k]
         nxt = next(queue, None)
         if nxt is not None:
             running.add(submit(nxt))
