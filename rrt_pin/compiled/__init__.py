@@ -62,6 +62,7 @@ _LAZY = {
     "simulate_batch_compiled": "rrt_pin.compiled.integrate",
 }
 _JIT = "rrt_pin.compiled._jit_integrators"
+#: Where a function's machine code can come from (:attr:`CompileReport.origins`).
 _logger = logging.getLogger("rrt_pin")
 _available: bool | None = None
 _report: CompileReport | None = None
@@ -77,6 +78,9 @@ class CompileReport:
         from_cache: every function came from the disk cache (nothing compiled).
         cache_dir: where the machine code is cached, or None (memory only).
         functions: seconds per function [s].
+        origins: where each function's machine code came from: "loaded" (disk
+            cache), "compiled" (and saved) or "memory" (compiled, not saved: the
+            cache was damaged, full or read-only; a warning said so).
     """
 
     numba_import: float
@@ -84,6 +88,7 @@ class CompileReport:
     from_cache: bool
     cache_dir: Path | None
     functions: dict[str, float] = field(default_factory=dict)
+    origins: dict[str, str] = field(default_factory=dict)
 
     def describe(self) -> str:
         """One line: how long, from where."""
@@ -115,9 +120,11 @@ def is_compiled() -> bool:
     """Whether the compiled backend is ready without compiling: loaded, or complete on disk.
 
     Cheap (no numba import, no compilation): true when this process has
-    already loaded the machine code, or when the disk cache holds all of it
-    for the current sources, Python, numba and llvmlite. Using the backend then
-    costs about 1 s (importing numba and loading), not a compilation.
+    already loaded the machine code, or when the disk cache holds all of it,
+    unchanged, under the key numba will look it up by: the sources' contents
+    and location, Python, numba, llvmlite and the CPU (see
+    :mod:`rrt_pin.compiled._cache`). Using the backend then costs about 1 s
+    (importing numba and loading), not a compilation.
     """
     if _JIT in sys.modules:
         return True
@@ -148,19 +155,23 @@ def ensure_compiled() -> CompileReport:
     imported = time.perf_counter()
     jit = importlib.import_module(_JIT)
     done = time.perf_counter()
-    from rrt_pin.compiled import _jit_dynamics as dyn
-    from rrt_pin.compiled._cache import mark_ready
+    from rrt_pin.compiled import _cache
+    from rrt_pin.compiled import _jit as dyn
 
-    misses = sum(sum(d.stats.cache_misses.values()) for d in dyn.DISPATCHERS.values())
-    cache_dir = dyn._CACHE_DIR
-    if cache_dir is not None:
-        mark_ready(cache_dir, {"signatures": dict(dyn.SIGNATURES)})
+    origins = set(dyn.ORIGINS.values())
+    cache_dir = dyn._CACHE_DIR if origins - {"memory"} else None
+    if cache_dir is not None and origins <= {"loaded", "compiled"}:
+        if not _cache.is_ready(cache_dir):
+            _cache.mark_ready(cache_dir, {"signatures": dict(dyn.SIGNATURES)})
+            _cache.prune_superseded(cache_dir)
+    dyn.warn_problems()
     _report = CompileReport(
         numba_import=imported - start,
         compile=done - imported,
-        from_cache=misses == 0 and cache_dir is not None,
+        from_cache=origins == {"loaded"} and cache_dir is not None,
         cache_dir=cache_dir,
         functions=dict(dyn.SECONDS),
+        origins=dict(dyn.ORIGINS),
     )
     del jit
     _logger.info(_report.describe())

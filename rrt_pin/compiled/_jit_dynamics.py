@@ -32,15 +32,13 @@ results must agree with Pinocchio to round-off, and nan must stay nan.
 from __future__ import annotations
 
 import math
-import time
 import types as pytypes
 
-import numba
 import numpy as np
 from numba import float64, int64, types
 
 from rrt_pin import kernel
-from rrt_pin.compiled._cache import cache_dir
+from rrt_pin.compiled._jit import CACHE_PROBLEMS, ORIGINS, SIGNATURES, jit
 from rrt_pin.compiled.codes import (
     KIND_CHAPTER,
     KIND_CHAPTER_FOLDED,
@@ -50,15 +48,7 @@ from rrt_pin.compiled.codes import (
     NP,
 )
 
-__all__ = ["SIGNATURES", "jit"]
-
-_CACHE_DIR = cache_dir()
-#: Name -> signature of every function compiled here (for the cache record).
-SIGNATURES: dict[str, str] = {}
-#: Dispatchers compiled here, by name.
-DISPATCHERS: dict[str, object] = {}
-#: Seconds spent compiling (or loading from the cache) each function, by name.
-SECONDS: dict[str, float] = {}
+__all__ = ["CACHE_PROBLEMS", "ORIGINS", "SIGNATURES", "jit"]
 
 # Indices of the parameters eq. (31) needs, in kernel.PARAM_ORDER.
 _L2 = kernel.PARAM_ORDER.index("L2")
@@ -66,41 +56,6 @@ _M2 = kernel.PARAM_ORDER.index("m2")
 _M3 = kernel.PARAM_ORDER.index("m3")
 _G = kernel.PARAM_ORDER.index("g")
 _INF = math.inf
-
-
-def jit(signature: object, inline: bool = False):
-    """``numba.njit(signature, cache=True)`` with this package's cache directory.
-
-    numba reads its cache directory when a function is decorated, so the
-    setting is changed only for the decoration and then restored. With a
-    signature the function is compiled (or loaded) now; ``inline`` functions
-    (``signature=None``) are inlined into their jitted callers at numba's IR
-    level and compiled only as part of them.
-    """
-
-    def wrap(fn):
-        start = time.perf_counter()
-        previous = numba.config.CACHE_DIR
-        if _CACHE_DIR is not None:
-            numba.config.CACHE_DIR = str(_CACHE_DIR)
-        try:
-            dispatcher = numba.njit(
-                *([signature] if signature is not None else []),
-                cache=_CACHE_DIR is not None,
-                nogil=True,
-                error_model="numpy",
-                inline="always" if inline else "never",
-            )(fn)
-        finally:
-            numba.config.CACHE_DIR = previous
-        if signature is not None:
-            SIGNATURES[fn.__name__] = str(signature)
-            DISPATCHERS[fn.__name__] = dispatcher
-            SECONDS[fn.__name__] = time.perf_counter() - start
-        return dispatcher
-
-    return wrap
-
 
 _f8 = float64
 _vec = float64[::1]

@@ -8,13 +8,22 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
+from numba import float64, types
+
+from rrt_pin.compiled._jit import jit, warn_problems
 
 __all__ = ["metrics"]
 
 
-@numba.njit(cache=True, nogil=True)
+_r1 = types.Array(float64, 1, "A", readonly=True)
+_r2 = types.Array(float64, 2, "C", readonly=True)
+_r3 = types.Array(float64, 3, "A", readonly=True)
+_w1 = float64[::1]
+_w2 = float64[:, ::1]
+
+
+@jit(types.void(_r1, _r3, _r3, _r3, _r2, float64, _w2, _w2, _w2, _w2, _w2, _w1))
 def metrics(t, q, qd, tau, qf, band, final, settle, peak, peak_t, excursion, energy):  # noqa: ANN001, ANN201
     """Fill the metric arrays (B, n) and energy (B,) from runs (B, T, n) sampled at t (T,)."""
     B, T, n = q.shape
@@ -64,7 +73,12 @@ def metrics(t, q, qd, tau, qf, band, final, settle, peak, peak_t, excursion, ene
 
 def run(t: np.ndarray, q: np.ndarray, qd: np.ndarray, tau: np.ndarray, qf: np.ndarray, band: float):
     """All metric arrays at once: final, settle, peak, peak time, excursion (B, n); energy (B,)."""
+    warn_problems()
     B, _, n = q.shape
     outs = [np.empty((B, n)) for _ in range(5)] + [np.empty(B)]
-    metrics(t, q, qd, tau, np.ascontiguousarray(qf), band, *outs)
+    f8 = np.float64
+    metrics(
+        np.asarray(t, f8), np.asarray(q, f8), np.asarray(qd, f8), np.asarray(tau, f8),
+        np.ascontiguousarray(qf, f8), float(band), *outs,
+    )  # fmt: skip
     return outs
