@@ -149,9 +149,9 @@ def inverse_dynamics(
         tau = np.asarray(kernel.inverse_dynamics(q, qd, qdd, params), dtype=float)
     else:
         if not b.available():
-            raise InputError(
-                "backend='compiled' is unavailable (numba missing): pip install rrt-pin[fast]"
-            )
+            from rrt_pin.extras import MissingExtra
+
+            raise MissingExtra("numba", "fast", "backend 'compiled'")
         from rrt_pin import compiled
 
         tau = np.asarray(compiled.inverse_dynamics(q, qd, qdd, params), dtype=float)

@@ -79,12 +79,9 @@ def _pyplot():  # noqa: ANN202
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
     except ImportError as e:  # pragma: no cover - depends on the install
-        from rrt_pin.errors import InputError
+        from rrt_pin.extras import MissingExtra
 
-        raise InputError(
-            "matplotlib not found: pip install 'rrt-pin[plot]' "
-            "(from a checkout: .venv/bin/pip install -e '.[plot]')"
-        ) from e
+        raise MissingExtra("matplotlib", "plot", "plots") from e
     return plt
 
 

@@ -38,8 +38,17 @@ def table() -> str:
         make_files(tmp)
         for case in CASES:
             err = io.StringIO()
-            with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
-                code = main(case.args(tmp))
+            saved = {m: sys.modules.get(m) for m in case.missing}
+            sys.modules.update(dict.fromkeys(case.missing))  # None: the import fails
+            try:
+                with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+                    code = main(case.args(tmp))
+            finally:
+                for m, module in saved.items():
+                    if module is None:
+                        sys.modules.pop(m, None)
+                    else:
+                        sys.modules[m] = module
             message = err.getvalue().strip().replace(str(tmp), "TMP").replace("|", "\\|")
             command = "rrt-pin " + " ".join(case.argv).replace("{tmp}", "TMP")
             rows.append(f"| {case.problem} | `{command}` | {code} | `{message}` |")

@@ -105,6 +105,8 @@ class Case:
     problem: str
     argv: tuple[str, ...]
     words: str
+    #: Modules made unimportable for the case (an optional extra not installed).
+    missing: tuple[str, ...] = ()
 
     def args(self, tmp: Path) -> list[str]:
         """The argv with ``{tmp}`` filled in."""
@@ -449,5 +451,30 @@ CASES = (
         "CSV value beyond ±1e30",
         ("view", "--trajectory", "{tmp}/huge.csv", "--serve-for", "0"),
         "is beyond ±1e+30",
+    ),
+    # optional extras not installed: one line with the command that installs them here
+    Case(
+        "viewer without the viewer extra",
+        ("view", "--trajectory", "simulate", "--serve-for", "0"),
+        "meshcat not found (needed for the viewer): ",
+        missing=("meshcat",),
+    ),
+    Case(
+        "plot without the plot extra",
+        ("inverse", "--plot", "{tmp}/out.png"),
+        "matplotlib not found (needed for plots): ",
+        missing=("matplotlib",),
+    ),
+    Case(
+        "bench without the symbolic extra",
+        ("bench", "--quick", "--out", "{tmp}/bench"),
+        "sympy not found (needed for the benchmark's 30-digit reference): ",
+        missing=("sympy",),
+    ),
+    Case(
+        "compiled backend without numba",
+        ("inverse", "--backend", "compiled", "--csv", OUT),
+        "numba not found (needed for the compiled backend): ",
+        missing=("numba",),
     ),
 )

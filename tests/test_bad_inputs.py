@@ -15,8 +15,10 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 @pytest.mark.parametrize("case", CASES, ids=[c.problem for c in CASES])
-def test_bad_input(case, tmp_path, capsys):
+def test_bad_input(case, tmp_path, capsys, monkeypatch):
     make_files(tmp_path)
+    for module in case.missing:  # None in sys.modules makes ``import module`` fail
+        monkeypatch.setitem(sys.modules, module, None)
     before = sorted(p.name for p in tmp_path.rglob("*"))
     code = main(case.args(tmp_path))
     out, err = capsys.readouterr()

@@ -22,6 +22,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run the benchmarks; progress on stderr, summary on stdout."""
+    from rrt_pin.extras import require
+
+    # Checked before anything runs or is written (not halfway through).
+    require("sympy", "symbolic", "the benchmark's 30-digit reference")
+    require("mpmath", "symbolic", "the benchmark's 30-digit reference")
+    require("matplotlib", "plot", "the work-precision plot")
     from rrt_pin.bench import Progress, run_bench, summary
 
     report = run_bench(args.out, quick=args.quick, progress=Progress(0))

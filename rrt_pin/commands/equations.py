@@ -51,12 +51,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Derive and print the equations."""
-    try:
-        import sympy as sp
-    except ImportError:
-        from rrt_pin.errors import RrtPinError
+    from rrt_pin.extras import require
 
-        raise RrtPinError("sympy not found: pip install rrt-pin[symbolic]") from None
+    sp = require("sympy", "symbolic", "'rrt-pin equations'")
     from rrt_pin.symbolic import equations_of_motion
 
     numeric = bool(args.overrides) or getattr(args, "scene_obj", None) is not None

@@ -151,7 +151,9 @@ def ensure_compiled() -> CompileReport:
     try:
         import numba  # noqa: F401
     except ImportError as e:
-        raise ImportError("numba not found: pip install rrt-pin[fast]") from e
+        from rrt_pin.extras import MissingExtra
+
+        raise MissingExtra("numba", "fast", "the compiled backend") from e
     imported = time.perf_counter()
     jit = importlib.import_module(_JIT)
     done = time.perf_counter()

@@ -87,9 +87,9 @@ def _compiled() -> Any:
     from rrt_pin import backends
 
     if not backends.get("compiled").available():
-        raise InputError(
-            "backend 'compiled' is not available: numba not found (pip install rrt-pin[fast])"
-        )
+        from rrt_pin.extras import MissingExtra
+
+        raise MissingExtra("numba", "fast", "backend 'compiled'")
     from rrt_pin.compiled import integrate
 
     return integrate

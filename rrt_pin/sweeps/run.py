@@ -184,10 +184,9 @@ def _client(scheduler: str | None, workers: int) -> tuple[Any, Any]:
     try:
         from distributed import Client, LocalCluster
     except ImportError as e:
-        raise InputError(
-            "sweeps need dask.distributed: pip install 'rrt-pin[sweep]' "
-            "(from a checkout: .venv/bin/pip install -e '.[sweep]')"
-        ) from e
+        from rrt_pin.extras import MissingExtra
+
+        raise MissingExtra("distributed", "sweep", "sweeps") from e
     for name in ("distributed", "tornado", "bokeh"):  # Dask's chatter stays off the terminal
         if logging.getLogger(name).getEffectiveLevel() < logging.ERROR:
             logging.getLogger(name).setLevel(logging.ERROR)

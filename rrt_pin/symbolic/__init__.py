@@ -14,7 +14,9 @@ from __future__ import annotations
 try:
     import sympy  # noqa: F401
 except ImportError as e:  # pragma: no cover - depends on the installation
-    raise ImportError("sympy not found: pip install rrt-pin[symbolic]") from e
+    from rrt_pin.extras import MissingExtra
+
+    raise MissingExtra("sympy", "symbolic", "the symbolic derivations") from e
 
 from rrt_pin.symbolic.eom import METHODS, EquationsOfMotion, equations_of_motion
 

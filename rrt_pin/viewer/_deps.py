@@ -24,5 +24,7 @@ def import_meshcat() -> Any:
             import meshcat.servers.tree
             import meshcat.servers.zmqserver
     except ImportError as e:
-        raise ImportError("meshcat not found: pip install rrt-pin[viewer]") from e
+        from rrt_pin.extras import MissingExtra
+
+        raise MissingExtra("meshcat", "viewer", "the viewer") from e
     return meshcat

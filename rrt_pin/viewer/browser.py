@@ -121,7 +121,9 @@ class Chromium:
             from selenium.common.exceptions import WebDriverException
             from selenium.webdriver.chrome.service import Service
         except ImportError as e:
-            raise ImportError("selenium not found: pip install rrt-pin[viewer]") from e
+            from rrt_pin.extras import MissingExtra
+
+            raise MissingExtra("selenium", "viewer", "--screenshot") from e
         paths = paths or find_chromium()
         if paths is None:
             raise ViewerError(
