@@ -1,5 +1,5 @@
 #!/usr/bin/env python
-"""The compiled backend (issue 8) against its baselines, side by side in one run.
+"""The compiled backend against its baselines, side by side in one run.
 
 Sections (medians over --repeat rounds; each round runs every side a few times
 back to back, see :func:`interleaved`):

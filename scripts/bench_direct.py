@@ -100,7 +100,7 @@ def _sim(model, controller, p, t, method=None, jacobian="analytic"):
     return r.q, r.n_evals
 
 
-# --- compiled backend (issue 8): add its single-run rows here -----------------------------
+# --- compiled backend: its single-run rows here -----------------------------
 # (section owned by the compiled backend; the rows are defined in scripts/bench_compiled.py)
 def compiled_rows(model, controller, p: Params, t: np.ndarray) -> list[Row]:
     """Rows of the numba backend (``simulate(..., backend="compiled")``), if numba imports."""
@@ -114,7 +114,7 @@ def compiled_rows(model, controller, p: Params, t: np.ndarray) -> list[Row]:
     return [Row(label, run) for label, run in direct_rows(model, controller, p, t)]
 
 
-# --- compiled backend (issue 8): add its batch rows here ----------------------------------
+# --- compiled backend: its batch rows here ----------------------------------
 # (section owned by the compiled backend; the rows are defined in scripts/bench_compiled.py)
 def compiled_batch_rows(model, controllers, q0s, qd0s, t: np.ndarray) -> list[Row]:
     """Batch rows of the numba backend; ``run()`` returns q of shape (B, N, 3)."""

@@ -96,7 +96,7 @@ def sides(params: Params, model: pin.Model, traj) -> dict[str, Callable[[], np.n
     return out
 
 
-# --- compiled backend (issue 8): its targets ------------------------------------------------
+# --- compiled backend: its targets ---------------------------------------------------------
 # (section owned by the compiled backend; the verdict is defined in scripts/bench_compiled.py)
 def compiled_targets(medians: dict[str, float], results: dict[str, np.ndarray]) -> dict[str, bool]:
     """The compiled side's targets: <= 1 ms, >= 50x the loop, same values to 1e-12."""
@@ -199,7 +199,7 @@ def main() -> int:
             speedup >= TARGET_SPEEDUP
         )
         ok[f"batched agrees to {TARGET_AGREEMENT:g} ({protocol})"] = agreement <= TARGET_AGREEMENT
-        for label, good in compiled_targets(medians, results).items():  # issue 8's section
+        for label, good in compiled_targets(medians, results).items():
             ok[f"{label} ({protocol})"] = good
     ok[f"whole process < {TARGET_PROCESS_S:g} s"] = proc < TARGET_PROCESS_S
     print()

@@ -5,7 +5,8 @@ from pathlib import Path
 
 from rrt_pin.cli import build_parser
 
-README = (Path(__file__).resolve().parents[1] / "README.md").read_text(encoding="utf-8")
+ROOT = Path(__file__).resolve().parents[1]
+README = (ROOT / "README.md").read_text(encoding="utf-8")
 
 
 def test_library_example_runs(capsys):
@@ -30,3 +31,25 @@ def test_quick_start_is_the_two_scripts():
     quick = README.split("## Quick start", 1)[1].split("```sh", 1)[1].split("```", 1)[0]
     commands = [line.split("#")[0].strip() for line in quick.strip().splitlines()]
     assert commands == ["scripts/demo", "scripts/test"]
+
+
+def test_no_issue_numbers_in_code_docs_or_help():
+    """Readers have no issue tracker: code, docs and help never say "issue N"."""
+    import re
+    import subprocess
+
+    files = subprocess.run(
+        ["git", "ls-files", "*.py", "*.md", "*.toml", "scripts/*"],
+        capture_output=True, text=True, cwd=ROOT, check=True,
+    ).stdout.split()  # fmt: skip
+    pattern = re.compile(r"\bissues?\s*#?\d", re.IGNORECASE)
+    found = []
+    for name in files:
+        path = ROOT / name
+        if path.is_file():
+            for n, line in enumerate(
+                path.read_text(encoding="utf-8", errors="replace").splitlines()
+            ):
+                if pattern.search(line):
+                    found.append(f"{name}:{n + 1}: {line.strip()[:80]}")
+    assert files and not found, "\n".join(found)

@@ -1,4 +1,4 @@
-"""Numerical-stability stress tests of the dynamics (issue 7).
+"""Numerical-stability stress tests of the dynamics.
 
 Extreme but valid scenes, and consistency of independent algorithms at many
 seeded random states. Condition numbers are printed (``pytest -s``) and kept

@@ -1,4 +1,4 @@
-"""Numerical-stability stress tests of the integrators (issue 7).
+"""Numerical-stability stress tests of the integrators.
 
 Passive motion conserves energy; stiff control never fails silently.
 """

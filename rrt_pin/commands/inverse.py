@@ -12,6 +12,7 @@ import sys
 from typing import TYPE_CHECKING
 
 from rrt_pin import backends
+from rrt_pin.commands import _chapter
 from rrt_pin.commands._common import (
     add_robot_arguments,
     add_scene_arguments,
@@ -63,6 +64,7 @@ Without --csv a short summary goes to stdout: each joint's peak |effort| and whe
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``rrt-pin inverse``."""
     parser.formatter_class = argparse.RawDescriptionHelpFormatter
+    parser.description = f"{HELP}\n\n{_chapter.EQ30}"
     parser.epilog = _EPILOG
     parser.add_argument(
         "--tf",

@@ -11,6 +11,7 @@ import sys
 from typing import TYPE_CHECKING
 
 from rrt_pin import backends, methods
+from rrt_pin.commands import _chapter
 from rrt_pin.commands._common import (
     add_robot_arguments,
     add_scene_arguments,
@@ -63,6 +64,7 @@ effort's peak |value| and when."""
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``rrt-pin simulate``."""
     parser.formatter_class = argparse.RawDescriptionHelpFormatter
+    parser.description = f"{HELP}\n\n{_chapter.EQ31}"
     parser.epilog = _EPILOG
     parser.add_argument(
         "--tf", type=positive_float, default=15.0, metavar="S", help="final time [s] (default 15)"
