@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 from rrt_pin.errors import InputError
 
-__all__ = ["BACKENDS", "Backend", "get"]
+__all__ = ["BACKENDS", "Backend", "estimated_seconds", "get", "names"]
 
 
 @dataclass(frozen=True)
@@ -26,6 +26,14 @@ class Backend:
         default_method: the integration method ``simulate`` uses when none is given.
         requires: the module that must import (``pinocchio``, ``numpy``, ``numba``).
         extra: the pip extra that installs it.
+        startup: what a process pays once before the first use [s] (numba's import and
+            the machine code's load from the disk cache), beyond what every run pays.
+        inverse_cost: inverse dynamics of the chapter's arm [s per sample].
+        simulate_cost: the chapter's direct run with the backend's default method
+            [s per simulated second].
+
+    The three costs are medians on the reference machine (``docs/benchmarks.md``,
+    ``scripts/bench_auto.py`` measures them); ``auto`` compares them, nothing else.
     """
 
     name: str
@@ -35,6 +43,9 @@ class Backend:
     default_method: str | None
     requires: str
     extra: str | None = None
+    startup: float = 0.0
+    inverse_cost: float | None = None
+    simulate_cost: float | None = None
 
     def available(self) -> bool:
         """Whether its package is installed (cheap: looks, does not import)."""
@@ -56,6 +67,8 @@ BACKENDS: dict[str, Backend] = {
             tasks=("inverse", "simulate"),
             default_method="odepack",
             requires="pinocchio",
+            inverse_cost=480e-9,
+            simulate_cost=0.15e-3,
         ),
         Backend(
             "symbolic",
@@ -73,6 +86,9 @@ BACKENDS: dict[str, Backend] = {
             default_method="DOP853",
             requires="numba",
             extra="fast",
+            startup=1.0,
+            inverse_cost=31e-9,
+            simulate_cost=0.021e-3,
         ),
     )
 }
@@ -89,6 +105,19 @@ def get(name: object, task: str | None = None) -> Backend:
         valid = [b.name for b in BACKENDS.values() if task is None or b.runs(task)]
         raise InputError(f"backend={name!r} is not one of {', '.join(valid)}")
     return backend
+
+
+def estimated_seconds(backend: Backend, task: str, work: float, started: bool) -> float | None:
+    """What ``task`` would take on ``backend`` [s]; None when its costs are not known.
+
+    Args:
+        work: samples (``inverse``) or simulated seconds (``simulate``).
+        started: the process already paid the backend's start-up.
+    """
+    rate = backend.inverse_cost if task == "inverse" else backend.simulate_cost
+    if rate is None:
+        return None
+    return (0.0 if started else backend.startup) + rate * work
 
 
 def names(task: str | None = None) -> tuple[str, ...]:

@@ -105,21 +105,26 @@ def test_import_is_light():
 
 
 @pytest.mark.parametrize(
-    "requested, rrt, built, task, method, expected",
+    "requested, rrt, built, loaded, task, method, work, expected",
     [
-        ("auto", True, True, "inverse", None, "compiled"),
-        ("auto", True, False, "inverse", None, "pinocchio"),
-        ("auto", False, True, "inverse", None, "pinocchio"),  # another URDF: only Pinocchio
-        ("pinocchio", True, True, "inverse", None, "pinocchio"),
-        ("symbolic", True, False, "inverse", None, "symbolic"),
+        # The chapter's 15,001 samples: a fresh process would pay ~1 s to save ~7 ms.
+        ("auto", True, True, False, "inverse", None, 15_001, "pinocchio"),
+        ("auto", True, True, True, "inverse", None, 15_001, "compiled"),  # start-up paid
+        ("auto", True, True, False, "inverse", None, 10_000_000, "compiled"),
+        ("auto", True, False, False, "inverse", None, 10_000_000, "pinocchio"),  # not built
+        ("auto", False, True, True, "inverse", None, 10_000_000, "pinocchio"),  # a URDF
+        ("pinocchio", True, True, True, "inverse", None, 10_000_000, "pinocchio"),
+        ("symbolic", True, False, False, "inverse", None, 15_001, "symbolic"),
         # auto never changes the method: odepack (the default) runs on Pinocchio only
-        ("auto", True, True, "simulate", None, "pinocchio"),
-        ("auto", True, True, "simulate", "odepack", "pinocchio"),
-        ("auto", True, True, "simulate", "DOP853", "compiled"),
+        ("auto", True, True, True, "simulate", None, 1e6, "pinocchio"),
+        ("auto", True, True, True, "simulate", "odepack", 1e6, "pinocchio"),
+        ("auto", True, True, False, "simulate", "DOP853", 15.0, "pinocchio"),
+        ("auto", True, True, True, "simulate", "DOP853", 15.0, "compiled"),
+        ("auto", True, True, False, "simulate", "DOP853", 1e5, "compiled"),
     ],
 )
-def test_auto_backend_picks_compiled_only_when_built(
-    monkeypatch, requested, rrt, built, task, method, expected
+def test_auto_backend_picks_compiled_only_when_built_and_faster(
+    monkeypatch, requested, rrt, built, loaded, task, method, work, expected
 ):
     import rrt_pin.compiled as compiled
     from rrt_pin.commands._common import resolve_backend
@@ -128,10 +133,20 @@ def test_auto_backend_picks_compiled_only_when_built(
 
     robot = chapter_arm() if rrt else Robot.from_urdf(robot_urdf("ur5"))
     monkeypatch.setattr(compiled, "is_compiled", lambda: built)
+    monkeypatch.setattr(compiled, "is_loaded", lambda: loaded and built)
     loads = []
     monkeypatch.setattr(compiled, "ensure_compiled", lambda: loads.append(1) or _FakeReport())
-    assert resolve_backend(requested, robot, task, method) == expected
+    assert resolve_backend(requested, robot, task, method, work=work) == expected
     assert loads == ([1] if expected == "compiled" else [])
+
+
+def test_auto_says_what_it_chose_with_v(tmp_path):
+    proc = subprocess.run(
+        [sys.executable, "-m", "rrt_pin", "-v", "inverse", "--backend", "auto", "--dt", "0.5"],
+        capture_output=True, text=True, cwd=tmp_path,
+    )  # fmt: skip
+    assert proc.returncode == 0, proc.stderr
+    assert "--backend auto chose pinocchio" in proc.stderr
 
 
 class _FakeReport:

@@ -236,20 +236,27 @@ def write_run_outputs(
     )
 
 
-def resolve_backend(requested: str, robot: Robot, task: str, method: str | None = None) -> str:
+def resolve_backend(
+    requested: str, robot: Robot, task: str, method: str | None = None, work: float = 0.0
+) -> str:
     """The backend a run uses, loading the compiled one first so its cost is reported apart.
 
     ``auto`` picks ``compiled`` only when the robot supports it (the chapter's
-    arm), its machine code is already built (in this process or in the disk
-    cache, checked without importing numba), and it runs the method asked
-    for (``auto`` never changes the method); otherwise ``pinocchio``. A
-    backend the robot does not support is refused. With ``compiled``,
-    importing numba and loading (or compiling) the code happens here, and one
-    line on stderr says how long it took, so that the run's own time excludes it.
+    arm), it runs the method asked for (``auto`` never changes the method or the
+    tolerances), its machine code is already built (in this process or in the
+    disk cache, checked without importing numba), and the estimated time of the
+    whole job, start-up included, is at most half of ``pinocchio``'s
+    (:func:`rrt_pin.backends.estimated_seconds`: ``work`` is the number of
+    samples for ``inverse``, the simulated seconds for ``simulate``); otherwise
+    ``pinocchio``. ``-v`` says which and why. A backend the robot does not
+    support is refused. With ``compiled``, importing numba and loading (or
+    compiling) the code happens here, and one line on stderr says how long it
+    took, so that the run's own time excludes it.
 
     Raises:
         InputError: ``compiled`` was asked for but numba is missing.
     """
+    import logging
     import sys
 
     from rrt_pin import backends, methods
@@ -259,15 +266,33 @@ def resolve_backend(requested: str, robot: Robot, task: str, method: str | None 
         default = backends.get("pinocchio").default_method if task == "simulate" else None
         wanted = method or default
         runs = wanted is None or methods.get(wanted).runs_on("compiled")
-        built = False
+        built = started = False
         if robot.supports("compiled") and runs:
             try:
                 from rrt_pin import compiled
 
-                built = compiled.is_compiled()
+                started = compiled.is_loaded()
+                built = started or compiled.is_compiled()
             except ImportError:
                 built = False
-        requested = "compiled" if built else "pinocchio"
+        fast, engine = backends.get("compiled"), backends.get("pinocchio")
+        saves = False
+        if built:
+            mine = backends.estimated_seconds(fast, task, work, started)
+            theirs = backends.estimated_seconds(engine, task, work, True)
+            saves = mine is not None and theirs is not None and 2.0 * mine <= theirs
+            logging.getLogger("rrt_pin").info(
+                "--backend auto: compiled would take ~%.3g s (start-up %s), pinocchio ~%.3g s",
+                mine, "paid" if started else f"{fast.startup:g} s", theirs,
+            )  # fmt: skip
+        requested = "compiled" if saves else "pinocchio"
+        logging.getLogger("rrt_pin").info(
+            "--backend auto chose %s (%s)", requested,
+            "faster by the estimate" if saves else
+            "compiled code not built" if robot.supports("compiled") and runs and not built else
+            "compiled would not be faster" if built else
+            "compiled cannot run this robot or method",
+        )  # fmt: skip
     if not robot.supports(requested):
         raise InputError(
             f"--backend {requested} computes the chapter's RRT arm only; --urdf needs "

@@ -116,8 +116,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         )
         + " (loading compiled costs ~1 s per process, compiling it ~15 s once, both reported "
         "on stderr; a run then takes ~0.2 ms instead of ~3 ms); auto: compiled only when its "
-        "code is already built and it runs the method asked for, else pinocchio "
-        "(default: pinocchio)",
+        "code is already built, it runs the method asked for (auto never changes the "
+        "method or tolerances) and the job is long enough for it to be at least twice as "
+        "fast, start-up included, else pinocchio; -v says why (default: pinocchio)",
     )
     add_robot_arguments(parser, "simulate")
     add_scene_arguments(parser)
@@ -135,7 +136,9 @@ def run(args: argparse.Namespace) -> int:
     if args.method is not None:
         methods.get(args.method)
     robot = robot_from_args(args, params, "simulate")
-    args.backend = resolve_backend(args.backend, robot, "simulate", args.method)
+    args.backend = resolve_backend(
+        args.backend, robot, "simulate", args.method, work=float(t[-1] - t[0])
+    )
     method = args.method or backends.get(args.backend).default_method
     fixed = not methods.get(method).adaptive
 

@@ -44,6 +44,7 @@ __all__ = [
     "gravity",
     "inverse_dynamics",
     "is_compiled",
+    "is_loaded",
     "mass_matrix",
     "nonlinear_effects",
     "simulate_batch_compiled",
@@ -114,6 +115,11 @@ def available() -> bool:
             else:
                 _available = True
     return _available
+
+
+def is_loaded() -> bool:
+    """Whether this process has already loaded the machine code (its start-up is paid)."""
+    return _JIT in sys.modules
 
 
 def is_compiled() -> bool:
