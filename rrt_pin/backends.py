@@ -111,6 +111,8 @@ def estimated_seconds(backend: Backend, task: str, work: float, started: bool) -
     """What ``task`` would take on ``backend`` [s]; None when its costs are not known.
 
     Args:
+        backend: the backend.
+        task: ``inverse`` or ``simulate``.
         work: samples (``inverse``) or simulated seconds (``simulate``).
         started: the process already paid the backend's start-up.
     """
