@@ -18,6 +18,8 @@ from typing import TextIO
 
 import numpy as np
 
+from rrt_pin.text import duration
+
 __all__ = [
     "BenchRow",
     "Progress",
@@ -222,7 +224,7 @@ def inverse_backends(
             )
         )
         if progress is not None:
-            progress.step(f"inverse {backend} {method}: {t * 1e3:.3g} ms")
+            progress.step(f"inverse {backend} {method}: {duration(t)}")
     return rows
 
 
@@ -608,20 +610,20 @@ def summary(report: BenchReport) -> str:
     ):
         lines.append(
             f"simulate() default, backend {d.backend} ({d.method}, {d.setting}): "
-            f"{d.time_s * 1e3:.3g} ms, max |q error| {d.max_error:.2g}; "
+            f"{duration(d.time_s)}, max |q error| {d.max_error:.2g}; "
             f"{'on' if mine else 'NOT on'} the {d.backend} Pareto front, "
             f"{'on' if every else 'NOT on'} the overall front"
         )
     if fastest_8 is not None:
         lines.append(
             f"fastest at ≤ 1e-8: {fastest_8.method} ({fastest_8.backend}, {fastest_8.setting}) "
-            f"{fastest_8.time_s * 1e3:.3g} ms"
+            f"{duration(fastest_8.time_s)}"
         )
     base = next((r for r in report.inverse if r.method == "rnea-loop"), None)
     for r in report.inverse:
         ratio = f", {base.time_s / r.time_s:.1f}× the loop" if base else ""
         lines.append(
-            f"inverse {r.backend}/{r.method}: {r.time_s * 1e3:.3g} ms, rel. error {r.max_error:.2g}{ratio}"
+            f"inverse {r.backend}/{r.method}: {duration(r.time_s)}, rel. error {r.max_error:.2g}{ratio}"
         )
     for r in report.energy:
         lines.append(f"energy drift {r.method} ({r.setting}): {r.max_error:.2g} of max T")

@@ -62,11 +62,22 @@ def build_parser() -> tuple[argparse.ArgumentParser, dict[str, argparse.Argument
         "SI units everywhere: s, m, rad, kg, N, N·m.",
     )
     parser.add_argument("--version", action="version", version=f"%(prog)s {ver}")
-    parser.add_argument("-v", "--verbose", action="count", default=0, help="log more on stderr")
+    # -v/-q anywhere on the line: before the command (defaults 0) or after it (the
+    # subcommand's copies leave the namespace alone unless given).
+    for where, default in ((parser, 0), (verbosity := _Parser(add_help=False), argparse.SUPPRESS)):
+        where.add_argument(
+            "-v",
+            "--verbose",
+            action="count",
+            default=default,
+            help="say more on stderr: what was chosen and why, timings (-vv: debug)",
+        )
+        where.add_argument("-q", "--quiet", action="count", default=default,
+                           help="say less on stderr: only warnings and errors (-qq: errors)")  # fmt: skip
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     subparsers = {}
     for name, module in _command_modules().items():
-        p = sub.add_parser(name, help=module.HELP, description=module.HELP)
+        p = sub.add_parser(name, help=module.HELP, description=module.HELP, parents=[verbosity])
         module.add_arguments(p)
         p.set_defaults(_run=module.run)
         subparsers[name] = p
@@ -152,6 +163,41 @@ def _join_negative_lists(argv: list[str]) -> list[str]:
     return out
 
 
+class _Stderr(logging.StreamHandler):
+    """A handler writing to whatever ``sys.stderr`` is when a record comes (tests swap it)."""
+
+    def __init__(self) -> None:
+        super().__init__(sys.stderr)
+
+    @property
+    def stream(self):  # noqa: ANN201
+        return sys.stderr
+
+    @stream.setter
+    def stream(self, value) -> None:  # noqa: ANN001
+        pass
+
+
+def _log_to_stderr(level: int) -> None:
+    """Show the ``rrt_pin`` logger's records at ``level`` and above as "rrt-pin: message" lines."""
+    logger = logging.getLogger("rrt_pin")
+    handler = next((h for h in logger.handlers if isinstance(h, _Stderr)), None)
+    if handler is None:
+        handler = _Stderr()
+        handler.setFormatter(logging.Formatter("rrt-pin: %(message)s"))
+        logger.addHandler(handler)
+    logger.setLevel(level)
+    logger.propagate = False  # one line each, whatever the embedding program's root logger does
+
+
+def verbosity_level(verbose: int, quiet: int) -> int:
+    """The ``rrt_pin`` logging level for ``-v``/``-q`` counts: notes by default (NOTICE)."""
+    from rrt_pin._logging import NOTICE
+
+    steps = [logging.ERROR, logging.WARNING, NOTICE, logging.INFO, logging.DEBUG]
+    return steps[max(0, min(len(steps) - 1, 2 + verbose - quiet))]
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the CLI; returns the exit status (0 success, 2 bad input or failure)."""
     argv = _join_negative_lists(list(sys.argv[1:] if argv is None else argv))
@@ -167,11 +213,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.command is None:
             parser.print_help(sys.stderr)
             return EXIT_USAGE
-        logging.basicConfig(
-            level=logging.WARNING - 10 * min(args.verbose, 2),
-            format="rrt-pin: %(message)s",
-            stream=sys.stderr,
-        )
+        _log_to_stderr(verbosity_level(args.verbose, args.quiet))
         if getattr(args, "scene", None):
             scene = _apply_scene(args, subparsers[args.command])
             args = parser.parse_args(argv)  # explicit flags win over the scene's options

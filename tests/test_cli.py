@@ -206,3 +206,43 @@ def test_a_csv_with_a_byte_order_mark_reads(tmp_path):
     path.write_bytes("\ufefft,q1\n0,1\n".encode())
     header, data = read_csv(path, required=("t",))
     assert header == ["t", "q1"] and data.tolist() == [[0.0, 1.0]]
+
+
+@pytest.mark.parametrize(
+    "argv, says_wrote, says_why",
+    [
+        (["urdf", "-o", "{out}"], True, False),
+        (["-q", "urdf", "-o", "{out}"], False, False),
+        (["urdf", "-o", "{out}", "-q"], False, False),  # after the command too
+        (["urdf", "--quiet", "-o", "{out}"], False, False),
+        (["-v", "urdf", "-o", "{out}"], True, True),
+        (["urdf", "-o", "{out}", "-v"], True, True),
+    ],
+)
+def test_verbosity_flags_anywhere_on_the_line(argv, says_wrote, says_why, tmp_path):
+    out = tmp_path / "arm.urdf"
+    argv = [a.replace("{out}", str(out)) for a in argv]
+    proc = subprocess.run(
+        [sys.executable, "-m", "rrt_pin", *argv], capture_output=True, text=True, cwd=tmp_path
+    )
+    assert proc.returncode == 0, proc.stderr
+    assert out.stat().st_size > 0  # -q hides the note, never the work
+    assert (f"wrote {out}" in proc.stderr) == says_wrote, proc.stderr
+    if says_why:  # -v after the command as well as before it
+        argv = ["inverse", "--dt", "0.5", "--backend", "auto"]
+        argv = ["-v", *argv] if argv[0] == "-v" else [*argv, "-v"]
+        proc = subprocess.run([sys.executable, "-m", "rrt_pin", *argv],
+                              capture_output=True, text=True, cwd=tmp_path)  # fmt: skip
+        assert "--backend auto chose pinocchio" in proc.stderr, proc.stderr
+
+
+def test_verbosity_levels():
+    import logging
+
+    from rrt_pin._logging import NOTICE
+    from rrt_pin.cli import verbosity_level
+
+    assert verbosity_level(0, 0) == NOTICE
+    assert verbosity_level(1, 0) == logging.INFO and verbosity_level(5, 0) == logging.DEBUG
+    assert verbosity_level(0, 1) == logging.WARNING and verbosity_level(0, 9) == logging.ERROR
+    assert verbosity_level(1, 1) == NOTICE

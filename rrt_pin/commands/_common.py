@@ -7,6 +7,7 @@ import math
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
+from rrt_pin._logging import note
 from rrt_pin.params import PARAM_DOCS, Params
 
 if TYPE_CHECKING:
@@ -257,7 +258,6 @@ def resolve_backend(
         InputError: ``compiled`` was asked for but numba is missing.
     """
     import logging
-    import sys
 
     from rrt_pin import backends, methods
     from rrt_pin.errors import InputError
@@ -281,10 +281,14 @@ def resolve_backend(
             mine = backends.estimated_seconds(fast, task, work, started)
             theirs = backends.estimated_seconds(engine, task, work, True)
             saves = mine is not None and theirs is not None and 2.0 * mine <= theirs
+            from rrt_pin.text import duration
+
             logging.getLogger("rrt_pin").info(
-                "--backend auto: compiled would take ~%.3g s (start-up %s), pinocchio ~%.3g s",
-                mine, "paid" if started else f"{fast.startup:g} s", theirs,
-            )  # fmt: skip
+                "--backend auto: compiled would take ~%s (start-up %s), pinocchio ~%s",
+                "?" if mine is None else duration(mine),
+                "paid" if started else duration(fast.startup),
+                "?" if theirs is None else duration(theirs),
+            )
         requested = "compiled" if saves else "pinocchio"
         logging.getLogger("rrt_pin").info(
             "--backend auto chose %s (%s)", requested,
@@ -305,5 +309,5 @@ def resolve_backend(
             report = compiled.ensure_compiled()
         except ImportError as e:
             raise InputError(f"backend 'compiled' is not available: {e}") from e
-        print(f"rrt-pin: {report.describe()}", file=sys.stderr)
+        note(report.describe())
     return requested

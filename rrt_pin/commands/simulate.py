@@ -183,6 +183,7 @@ def summary(robot: Robot, result: SimulationResult) -> str:
     import numpy as np
 
     from rrt_pin.metrics import settling_times
+    from rrt_pin.text import duration
 
     t, q, tau = result.t, result.q, result.tau
     qf = robot.defaults.qf
@@ -192,7 +193,7 @@ def summary(robot: Robot, result: SimulationResult) -> str:
     lines = [
         f"simulated the {robot.name} under {robot.regulator}: {t.size} samples, "
         f"t = {t[0]:g} .. {t[-1]:g} s, method {result.method} ({tol}), backend {result.backend}, "
-        f"{result.n_evals} evaluations, {result.wall_time * 1e3:.3g} ms",
+        f"{result.n_evals} evaluations, {duration(result.wall_time)}",
         f"{'joint':<24} {'q(tf)':>14} {'qf':>14} {'|q(tf) - qf|':>16}  {'settled (2 %) at t':>18}",
     ]
     settled = settling_times(t, q, robot.defaults.q0, qf)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
+from rrt_pin._logging import note
 from rrt_pin.commands._common import positive_int
 
 HELP = "run a sweep spec (TOML): many variants, metrics to Parquet, locally or on Dask (SI units)"
@@ -66,5 +67,5 @@ def run(args: argparse.Namespace) -> int:
         from rrt_pin.sweeps.plot import plot_metric
 
         path = plot_metric(result.out, args.plot)
-        print(f"wrote {path}", file=sys.stderr)
+        note(f"wrote {path}")
     return 0

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
+from rrt_pin._logging import note
 from rrt_pin.commands._common import add_scene_arguments, nonnegative_float, params_from_args
 
 HELP = "generate the URDF of the RRT arm (SI units: m, kg, kg·m²)"
@@ -35,7 +36,7 @@ def run(args: argparse.Namespace) -> int:
         from rrt_pin.io import atomic_write_text
 
         atomic_write_text(args.output, xml)
-        print(f"wrote {args.output}", file=sys.stderr)
+        note(f"wrote {args.output}")
     else:
         sys.stdout.write(xml)
     return 0

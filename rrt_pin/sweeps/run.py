@@ -29,6 +29,7 @@ import numpy as np
 
 from rrt_pin.errors import InputError, RrtPinError, SceneError
 from rrt_pin.sweeps.spec import Spec, load_spec, spec_from_dict
+from rrt_pin.text import duration
 
 __all__ = ["SweepResult", "sweep"]
 
@@ -77,7 +78,7 @@ class SweepResult:
         rate = self.variants / self.wall_time if self.wall_time > 0 else math.nan
         lines = [
             f"sweep of {self.variants} variants in {self.chunks} chunks -> {self.out}/",
-            f"  computed {self.computed} chunks in {_duration(self.wall_time)} "
+            f"  computed {self.computed} chunks in {duration(self.wall_time)} "
             f"({rate:,.0f} variants/s over the whole sweep)" if self.computed else
             "  nothing to compute: every chunk was done",
         ]  # fmt: skip
@@ -87,14 +88,6 @@ class SweepResult:
             params = ", ".join(f"{k}={v:.6g}" for k, v in values.items())
             lines.append(f"  worst {self.metric} = {value:.3g}: variant {index} ({params})")
         return "\n".join(lines) + "\n"
-
-
-def _duration(seconds: float) -> str:
-    if seconds < 1:
-        return f"{seconds * 1e3:.3g} ms"
-    if seconds < 120:
-        return f"{seconds:.3g} s"
-    return f"{seconds / 60:.3g} min"
 
 
 def _spec(spec: Spec | str | Path | Mapping[str, Any]) -> Spec:

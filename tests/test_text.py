@@ -1,0 +1,29 @@
+"""Durations read in sensible units."""
+
+import pytest
+
+from rrt_pin.text import duration
+
+
+@pytest.mark.parametrize(
+    "seconds, text",
+    [
+        (62.5, "62.5 s"),
+        (0.00042, "420 µs"),
+        (0.42, "420 ms"),
+        (1.0, "1 s"),
+        (210.0, "3.5 min"),
+        (7560.0, "2.1 h"),
+        (86400.0 * 1234, "1,234 d"),
+        (1e-9, "0.001 µs"),
+        (float("inf"), "inf s"),
+    ],
+)
+def test_duration(seconds, text):
+    assert duration(seconds) == text
+
+
+def test_no_exponent_for_any_run_length():
+    for exponent in range(-9, 9):
+        for mantissa in (1.0, 2.5, 9.99):
+            assert "e" not in duration(mantissa * 10.0**exponent)
