@@ -164,7 +164,7 @@ class Robot:
     source: Path | None = None
     layout: str = "generic"
     regulator: str = "PD plus gravity compensation"
-    motion: str = "the rest-to-rest motion of eq. (30)"
+    motion: str = "a rest-to-rest motion from q0 to qf"
     _model: Any = field(default=None, repr=False)
     _build: Any = field(default=None, repr=False)
 

@@ -69,6 +69,7 @@ def chapter_arm(params: Params | None = None) -> Robot:
         params=p,
         layout="chapter",
         regulator="the chapter's feedback law, eq. (31)",
+        motion="the chapter's rest-to-rest motion, eq. (30)",
         _build=build,
     )
 
@@ -100,14 +101,8 @@ def example_robot_data_dir() -> Path | None:
 
 def _example(name: str) -> Callable[[Params | None], Robot]:
     def load(params: Params | None = None) -> Robot:
-        base = example_robot_data_dir()
-        if base is None:
-            raise InputError(
-                f"robot {name!r} comes from example-robot-data, which is not installed "
-                "(pip install example-robot-data)"
-            )
         g = params.g if params is not None else 9.81
-        return Robot.from_urdf(base / EXAMPLE_ROBOT_DATA[name], g=g)
+        return Robot.from_urdf(urdf_path(name), g=g)
 
     return load
 
@@ -129,6 +124,25 @@ def get(name: str, params: Params | None = None) -> Robot:
     if factory is None:
         raise InputError(f"robot {name!r} is unknown; known: {', '.join(ROBOTS)}")
     return factory(params)
+
+
+def urdf_path(name: str) -> Path | None:
+    """The URDF file of the robot called ``name``; None for the chapter's arm (generated).
+
+    Raises:
+        InputError: an unknown name, or example-robot-data missing.
+    """
+    if name not in ROBOTS:
+        raise InputError(f"robot {name!r} is unknown; known: {', '.join(ROBOTS)}")
+    if name not in EXAMPLE_ROBOT_DATA:
+        return None
+    base = example_robot_data_dir()
+    if base is None:
+        raise InputError(
+            f"robot {name!r} comes from example-robot-data, which is not installed "
+            "(pip install example-robot-data)"
+        )
+    return base / EXAMPLE_ROBOT_DATA[name]
 
 
 def names() -> tuple[str, ...]:
@@ -166,6 +180,7 @@ def for_task(
     params: Params,
     *,
     urdf: str | Path | None = None,
+    name: str | None = None,
     given: set[str] | frozenset[str] = frozenset(),
     **values: Any,
 ) -> Robot:
@@ -175,6 +190,7 @@ def for_task(
         task: ``inverse``, ``simulate`` or ``view`` (what defaults it needs, see :data:`TASK_NEEDS`).
         params: the chapter's parameters (the arm; g and Tp for a URDF).
         urdf: a URDF file, or None for the chapter's arm.
+        name: instead of ``urdf``, a robot known by name (:data:`ROBOTS`).
         given: the parameters the user set (a URDF accepts only g and Tp).
         values: ``q0``, ``qd0``, ``qf`` [rad or m, rad/s or m/s], ``kp``, ``kd``
             (one per joint; gains may be one for all), or None for the robot's default.
@@ -184,6 +200,9 @@ def for_task(
             of the wrong length, or a default the task needs and the robot lacks.
         UrdfError: the URDF does not describe a usable robot.
     """
+    flag = f"--urdf {urdf}"
+    if name is not None:
+        urdf, flag = urdf_path(name), f"--robot {name}"
     if urdf is None:
         robot = chapter_arm(params)
     else:
@@ -191,7 +210,7 @@ def for_task(
         unused = sorted(set(given) - set(robot.parameters))
         if unused:
             raise InputError(
-                f"parameter {unused[0]} describes the RRT arm and does not apply to --urdf "
+                f"parameter {unused[0]} describes the RRT arm and does not apply to {flag} "
                 f"(only {' and '.join(robot.parameters)} do)"
             )
     changes = {
@@ -204,6 +223,6 @@ def for_task(
     if missing:
         flags = ", ".join(missing[:-1]) + " and " + missing[-1] if len(missing) > 1 else missing[0]
         raise InputError(
-            f"--urdf {urdf} needs {flags} ({robot.nv} values each: {', '.join(robot.q_names)})"
+            f"{flag} needs {flags} ({robot.nv} values each: {', '.join(robot.q_names)})"
         )
     return robot

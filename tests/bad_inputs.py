@@ -477,4 +477,15 @@ CASES = (
         "numba not found (needed for the compiled backend): ",
         missing=("numba",),
     ),
+    # plots: the format follows the suffix
+    Case(
+        "--plot with a suffix no writer has",
+        ("inverse", "--plot", "{tmp}/efforts.jpg"),
+        "suffix '.jpg' is not an image format rrt-pin writes; use .png, .svg, .pdf",
+    ),
+    Case(
+        "--plot without a suffix",
+        ("simulate", "--plot", "{tmp}/efforts"),
+        "no suffix names an image format",
+    ),
 )

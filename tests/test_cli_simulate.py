@@ -210,7 +210,7 @@ def test_a_full_disk_changes_no_output_of_the_run(command, tiny_fs, capsys):
 
 
 def test_csv_and_plot_naming_one_file_are_refused(tmp_path, capsys):
-    out = tmp_path / "same"
+    out = tmp_path / "same.png"
     code = main(["simulate", "--csv", str(out), "--plot", str(out)])
     assert code == 2 and "--csv and --plot name the same file" in capsys.readouterr().err
     assert list(tmp_path.iterdir()) == []

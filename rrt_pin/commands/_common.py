@@ -158,12 +158,21 @@ def add_robot_arguments(parser: argparse.ArgumentParser, task: str) -> None:
         "simulate": "--q0, --qf, --kp and --kd",
         "view": "a CSV, or the flags of the task it plays",
     }[task]
-    parser.add_argument(
+    which = parser.add_mutually_exclusive_group()
+    which.add_argument(
         "--urdf",
         type=nonempty,
         metavar="PATH",
         help="another fixed-base robot (revolute, continuous, prismatic joints) instead of the "
         f"chapter's RRT arm; needs {needs} (list its joints: rrt-pin joints --urdf PATH)",
+    )
+    which.add_argument(
+        "--robot",
+        type=nonempty,
+        metavar="NAME",
+        help="a robot known by name instead: rrt (the chapter's arm) or example-robot-data's "
+        f"ur5, panda, double_pendulum, double_pendulum_continuous, kinova; needs {needs} "
+        "like --urdf (rrt-pin joints --robot NAME)",
     )
     parser.add_argument(
         "--q0",
@@ -208,6 +217,19 @@ def nonempty(text: str) -> str:
     return text
 
 
+def plot_path(text: str) -> str:
+    """``--plot``'s value: not empty, and a suffix naming an image format (png, svg, pdf)."""
+    from rrt_pin.errors import InputError
+    from rrt_pin.plot import plot_format
+
+    path = nonempty(text)
+    try:
+        plot_format(path)
+    except InputError as e:
+        raise argparse.ArgumentTypeError(str(e).split(": ", 1)[1]) from None
+    return path
+
+
 def robot_from_args(args: argparse.Namespace, params: Params, task: str) -> Robot:
     """The run's robot from the flags (``--urdf``, ``--q0`` …): see :func:`rrt_pin.robots.for_task`."""
     from rrt_pin.params import parse_overrides
@@ -218,7 +240,9 @@ def robot_from_args(args: argparse.Namespace, params: Params, task: str) -> Robo
     if scene is not None:
         given |= set(scene.params)
     values = {k: getattr(args, k, None) for k in ("q0", "qd0", "qf", "kp", "kd")}
-    return for_task(task, params, urdf=args.urdf, given=given, **values)
+    return for_task(
+        task, params, urdf=args.urdf, name=getattr(args, "robot", None), given=given, **values
+    )
 
 
 def write_run_outputs(

@@ -19,6 +19,7 @@ from rrt_pin.commands._common import (
     finite_float,
     nonempty,
     params_from_args,
+    plot_path,
     positive_seconds,
     resolve_backend,
     robot_from_args,
@@ -83,9 +84,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--plot",
-        type=nonempty,
+        type=plot_path,
         metavar="PATH.png",
-        help="write a PNG of the efforts against time (matplotlib)",
+        help="write a plot of the efforts against time (matplotlib); the format follows the "
+        "suffix: .png, .svg or .pdf",
     )
     parser.add_argument(
         "--wrenches",
@@ -154,7 +156,7 @@ def run(args: argparse.Namespace) -> int:
             args.csv,
             lambda: csv_text(header, np.hstack(columns)),
             args.plot,
-            lambda: _picture(robot, traj.t, tau),
+            lambda: _picture(robot, traj.t, tau, args.plot),
         )
         for path in (args.plot, args.csv):
             if path:
@@ -195,8 +197,7 @@ def summary(
     return "\n".join(lines) + "\n"
 
 
-def _picture(robot: Robot, t: np.ndarray, tau: np.ndarray) -> bytes:
-    from rrt_pin.plot import effort_panels, render_panels
+def _picture(robot: Robot, t: np.ndarray, tau: np.ndarray, path: str) -> bytes:
+    from rrt_pin.plot import inverse_figure, plot_format
 
-    title = f"{robot.name}: joint efforts along {robot.motion}"
-    return render_panels(t, effort_panels(robot, tau), title)
+    return inverse_figure(robot, t, tau, fmt=plot_format(path))

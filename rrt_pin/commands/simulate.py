@@ -17,6 +17,7 @@ from rrt_pin.commands._common import (
     add_scene_arguments,
     nonempty,
     params_from_args,
+    plot_path,
     positive_float,
     positive_seconds,
     resolve_backend,
@@ -103,9 +104,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--plot",
-        type=nonempty,
+        type=plot_path,
         metavar="PATH.png",
-        help="write a PNG of q(t) and the efforts (matplotlib)",
+        help="write a plot of q(t) (targets dashed) and the efforts (matplotlib); the format "
+        "follows the suffix: .png, .svg or .pdf",
     )
     parser.add_argument(
         "--backend",
@@ -165,7 +167,7 @@ def run(args: argparse.Namespace) -> int:
             args.csv,
             lambda: csv_text(result.header, result.table()),
             args.plot,
-            lambda: _picture(robot, result),
+            lambda: _picture(robot, result, args.plot),
         )
         for path in (args.plot, args.csv):
             if path:
@@ -212,12 +214,8 @@ def summary(robot: Robot, result: SimulationResult) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _picture(robot: Robot, result: SimulationResult) -> bytes:
-    from rrt_pin.plot import effort_panels, position_panels, render_panels
+def _picture(robot: Robot, result: SimulationResult, path: str) -> bytes:
+    from rrt_pin.plot import plot_format, simulate_figure
 
-    panels = position_panels(robot, result.q) + effort_panels(
-        robot, result.tau, what=": applied efforts"
-    )
-    return render_panels(
-        result.t, panels, f"{robot.name} under {robot.regulator}: q(t) and efforts"
-    )
+    return simulate_figure(robot, result.t, result.q, result.tau, targets=robot.defaults.qf,
+                           fmt=plot_format(path))  # fmt: skip
