@@ -112,29 +112,48 @@ def _option_value(where: str, action: argparse.Action, value: object) -> object:
     return converted
 
 
-def _apply_scene(args: argparse.Namespace, subparser: argparse.ArgumentParser) -> Scene:
-    """Load ``--config`` and make its [options] the subparser's defaults.
+def _apply_scene(args: argparse.Namespace, subparsers: dict[str, argparse.ArgumentParser]) -> Scene:
+    """Load ``--config`` and make its options the command's defaults.
 
-    Each value passes the same parser as its flag (type, range, choices): a value
-    from a file is held to what the same value on the command line is.
+    ``[options]`` apply to every command that has them (a key no command has is
+    refused); the command's own table applies to it alone (a key it lacks is
+    refused). Each value passes the same parser as its flag (type, range,
+    choices): a value from a file is held to what the same value on the command
+    line is.
     """
     from rrt_pin.scene import load_scene
 
     scene = load_scene(args.scene)
-    actions = {
-        a.dest: a for a in subparser._actions if a.dest not in ("help", "scene", "overrides")
-    }
     where = f"run file {args.scene!r}"
-    defaults = {}
-    for key, value in scene.options.items():
-        dest = key.replace("-", "_")
-        if dest not in actions:
+
+    def actions(command: str) -> dict[str, argparse.Action]:
+        skip = ("help", "scene", "overrides", "verbose", "quiet")
+        return {a.dest: a for a in subparsers[command]._actions if a.dest not in skip}
+
+    mine = actions(args.command)
+    everyone = {dest for command in subparsers for dest in actions(command)}
+    for key in scene.options:
+        if key.replace("-", "_") not in everyone:
             raise SceneError(
-                f"{where}: option {key!r} is not an option of "
-                f"'rrt-pin {args.command}'; valid: {', '.join(sorted(actions))}"
+                f"{where}: [options] {key!r} is not an option of any command; "
+                f"valid: {', '.join(sorted(everyone))}"
             )
-        defaults[dest] = _option_value(where, actions[dest], value)
-    subparser.set_defaults(**defaults)
+    for command, table in scene.commands.items():
+        valid = actions(command) if command in subparsers else {}
+        for key in table:
+            if key.replace("-", "_") not in valid:
+                raise SceneError(
+                    f"{where}: [{command}] {key!r} is not an option of 'rrt-pin {command}'; "
+                    f"valid: {', '.join(sorted(valid))}"
+                )
+    defaults = {}
+    own = scene.commands.get(args.command, {})
+    for key, value in scene.options_for(args.command).items():
+        dest = key.replace("-", "_")
+        if dest in mine:
+            label = f"{where} [{args.command if key in own else 'options'}]"
+            defaults[dest] = _option_value(label, mine[dest], value)
+    subparsers[args.command].set_defaults(**defaults)
     return scene
 
 
@@ -215,7 +234,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             return EXIT_USAGE
         _log_to_stderr(verbosity_level(args.verbose, args.quiet))
         if getattr(args, "scene", None):
-            scene = _apply_scene(args, subparsers[args.command])
+            scene = _apply_scene(args, subparsers)
             args = parser.parse_args(argv)  # explicit flags win over the scene's options
             args.scene_obj = scene
         return int(args._run(args) or 0)

@@ -1,17 +1,24 @@
-"""Scene files: a TOML description of one run's setup.
+"""Run files (``--config``): a TOML description of a run's setup, reusable by every command.
 
-A scene holds parameter values (the seed's symbols) and command options::
+A run file holds parameter values (the chapter's symbols), options shared by
+the commands that have them, and options for one command each::
 
-    # seed.toml
+    # run.toml
     [params]            # any field of rrt_pin.params.Params, SI units
     m3 = 50.0
     q1f = "pi/3"        # strings may be small expressions (pi, tau, e, + - * / **)
 
-    [options]           # defaults for the command's long options
+    [options]           # for every command that has the option (others ignore it)
     tf = 15.0           # [s]
-    dt = 0.001          # [s]
 
-Precedence: the seed's values < the scene file < ``--set`` and explicit flags.
+    [inverse]           # for `rrt-pin inverse` only
+    dt = 0.001          # [s] sample interval
+    [simulate]          # for `rrt-pin simulate` only
+    dt = 0.01           # [s] output interval
+
+Precedence: the chapter's values < ``[options]`` < the command's table < ``--set``
+and explicit flags. A key of ``[options]`` must be an option of at least one
+command, and a key of a command's table an option of that command.
 """
 
 from __future__ import annotations
@@ -22,6 +29,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from rrt_pin.commands import COMMANDS
 from rrt_pin.errors import SceneError
 from rrt_pin.params import PARAM_DOCS, Params, param_names, parse_number
 
@@ -35,10 +43,21 @@ __all__ = ["MAX_SCENE_BYTES", "Scene", "load_scene", "resolve_params"]
 
 @dataclass(frozen=True)
 class Scene:
-    """A parsed scene file: parameter overrides and command-option defaults."""
+    """A parsed run file: parameter overrides and command-option defaults.
+
+    Attributes:
+        params: the chapter's symbols -> values (SI units).
+        options: ``[options]``, shared by every command that has the option.
+        commands: command name -> its own table of options.
+    """
 
     params: dict[str, float] = field(default_factory=dict)
     options: dict[str, Any] = field(default_factory=dict)
+    commands: dict[str, dict[str, Any]] = field(default_factory=dict)
+
+    def options_for(self, command: str) -> dict[str, Any]:
+        """The options ``command`` takes from the file: ``[options]`` then its own table."""
+        return {**self.options, **self.commands.get(command, {})}
 
 
 #: Largest scene file accepted [bytes].
@@ -63,10 +82,11 @@ def load_scene(path: str | Path) -> Scene:
         raise SceneError(f"scene file {str(path)!r} is not valid TOML: {e}") from e
     except (RecursionError, MemoryError):
         raise SceneError(f"scene file {str(path)!r} is not valid TOML: nested too deeply") from None
-    unknown = sorted(set(data) - {"params", "options"})
+    unknown = sorted(set(data) - {"params", "options", *COMMANDS})
     if unknown:
         raise SceneError(
-            f"scene file {str(path)!r}: unknown table {unknown[0]!r}; valid: params, options"
+            f"scene file {str(path)!r}: unknown table {unknown[0]!r}; valid: params, options "
+            f"or a command's name ({', '.join(COMMANDS)})"
         )
     raw = data.get("params", {})
     if not isinstance(raw, dict):
@@ -87,14 +107,20 @@ def load_scene(path: str | Path) -> Scene:
             raise SceneError(f"scene file {str(path)!r}: {name}={value!r} is not a number")
         _check_int(path, name, value)
         params[name] = float(value)
-    options = data.get("options", {})
-    if not isinstance(options, dict):
-        raise SceneError(f"scene file {str(path)!r}: 'options' must be a table")
-    for name, value in options.items():
-        if isinstance(value, float) and not math.isfinite(value):
-            raise SceneError(f"scene file {str(path)!r}: option {name}={value!r} must be finite")
-        _check_int(path, f"option {name}", value)
-    return Scene(params=params, options=dict(options))
+    tables = {}
+    for table in ("options", *COMMANDS):
+        options = data.get(table, {})
+        if not isinstance(options, dict):
+            raise SceneError(f"scene file {str(path)!r}: {table!r} must be a table")
+        for name, value in options.items():
+            if isinstance(value, float) and not math.isfinite(value):
+                raise SceneError(
+                    f"scene file {str(path)!r}: [{table}] {name}={value!r} must be finite"
+                )
+            _check_int(path, f"[{table}] {name}", value)
+        tables[table] = dict(options)
+    options = tables.pop("options")
+    return Scene(params=params, options=options, commands={k: v for k, v in tables.items() if v})
 
 
 def _check_int(path: Path, name: str, value: object) -> None:

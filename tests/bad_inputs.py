@@ -72,6 +72,9 @@ def make_files(tmp: Path) -> None:
     (tmp / "deep.toml").write_text("[options]\nq0 = " + "[" * 3000 + "]" * 3000 + "\n")
     (tmp / "bigint.toml").write_text("[params]\nm3 = 1" + "0" * 400 + "\n")
     (tmp / "power.toml").write_text('[params]\nm3 = "9**9**9"\n')
+    (tmp / "opt_nobody.toml").write_text("[options]\nfrobnicate = 1\n")
+    (tmp / "table_wrong.toml").write_text("[inverse]\nmethod = 'rk4'\n")
+    (tmp / "table_unknown.toml").write_text("[simulation]\ndt = 0.1\n")
 
 
 #: A "billion laughs" document type declaration.
@@ -487,5 +490,26 @@ CASES = (
         "--plot without a suffix",
         ("simulate", "--plot", "{tmp}/efforts"),
         "no suffix names an image format",
+    ),
+    # run files shared by the commands: [options] and one table per command
+    Case(
+        "run file: [options] key no command has",
+        ("urdf", "--config", "{tmp}/opt_nobody.toml"),
+        "[options] 'frobnicate' is not an option of any command",
+    ),
+    Case(
+        "run file: a command's table with another command's option",
+        ("simulate", "--config", "{tmp}/table_wrong.toml", "--csv", OUT),
+        "[inverse] 'method' is not an option of 'rrt-pin inverse'",
+    ),
+    Case(
+        "run file: a table named after no command",
+        ("inverse", "--config", "{tmp}/table_unknown.toml", "--csv", OUT),
+        "unknown table 'simulation'",
+    ),
+    Case(
+        "--step with an adaptive method",
+        ("simulate", "--method", "DOP853", "--step", "0.001", "--csv", OUT),
+        "--step=0.001 sets the step of the fixed-step methods; DOP853 is adaptive",
     ),
 )

@@ -24,6 +24,7 @@ from rrt_pin.commands._common import (
     robot_from_args,
     write_run_outputs,
 )
+from rrt_pin.errors import InputError
 from rrt_pin.io import check_outputs
 
 if TYPE_CHECKING:
@@ -41,7 +42,7 @@ def _method_lines() -> str:
             if m.runs_on("pinocchio") and m.runs_on("compiled")
             else (" (compiled only)" if not m.runs_on("pinocchio") else " (pinocchio only)")
         )
-        how = "adaptive: --rtol, --atol" if m.adaptive else "fixed step: --dt"
+        how = "adaptive: --rtol, --atol" if m.adaptive else "fixed step: --step"
         lines.append(f"  {m.name:<17} {m.summary}; {how}{on}")
     return "\n".join(lines)
 
@@ -75,7 +76,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         type=positive_float,
         default=0.01,
         metavar="S",
-        help="output interval [s], and the step of the fixed-step methods (default 0.01)",
+        help="output interval [s]: one CSV row per dt (default 0.01)",
+    )
+    parser.add_argument(
+        "--step",
+        type=positive_float,
+        default=None,
+        metavar="S",
+        help="integration step of the fixed-step methods [s] (default: --dt); adaptive "
+        "methods choose their own steps from --rtol and --atol",
     )
     parser.add_argument(
         "--method",
@@ -143,6 +152,11 @@ def run(args: argparse.Namespace) -> int:
     )
     method = args.method or backends.get(args.backend).default_method
     fixed = not methods.get(method).adaptive
+    if args.step is not None and not fixed:
+        raise InputError(
+            f"--step={args.step!r} sets the step of the fixed-step methods; {method} is "
+            "adaptive (its steps follow --rtol and --atol)"
+        )
 
     from rrt_pin.control import regulator
     from rrt_pin.simulate import simulate
@@ -158,7 +172,7 @@ def run(args: argparse.Namespace) -> int:
         rtol=args.rtol,
         atol=args.atol,
         backend=args.backend,
-        step=args.dt if fixed else None,
+        step=(args.step or args.dt) if fixed else None,
     )
     if args.csv or args.plot:
         from rrt_pin.csvio import csv_text
