@@ -68,9 +68,12 @@ def test_scene_file_and_set_precedence(tmp_path, capsys):
 
 def test_scene_option_must_belong_to_the_command(tmp_path, capsys):
     scene = tmp_path / "scene.toml"
-    scene.write_text("[options]\nfps = 30\n")
+    scene.write_text("[options]\nfps = 30\n")  # view's option: urdf ignores it
+    code, out, _ = run(["urdf", "--scene", str(scene)], capsys)
+    assert code == 0 and out == urdf_xml(Params())
+    scene.write_text("[urdf]\nfps = 30\n")  # urdf's own table: refused
     code, _, err = run(["urdf", "--scene", str(scene)], capsys)
-    assert code == 2 and "option 'fps' is not an option of 'rrt-pin urdf'" in err
+    assert code == 2 and "[urdf] 'fps' is not an option of 'rrt-pin urdf'" in err
 
 
 def test_scene_options_are_defaults_that_flags_override(tmp_path, capsys):
