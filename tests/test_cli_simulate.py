@@ -111,7 +111,7 @@ def test_methods_listed_by_the_command_are_the_librarys(capsys):
     text = capsys.readouterr().out
     for name, m in METHODS.items():
         line = next(x for x in text.splitlines() if x.strip().startswith(name + " "))
-        assert ("--rtol" in line) == m.adaptive and ("--dt" in line) != m.adaptive
+        assert ("--rtol" in line) == m.adaptive and ("--step" in line) != m.adaptive
 
 
 @pytest.mark.parametrize(
