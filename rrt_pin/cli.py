@@ -50,12 +50,8 @@ def _command_modules() -> dict[str, ModuleType]:
 
 def build_parser() -> tuple[argparse.ArgumentParser, dict[str, argparse.ArgumentParser]]:
     """The top-level parser and one subparser per available command."""
-    from importlib.metadata import PackageNotFoundError, version
+    from rrt_pin._version import __version__ as ver  # not importlib.metadata: ~20 ms
 
-    try:
-        ver = version("rrt-pin")
-    except PackageNotFoundError:  # running from a source tree
-        ver = "unknown"
     parser = _Parser(
         prog="rrt-pin",
         description="Rigid-body dynamics of the RRT arm (and any URDF) with Pinocchio. "

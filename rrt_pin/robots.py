@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import functools
 from collections.abc import Callable
-from importlib.metadata import PackageNotFoundError, distribution
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -87,6 +86,8 @@ EXAMPLE_ROBOT_DATA = {
 @functools.cache
 def example_robot_data_dir() -> Path | None:
     """``…/share/example-robot-data/robots`` of the installed package, or None."""
+    from importlib.metadata import PackageNotFoundError, distribution
+
     try:
         dist = distribution("example-robot-data")
     except PackageNotFoundError:

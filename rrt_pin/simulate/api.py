@@ -144,7 +144,7 @@ def simulate(
     from rrt_pin.control import as_controller
 
     robot = as_robot(model, params)
-    _prepare(robot, backend)
+    _prepare(robot, backend, method)
     start = time.perf_counter()
     q0 = robot.as_coordinates("q0", q0)
     qd0 = (
@@ -179,10 +179,22 @@ def simulate(
     return run_one(robot, law, q0, qd0, t, options, start)
 
 
-def _prepare(robot: Robot, backend: Any) -> None:
-    """Imports and model building, which are not simulation time."""
+def _prepare(robot: Robot, backend: Any, method: Any = None) -> None:
+    """Imports and model building, which are not simulation time.
+
+    Only what the method runs on is imported: ODEPACK's extension alone (a few
+    ms) for ``odepack``, all of ``scipy.integrate`` (~0.4 s) for ``solve_ivp``'s methods.
+    """
     if backend == "pinocchio":
-        import scipy.integrate  # noqa: F401
+        from rrt_pin import methods
+
+        family = methods.get(method).family if method in methods.METHODS else "odepack"
+        if family == "odepack":
+            from rrt_pin.simulate._odepack import load
+
+            load()
+        elif family == "scipy":
+            import scipy.integrate  # noqa: F401
 
         import rrt_pin.simulate.pinocchio_backend  # noqa: F401
 
@@ -268,7 +280,7 @@ def simulate_batch(
 
     first_params = params[0] if isinstance(params, (list, tuple)) and params else params
     robot = as_robot(model, first_params)  # type: ignore[arg-type]
-    _prepare(robot, backend)
+    _prepare(robot, backend, method)
     start = time.perf_counter()
     n = robot.nv
     q0s = validate.states("q0s", q0s, n, "rad or m")

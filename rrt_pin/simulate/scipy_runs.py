@@ -89,22 +89,10 @@ def run_odeint(
     lean: Callable[[np.ndarray, float], np.ndarray] | None = None,
 ) -> tuple[np.ndarray, dict[str, Any], bool]:
     """ODEPACK's LSODA through ``odeint``: (states, odeint's info, whether it succeeded)."""
-    from scipy.integrate import ODEintWarning, odeint
+    from rrt_pin.simulate._odepack import odeint
 
     func = lean if lean is not None else (lambda y, s: f(s, y))
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", ODEintWarning)
-        Y, info = odeint(
-            func,
-            y0,
-            t,
-            rtol=rtol,
-            atol=atol,
-            full_output=True,
-            mxstep=ODEINT_MXSTEP,
-            ml=band,
-            mu=band,
-        )
+    Y, info = odeint(func, y0, t, rtol=rtol, atol=atol, mxstep=ODEINT_MXSTEP, ml=band, mu=band)
     ok = info["message"] == "Integration successful." and bool(np.isfinite(Y).all())
     return Y, info, ok
 
