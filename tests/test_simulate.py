@@ -376,7 +376,7 @@ def test_compiled_backend_is_dispatched_lazily(monkeypatch, seed_model, seed_par
 
     fake = types.SimpleNamespace(simulate_compiled=simulate_compiled)
     monkeypatch.setattr(api, "_compiled", lambda: fake)
-    monkeypatch.setattr(api, "_prepare", lambda robot, backend: None)
+    monkeypatch.setattr(api, "_prepare", lambda robot, backend, method=None: None)
     c = seed_controller(seed_params)
     r = simulate(seed_model, c, seed_params.q0, seed_params.qd0, seed_run.t, backend="compiled")
     assert r is seed_run
