@@ -219,8 +219,10 @@ def test_symbolic_backend_matches_pinocchio_and_the_lagrangian(seed_model, seed_
 def test_compiled_backend_reports_when_unavailable(seed_params, monkeypatch):
     from rrt_pin import backends
 
+    from rrt_pin.extras import MissingExtra
+
     monkeypatch.setattr(backends.Backend, "available", lambda self: self.name != "compiled")
-    with pytest.raises(InputError, match="backend='compiled' is unavailable"):
+    with pytest.raises(MissingExtra, match=r"numba not found \(needed for backend 'compiled'\)"):
         inverse_dynamics(
             None, np.zeros(3), np.zeros(3), np.zeros(3), backend="compiled", params=seed_params
         )

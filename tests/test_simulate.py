@@ -396,7 +396,9 @@ def test_compiled_backend_is_dispatched_lazily(monkeypatch, seed_model, seed_par
     monkeypatch.setattr(backends.Backend, "available", lambda self: False)
     monkeypatch.undo()
     monkeypatch.setattr(backends.Backend, "available", lambda self: self.name != "compiled")
-    with pytest.raises(InputError, match="numba not found"):
+    from rrt_pin.extras import MissingExtra
+
+    with pytest.raises(MissingExtra, match=r"numba not found .*\[fast\]"):
         simulate(seed_model, c, seed_params.q0, seed_params.qd0, seed_run.t, backend="compiled")
 
 
