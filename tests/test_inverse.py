@@ -218,7 +218,6 @@ def test_symbolic_backend_matches_pinocchio_and_the_lagrangian(seed_model, seed_
 
 def test_compiled_backend_reports_when_unavailable(seed_params, monkeypatch):
     from rrt_pin import backends
-
     from rrt_pin.extras import MissingExtra
 
     monkeypatch.setattr(backends.Backend, "available", lambda self: self.name != "compiled")
