@@ -7,10 +7,11 @@ exit with status 2; no traceback, nothing written.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import logging
 import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Iterator, Sequence
 from types import ModuleType
 from typing import TYPE_CHECKING
 
@@ -193,16 +194,26 @@ class _Stderr(logging.StreamHandler):
         pass
 
 
-def _log_to_stderr(level: int) -> None:
-    """Show the ``rrt_pin`` logger's records at ``level`` and above as "rrt-pin: message" lines."""
+@contextlib.contextmanager
+def _log_to_stderr() -> Iterator[Callable[[int], None]]:
+    """Show the ``rrt_pin`` logger's records as "rrt-pin: message" lines while a command runs.
+
+    Yields the function that sets the level (once the flags are parsed); the
+    logger's handlers, level and propagation are restored afterwards, so that a
+    program calling :func:`main` (or a test) keeps its own logging.
+    """
     logger = logging.getLogger("rrt_pin")
-    handler = next((h for h in logger.handlers if isinstance(h, _Stderr)), None)
-    if handler is None:
-        handler = _Stderr()
-        handler.setFormatter(logging.Formatter("rrt-pin: %(message)s"))
-        logger.addHandler(handler)
-    logger.setLevel(level)
+    saved = (logger.level, logger.propagate)
+    handler = _Stderr()
+    handler.setFormatter(logging.Formatter("rrt-pin: %(message)s"))
+    logger.addHandler(handler)
     logger.propagate = False  # one line each, whatever the embedding program's root logger does
+    try:
+        yield logger.setLevel
+    finally:
+        logger.removeHandler(handler)
+        logger.setLevel(saved[0])
+        logger.propagate = saved[1]
 
 
 def verbosity_level(verbose: int, quiet: int) -> int:
@@ -222,13 +233,18 @@ def main(argv: Sequence[str] | None = None) -> int:
                 stream.reconfigure(errors="backslashreplace")
             except (ValueError, OSError):  # pragma: no cover - a stream that cannot
                 pass
+    with _log_to_stderr() as set_level:
+        return _main(argv, set_level)
+
+
+def _main(argv: list[str], set_level: Callable[[int], None]) -> int:
     try:
         parser, subparsers = build_parser()
         args = parser.parse_args(argv)
         if args.command is None:
             parser.print_help(sys.stderr)
             return EXIT_USAGE
-        _log_to_stderr(verbosity_level(args.verbose, args.quiet))
+        set_level(verbosity_level(args.verbose, args.quiet))
         if getattr(args, "scene", None):
             scene = _apply_scene(args, subparsers)
             args = parser.parse_args(argv)  # explicit flags win over the scene's options

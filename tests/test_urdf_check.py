@@ -273,7 +273,7 @@ def test_byte_order_marks_are_accepted(tmp_path):
     [
         ("[options]\nq0 = " + "[" * 3000 + "]" * 3000 + "\n", "nested too deeply"),
         ("[params]\nm3 = 1" + "0" * 400 + "\n", "beyond TOML's 64-bit range"),
-        ("[options]\nn = 1" + "0" * 30 + "\n", "option n is an integer"),
+        ("[options]\nn = 1" + "0" * 30 + "\n", "[options] n is an integer"),
         ('[params]\nm3 = "9**9**9"\n', "m3='9**9**9' is not a number (overflows"),
     ],
 )
