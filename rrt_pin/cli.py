@@ -176,6 +176,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             scene = _apply_scene(args, subparsers[args.command])
             args = parser.parse_args(argv)  # explicit flags win over the scene's options
             args.scene_obj = scene
+        args.argv = ["rrt-pin", *argv]  # the command line, for the outputs' metadata
         return int(args._run(args) or 0)
     except _OneLineError as e:
         print(e, file=sys.stderr)
