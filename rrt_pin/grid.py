@@ -60,14 +60,18 @@ def _grid(tf: float, dt: float, t0: float = 0.0, what: str = "") -> Grid:
     if not math.isfinite(steps) or steps >= MAX_SAMPLES:
         lead = f"{what}: " if what else ""
         raise InputError(
-            f"{lead}tf={tf:g} s at dt={dt:g} s makes {steps:.3g} samples, over the "
-            f"{MAX_SAMPLES:.0e} allowed; use a larger dt or a shorter tf"
+            f"{lead}tf={tf:g} s at dt={dt:g} s makes {_count(steps + 1)} samples, over the "
+            f"{MAX_SAMPLES:,} allowed; use a larger dt or a shorter tf"
         )
     n = round(steps)
     if abs(steps - n) > 1e-9 * max(1.0, steps):
         n = math.ceil(steps)
         return Grid(float(t0), float(tf), float(dt), n + 1, float(dt), False)
     return Grid(float(t0), float(tf), float(dt), n + 1, span / n, True)
+
+
+def _count(n: float) -> str:
+    return f"{n:,.0f}" if n < 1e15 else f"{n:.3g}"
 
 
 def grid_size(tf: float, dt: float, t0: float = 0.0, *, what: str = "") -> Grid:

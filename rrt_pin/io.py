@@ -393,7 +393,8 @@ def check_space(path: PathLike | None, size: int, flag: str | None = None) -> No
         return
     if size > free:
         raise t.fail(
-            f"the output would take about {_size(size)} but {folder!r} has {_size(free)} free",
+            f"no space left on device: the output would take about {_size(size)} but "
+            f"{folder!r} has {_size(free)} free",
             errno.ENOSPC,
         )
 

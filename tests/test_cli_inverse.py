@@ -43,7 +43,7 @@ def test_csv_contract(seed_csv, seed_params):
     assert lines[0] == HEADER
     assert len(lines) == 1 + 15001
     header, data = read_csv(seed_csv)
-    # %.17g round-trips: the first columns are exactly the grid and eq. (30).
+    # Shortest round-trip numbers: the first columns are exactly the grid and eq. (30).
     t = time_grid(p.Tp, 0.001)
     traj = rest_to_rest(p.q0, p.qf, p.Tp, t)
     np.testing.assert_array_equal(data[:, 0], t)

@@ -99,8 +99,8 @@ def simulate(
     model: Any,
     controller: Any,
     q0: Sequence[float] | np.ndarray,
-    qd0: Sequence[float] | np.ndarray | None,
-    t_eval: Sequence[float] | np.ndarray,
+    qd0: Sequence[float] | np.ndarray | None = None,
+    t_eval: Sequence[float] | np.ndarray | None = None,
     *,
     method: str | None = None,
     rtol: float | None = None,
@@ -120,8 +120,9 @@ def simulate(
             or None (no effort: passive motion).
         q0: initial joint coordinates (nv,) [rad or m] (angles for continuous
             joints; Pinocchio's (nq,) configuration is accepted too).
-        qd0: initial velocities (nv,) [rad/s or m/s]; None for rest.
-        t_eval: increasing output times [s]; the run starts at ``t_eval[0]``.
+        qd0: initial velocities (nv,) [rad/s or m/s]; None (the default) for rest.
+        t_eval: increasing output times [s] (required; e.g.
+            ``rrt_pin.time_grid(15.0, 0.01)``); the run starts at ``t_eval[0]``.
         method: a method of :data:`rrt_pin.methods.METHODS` that the backend
             runs (default: the backend's, ``odepack`` on Pinocchio, ``DOP853``
             compiled; the result says which).
@@ -143,6 +144,8 @@ def simulate(
     """
     from rrt_pin.control import as_controller
 
+    if t_eval is None:
+        raise InputError("simulate needs t_eval, the output times [s]: e.g. time_grid(15.0, 0.01)")
     robot = as_robot(model, params)
     _prepare(robot, backend)
     start = time.perf_counter()
