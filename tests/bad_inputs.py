@@ -450,4 +450,30 @@ CASES = (
         ("view", "--trajectory", "{tmp}/huge.csv", "--serve-for", "0"),
         "is beyond ±1e+30",
     ),
+    # streaming outputs (issue 13 item 7, issue 15): absurd grids, clashing outputs
+    Case(
+        "inverse grid of over 10^9 samples",
+        ("inverse", "--tf", "1e6", "--dt", "1e-6", "--csv", OUT),
+        "makes 1,000,000,000,001 samples, over the 1,000,000,000 allowed",
+    ),
+    Case(
+        "inverse motion time Tp=1e300",
+        ("inverse", "--set", "Tp=1e300", "--csv", OUT),
+        "Tp (the --tf)/--dt: tf=1e+300 s at dt=0.001 s makes 1e+303 samples",
+    ),
+    Case(
+        "simulate output grid of over 10^7 samples",
+        ("simulate", "--tf", "1e5", "--dt", "1e-3", "--csv", OUT),
+        "over the 10,000,000 a simulation keeps in memory",
+    ),
+    Case(
+        "--csv and --json naming one file",
+        ("inverse", "--csv", OUT, "--json", OUT),
+        "--csv and --json name the same file",
+    ),
+    Case(
+        "--csv - and --json - both on stdout",
+        ("simulate", "--csv", "-", "--json", "-"),
+        "--csv and --json name the same file '-'",
+    ),
 )

@@ -129,6 +129,7 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"--dt={dt!r} is larger than --tf={tf!r} [s]")
     grid = grid_size(tf, dt, what="--tf/--dt" if args.tf is not None else "Tp (the --tf)/--dt")
     job = InverseJob(robot, grid, d.Tp if d.Tp is not None else tf, args.wrenches)
+    job.keep_plot = bool(args.plot)
     check_space(args.csv, estimate_bytes(fmt, grid.size, len(job.header)), "--csv")
     args.backend = resolve_backend(args.backend, robot, "inverse")
     job.backend = args.backend
@@ -199,6 +200,7 @@ class InverseJob:
         self.peak_t = np.zeros(n)
         self.stride = max(1, -(-grid.size // PLOT_POINTS))
         self._plot: list[tuple[np.ndarray, np.ndarray]] = []
+        self.keep_plot = True  # whether to keep the thinned efforts for a plot
 
     def grid_times(self, start: int, stop: int) -> np.ndarray:
         """Samples ``start`` … ``stop - 1`` of the grid [s]."""
@@ -241,10 +243,10 @@ class InverseJob:
         best = values[i, np.arange(values.shape[1])]
         better = best > self.peak
         self.peak[better], self.peak_t[better] = best[better], t[i[better]]
-        keep = (np.arange(start, stop) % self.stride == 0) | (
-            np.arange(start, stop) == self.grid.size - 1
-        )
-        self._plot.append((t[keep], tau[keep]))
+        if self.keep_plot:
+            index = np.arange(start, stop)
+            keep = (index % self.stride == 0) | (index == self.grid.size - 1)
+            self._plot.append((t[keep], tau[keep]))
         return np.hstack(columns)
 
     def run(self, sink: TableWriter | None, progress: Progress | None = None) -> None:

@@ -163,23 +163,36 @@ def simulate(
         integrate = _compiled()
         p = _params_for(robot, params, [controller])
         model = robot.model if robot.params is None or robot.params is not p else None
-        return integrate.simulate_compiled(
-            p,
-            controller,
-            q0,
-            qd0,
-            t,
-            options.method.name,
-            options.rtol,
-            options.atol,
-            options.step,
-            model=model,
-            start=start,
+        return _with_units(
+            integrate.simulate_compiled(
+                p,
+                controller,
+                q0,
+                qd0,
+                t,
+                options.method.name,
+                options.rtol,
+                options.atol,
+                options.step,
+                model=model,
+                start=start,
+            ),
+            robot,
         )
     from rrt_pin.simulate.pinocchio_backend import run_one
 
     law = _passive(robot) if controller is None else as_controller(controller, robot.nv)
-    return run_one(robot, law, q0, qd0, t, options, start)
+    return _with_units(run_one(robot, law, q0, qd0, t, options, start), robot)
+
+
+def _with_units(result: Any, robot: Robot) -> Any:
+    """The result, knowing its robot's coordinate units (for ``to_frame``)."""
+    import dataclasses
+
+    units = tuple(robot.coordinate_units)
+    if tuple(result.coordinate_units) == units:
+        return result
+    return dataclasses.replace(result, coordinate_units=units)
 
 
 def _prepare(robot: Robot, backend: Any) -> None:
@@ -301,19 +314,24 @@ def simulate_batch(
             plants = list(params)
         else:
             plants = _params_for(robot, params, controllers)
-        return integrate.simulate_batch_compiled(
-            plants,
-            controllers,
-            q0s,
-            qd0s,
-            t,
-            options.method.name,
-            options.rtol,
-            options.atol,
-            options.step,
-            efforts,
-            start=start,
+        return _with_units(
+            integrate.simulate_batch_compiled(
+                plants,
+                controllers,
+                q0s,
+                qd0s,
+                t,
+                options.method.name,
+                options.rtol,
+                options.atol,
+                options.step,
+                efforts,
+                start=start,
+            ),
+            robot,
         )
     from rrt_pin.simulate.pinocchio_backend import run_batch
 
-    return run_batch(robot, laws, q0s, qd0s, t, options, threads, efforts, start)
+    return _with_units(
+        run_batch(robot, laws, q0s, qd0s, t, options, threads, efforts, start), robot
+    )
