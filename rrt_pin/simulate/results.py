@@ -81,12 +81,13 @@ class _Run:
         """The SI unit of every column of :attr:`header`."""
         rate = {"rad": "rad/s", "m": "m/s"}
         effort = {"rad": "N·m", "m": "N"}
-        out = {"t": "s"}
-        for k, unit in enumerate(self.coordinate_units):
-            out[self.q_names[k]] = unit
-            out[self.qd_names[k]] = rate.get(unit, f"{unit}/s")
-            out[self.tau_names[k]] = effort.get(unit, "")
-        return out
+        units = self.coordinate_units
+        return {
+            "t": "s",
+            **dict(zip(self.q_names, units, strict=True)),
+            **{n: rate.get(u, f"{u}/s") for n, u in zip(self.qd_names, units, strict=True)},
+            **{n: effort.get(u, "") for n, u in zip(self.tau_names, units, strict=True)},
+        }
 
 
 @dataclass(frozen=True, eq=False)
@@ -106,12 +107,12 @@ class SimulationResult(_Run):
         ``frame.to_parquet(path)`` (pyarrow keeps ``attrs`` in the file).
 
         Raises:
-            ImportError: pandas is missing (``pip install rrt-pin[sweep]``).
+            ImportError: pandas is missing (``pip install rrt-pin[parquet]``).
         """
         try:
             import pandas as pd
         except ImportError as e:
-            raise ImportError("to_frame needs pandas: pip install rrt-pin[sweep]") from e
+            raise ImportError("to_frame needs pandas: pip install rrt-pin[parquet]") from e
         frame = pd.DataFrame(self.table(), columns=list(self.header))
         frame.attrs["units"] = self.units
         frame.attrs["run"] = {
