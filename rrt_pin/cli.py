@@ -249,6 +249,7 @@ def _main(argv: list[str], set_level: Callable[[int], None]) -> int:
             scene = _apply_scene(args, subparsers)
             args = parser.parse_args(argv)  # explicit flags win over the scene's options
             args.scene_obj = scene
+        args.argv = ["rrt-pin", *argv]  # the command line, for the outputs' metadata
         return int(args._run(args) or 0)
     except _OneLineError as e:
         print(e, file=sys.stderr)

@@ -27,7 +27,7 @@ EXTRAS: dict[str, str] = {
     "symbolic": "the symbolic derivations and the 30-digit references (sympy, mpmath)",
     "fast": "the compiled backend (numba)",
     "sweep": "sweeps (dask.distributed, pyarrow, tqdm, pandas)",
-    "parquet": "Parquet outputs (pyarrow)",
+    "parquet": "Parquet outputs and data frames (pyarrow, pandas)",
 }
 
 

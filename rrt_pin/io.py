@@ -15,8 +15,10 @@ the path names:
   stays a link. A dangling link creates the file it points to if that folder exists.
 * anything else (FIFO, character or block device, ``/dev/stdout``, ``/dev/fd/N``,
   a shell's process substitution ``>(...)``): written in place, never renamed over
-  nor removed. The content is formatted in memory first, so a failing writer sends
-  nothing. A FIFO blocks until it has a reader, as with the shell's ``>``.
+  nor removed. The content is formatted first (in memory up to 32 MiB, beyond that
+  in an unnamed temporary file), so a failing writer sends nothing and memory stays
+  bounded however long the output. A FIFO blocks until it has a reader, as with the
+  shell's ``>``.
 
 Problems a user can fix (a missing folder, a folder, a read-only file system or
 folder, a name over 255 bytes, a full disk) raise :class:`OutputError`: one line
@@ -36,8 +38,10 @@ import functools
 import io
 import os
 import re
+import shutil
 import stat
 import sys
+import tempfile
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
@@ -54,6 +58,7 @@ __all__ = [
     "atomic_write_text",
     "check_output",
     "check_outputs",
+    "check_space",
     "write_outputs",
 ]
 
@@ -65,6 +70,7 @@ Writer = Callable[[IO[bytes]], object]
 
 PathLike = Union[str, "os.PathLike[str]"]
 
+_SPOOL_BYTES = 32 << 20  # in-place outputs beyond this are staged in a temporary file
 _NAME_MAX = 255  # bytes, when the file system does not say
 _MAX_LINKS = 40  # symbolic links followed before giving up, as Linux does
 _FD_DIR = re.compile(r"/proc/(self|thread-self|\d+)(?:/task/\d+)?/fd")
@@ -357,16 +363,64 @@ def check_outputs(outputs: Iterable[tuple[PathLike | None, str | None]]) -> None
     _plan_all(outputs)
 
 
+def check_space(path: PathLike | None, size: int, flag: str | None = None) -> None:
+    """Refuse up front an output of about ``size`` bytes that the disk cannot hold.
+
+    A file is staged next to its target (the old file stays until the rename), so
+    the target folder's free space must hold all of it; stdout, FIFOs and devices
+    are staged in the temporary folder beyond 32 MiB, whose free space is checked.
+
+    Args:
+        path: the output path as given (None or ``-`` for stdout are accepted).
+        size: the estimated size of the output [bytes].
+        flag: the option ``path`` came from, named in the message.
+
+    Raises:
+        OutputError: one line with the estimate and the free space (``errno.ENOSPC``).
+    """
+    if path is None:
+        return
+    t = _plan(path, flag)
+    if t.in_place:
+        if size <= _SPOOL_BYTES:
+            return
+        folder = tempfile.gettempdir()
+    else:
+        folder = os.path.dirname(t.target)
+    try:
+        free = shutil.disk_usage(folder).free
+    except OSError:
+        return
+    if size > free:
+        raise t.fail(
+            f"no space left on device: the output would take about {_size(size)} but "
+            f"{folder!r} has {_size(free)} free",
+            errno.ENOSPC,
+        )
+
+
+def _size(n: float) -> str:
+    for unit in ("bytes", "kB", "MB", "GB", "TB", "PB"):
+        if n < 1000 or unit == "PB":
+            return f"{n:.0f} {unit}" if unit == "bytes" else f"{n:.3g} {unit}"
+        n /= 1000
+    return f"{n:.3g} EB"  # pragma: no cover
+
+
 @dataclass
 class _Staged:
     """The complete new content of one output, not yet where it belongs."""
 
     target: _Target
-    data: bytes | None = None  # in-place outputs: the bytes to send
+    data: IO[bytes] | None = None  # in-place outputs: the bytes to send (spooled)
     fd: int | None = None  # files: the open temporary file
     tmpname: str | None = None  # files: its name (None while it is unnamed)
 
     def discard(self) -> None:
+        if self.data is not None:
+            with contextlib.suppress(OSError, ValueError):
+                self.data.close()
+            self.data = None
         if self.fd is not None:
             with contextlib.suppress(OSError):
                 os.close(self.fd)
@@ -417,9 +471,14 @@ def _run_writer(t: _Target, writer: Writer, fh: IO[bytes]) -> None:
 def _stage(t: _Target, writer: Writer) -> _Staged:
     """Run ``writer`` into memory (in-place outputs) or into a synced temporary file."""
     if t.in_place:
-        buffer = io.BytesIO()
-        _run_writer(t, writer, buffer)
-        return _Staged(t, data=buffer.getvalue())
+        buffer = tempfile.SpooledTemporaryFile(max_size=_SPOOL_BYTES)  # noqa: SIM115
+        try:
+            _run_writer(t, writer, buffer)  # type: ignore[arg-type]
+            buffer.seek(0)
+        except BaseException:
+            buffer.close()
+            raise
+        return _Staged(t, data=buffer)  # type: ignore[arg-type]
     try:
         fd, tmpname = _open_temp(t)
     except OSError as e:
@@ -453,30 +512,42 @@ def _write_all(fd: int, data: bytes) -> None:
         view = view[os.write(fd, view) :]
 
 
+def _chunks(data: IO[bytes] | None) -> Iterable[bytes]:
+    """The staged bytes, 1 MiB at a time."""
+    while data is not None:
+        chunk = data.read(1 << 20)
+        if not chunk:
+            return
+        yield chunk
+
+
 def _send(s: _Staged) -> None:
     """Write an in-place output: stdout, a descriptor of this process, a FIFO, a device."""
-    t, data = s.target, s.data or b""
+    t = s.target
     try:
         if t.kind == "stdout":
             sys.stdout.flush()
             out = getattr(sys.stdout, "buffer", None)
-            if out is None:
-                sys.stdout.write(data.decode("utf-8", "replace"))
-            else:
-                out.write(data)
-                out.flush()
+            for chunk in _chunks(s.data):
+                if out is None:
+                    sys.stdout.write(chunk.decode("utf-8", "replace"))
+                else:
+                    out.write(chunk)
+            (out or sys.stdout).flush()
         elif t.fd is not None:
             for stream in (sys.stdout, sys.stderr):
                 with contextlib.suppress(Exception):
                     if stream.fileno() == t.fd:
                         stream.flush()
-            _write_all(t.fd, data)
+            for chunk in _chunks(s.data):
+                _write_all(t.fd, chunk)
         else:
             regular = t.st is not None and stat.S_ISREG(t.st.st_mode)
             flags = os.O_WRONLY | getattr(os, "O_NOCTTY", 0) | (os.O_TRUNC if regular else 0)
             fd = os.open(t.target, flags)
             try:
-                _write_all(fd, data)
+                for chunk in _chunks(s.data):
+                    _write_all(fd, chunk)
             finally:
                 os.close(fd)
     except OSError as e:
@@ -633,8 +704,9 @@ def write_outputs(outputs: Iterable[tuple[PathLike | None, str | None, Writer]])
         outputs: ``(path, flag, writer)`` triples. ``path`` is a path or ``-`` for
             stdout; a None path (an output not asked for) is skipped. ``flag`` is the
             option named in error messages (or None). ``writer`` writes the bytes to
-            the binary file it is given: a temporary file, or an in-memory buffer
-            for stdout, FIFOs and devices (so it may always seek).
+            the binary file it is given: a temporary file, or a spooled buffer (in
+            memory, then a temporary file) for stdout, FIFOs and devices (so it may
+            always seek). It may write in blocks: nothing holds the whole output.
 
     Returns:
         The paths written, as given, in order.

@@ -512,4 +512,30 @@ CASES = (
         ("simulate", "--method", "DOP853", "--step", "0.001", "--csv", OUT),
         "--step=0.001 sets the step of the fixed-step methods; DOP853 is adaptive",
     ),
+    # streaming outputs: absurd grids, clashing outputs
+    Case(
+        "inverse grid of over 10^9 samples",
+        ("inverse", "--tf", "1e6", "--dt", "1e-6", "--csv", OUT),
+        "makes 1,000,000,000,001 samples, over the 1,000,000,000 allowed",
+    ),
+    Case(
+        "inverse motion time Tp=1e300",
+        ("inverse", "--set", "Tp=1e300", "--csv", OUT),
+        "Tp (the --tf)/--dt: tf=1e+300 s at dt=0.001 s makes 1e+303 samples",
+    ),
+    Case(
+        "simulate output grid of over 10^7 samples",
+        ("simulate", "--tf", "1e5", "--dt", "1e-3", "--csv", OUT),
+        "over the 10,000,000 a simulation keeps in memory",
+    ),
+    Case(
+        "--csv and --json naming one file",
+        ("inverse", "--csv", OUT, "--json", OUT),
+        "--csv and --json name the same file",
+    ),
+    Case(
+        "--csv - and --json - both on stdout",
+        ("simulate", "--csv", "-", "--json", "-"),
+        "--csv and --json name the same file '-'",
+    ),
 )

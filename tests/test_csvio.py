@@ -1,3 +1,5 @@
+import importlib.util
+
 import numpy as np
 import pytest
 
@@ -16,7 +18,32 @@ def test_round_trip_at_full_precision(tmp_path, rng):
 
 def test_text_has_one_header_line():
     text = csv_text(["t", "q1"], np.array([[0.0, 0.1], [1.0, 1 / 3]]))
-    assert text == "t,q1\n0,0.10000000000000001\n1,0.33333333333333331\n"
+    assert text == "t,q1\n0.0,0.1\n1.0,0.3333333333333333\n"
+
+
+ENGINES = ["repr", pytest.param("arrow", marks=pytest.mark.skipif(
+    importlib.util.find_spec("pyarrow") is None, reason="pyarrow not installed"))]  # fmt: skip
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_shortest_numbers_that_read_back_bit_for_bit(tmp_path, rng, engine):
+    t = time_grid(15.0, 0.001)
+    wild = rng.normal(size=t.size) * 10.0 ** rng.integers(-300, 300, size=t.size)
+    data = np.column_stack([t, np.sin(t) / 3, wild, -t * 1e-7])
+    text = csv_text(["t", "a", "b", "c"], data, engine=engine)
+    path = tmp_path / "x.csv"
+    path.write_text(text)
+    _, back = read_csv(path)
+    assert back.view(np.int64).tolist() == data.view(np.int64).tolist()  # bit for bit
+    rows = text.splitlines()[1:]
+    assert rows[3].split(",")[0] == "0.003"
+    # No number is longer than the shortest decimal that round-trips (Python's repr).
+    for line, row in zip(rows[::97], data[::97], strict=True):
+        for word, value in zip(line.split(","), row, strict=True):
+            assert float(word) == value
+            digits = word.lstrip("-").split("e")[0].replace(".", "").strip("0")
+            shortest = repr(float(value)).lstrip("-").split("e")[0].replace(".", "").strip("0")
+            assert digits == shortest, (word, repr(value))
 
 
 @pytest.mark.parametrize(

@@ -594,3 +594,61 @@ def test_io_imports_only_the_standard_library():
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]"
+
+
+def test_a_long_output_to_a_fifo_is_spooled_to_disk_not_memory(tmp_path, monkeypatch):
+    """Past the spool size the staged bytes go to a temporary file, sent in chunks."""
+    monkeypatch.setattr(rio, "_SPOOL_BYTES", 1000)
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path / "spool"))
+    (tmp_path / "spool").mkdir()
+    fifo = tmp_path / "pipe"
+    os.mkfifo(fifo)
+    got: list[bytes] = []
+    thread = _reader(fifo, got)
+    blocks = [bytes([65 + k % 26]) * 100_000 for k in range(30)]  # 3 MB in blocks
+    seen: list[bool] = []
+
+    def writer(fh):
+        for b in blocks:
+            fh.write(b)
+        seen.append(fh._rolled)  # SpooledTemporaryFile: now a real file, not BytesIO
+
+    atomic_write(fifo, writer)
+    thread.join(10)
+    assert seen == [True]
+    assert got == [b"".join(blocks)]
+    assert names(tmp_path / "spool") == []  # the temporary file is gone
+
+
+def test_a_failing_writer_past_the_spool_sends_nothing(tmp_path, monkeypatch):
+    monkeypatch.setattr(rio, "_SPOOL_BYTES", 10)
+    fifo = tmp_path / "pipe"
+    os.mkfifo(fifo)
+    got: list[bytes] = []
+    thread = _reader(fifo, got)
+
+    def writer(fh):
+        fh.write(b"x" * 10_000)
+        raise RuntimeError("boom")
+
+    with pytest.raises(RuntimeError):
+        atomic_write(fifo, writer)
+    with open(fifo, "wb"):
+        pass
+    thread.join(10)
+    assert got == [b""]
+
+
+def test_check_space_refuses_what_does_not_fit(tmp_path, monkeypatch):
+    free = shutil.disk_usage(tmp_path).free
+    rio.check_space(tmp_path / "a.csv", 1000, "--csv")
+    rio.check_space(None, 10**30, "--csv")
+    with pytest.raises(OutputError) as info:
+        rio.check_space(tmp_path / "a.csv", free * 2 + 10**9, "--csv")
+    assert info.value.errno == errno.ENOSPC
+    assert str(info.value).startswith(f"cannot write --csv '{tmp_path / 'a.csv'}': no space left")
+    rio.check_space("-", 1000, "--csv")  # small: stays in memory, nothing to check
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    with pytest.raises(OutputError, match="no space left on device"):
+        rio.check_space("-", free * 2 + 10**9, "--csv")  # staged in the temporary folder
+    assert names(tmp_path) == []

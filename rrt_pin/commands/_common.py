@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import math
 from collections.abc import Callable
-from typing import TYPE_CHECKING
+from typing import IO, TYPE_CHECKING
 
 from rrt_pin._logging import note
 from rrt_pin.params import PARAM_DOCS, Params
@@ -14,6 +14,7 @@ if TYPE_CHECKING:
     from rrt_pin.robot import Robot
 
 __all__ = [
+    "add_output_arguments",
     "add_robot_arguments",
     "add_scene_arguments",
     "check_writable",
@@ -26,6 +27,7 @@ __all__ = [
     "positive_seconds",
     "resolve_backend",
     "robot_from_args",
+    "run_metadata",
     "write_run_outputs",
 ]
 
@@ -245,19 +247,87 @@ def robot_from_args(args: argparse.Namespace, params: Params, task: str) -> Robo
     )
 
 
-def write_run_outputs(
-    csv: str | None, table: Callable[[], str], plot: str | None, picture: Callable[[], bytes]
-) -> None:
-    """Build the CSV text and the plot image, then write both or neither (``rrt_pin.io``).
+def add_output_arguments(parser: argparse.ArgumentParser, plot_help: str) -> None:
+    """Add ``--csv``, ``--plot``, ``--json`` and ``--progress`` (``inverse`` and ``simulate``)."""
+    parser.add_argument(
+        "--csv",
+        type=nonempty,
+        metavar="PATH",
+        help="write the samples here (atomically, in blocks: memory stays flat); a .parquet "
+        "or .pq path writes Parquet (pyarrow) with units and the run's metadata, any other "
+        "path CSV; - is stdout",
+    )
+    parser.add_argument("--plot", type=nonempty, metavar="PATH.png", help=plot_help)
+    parser.add_argument(
+        "--json",
+        type=nonempty,
+        metavar="PATH",
+        help="write the run's metadata (parameters, robot, backend, method, tolerances, "
+        "version, command line, column units) and its summary as JSON; - is stdout",
+    )
+    parser.add_argument(
+        "--progress",
+        action="store_true",
+        help="show a progress line on stderr even when it is not a terminal (on a terminal "
+        "it shows by itself for runs over 2 s)",
+    )
 
-    A failure (a writer, a full disk) leaves every pre-existing output as it was.
+
+def run_metadata(args: argparse.Namespace, robot: Robot, params: Params, **run: object) -> dict:
+    """What describes a run, for ``--json`` and Parquet's schema metadata (JSON-ready).
+
+    Args:
+        args: the parsed command line (``args.argv``: the words typed).
+        robot: the run's robot.
+        params: the chapter's parameters in force [SI].
+        run: more fields (``command``, ``backend``, ``method``, ``rtol`` …).
+    """
+    import dataclasses
+    import sys
+
+    from rrt_pin._version import __version__
+
+    d = robot.defaults
+
+    def floats(v: object) -> object:
+        return None if v is None else [float(x) for x in v]  # type: ignore[attr-defined]
+
+    return {
+        "rrt_pin_version": __version__,
+        "command_line": list(getattr(args, "argv", None) or ["rrt-pin", *sys.argv[1:]]),
+        **run,
+        "robot": robot.name,
+        "urdf": getattr(args, "urdf", None),
+        "joints": [j.name for j in robot.joints],
+        "q0": floats(d.q0),
+        "qf": floats(d.qf),
+        "parameters": dataclasses.asdict(params),
+    }
+
+
+def write_run_outputs(
+    csv: str | None,
+    table: Callable[[IO[bytes]], object],
+    plot: str | None = None,
+    picture: Callable[[], bytes] | None = None,
+    json_path: str | None = None,
+    json_text: Callable[[], str] | None = None,
+) -> None:
+    """Write the table, the plot and the JSON summary: all of them or none (``rrt_pin.io``).
+
+    The writers run in that order: ``table`` (which may compute the run block by
+    block while writing it) first, so the plot and the summary can use what it
+    gathered. A failure (a writer, a full disk) leaves every pre-existing output as
+    it was.
     """
     from rrt_pin.io import write_outputs
 
-    text = table().encode("utf-8") if csv else b""
-    image = picture() if plot else b""
     write_outputs(
-        [(csv, "--csv", lambda fh: fh.write(text)), (plot, "--plot", lambda fh: fh.write(image))]
+        [
+            (csv, "--csv", table),
+            (plot, "--plot", lambda fh: fh.write(picture() if picture else b"")),
+            (json_path, "--json", lambda fh: fh.write(json_text().encode() if json_text else b"")),
+        ]
     )
 
 

@@ -8,31 +8,37 @@ matplotlib only for ``--plot``, and not even Pinocchio for the RRT arm with
 from __future__ import annotations
 
 import argparse
+import json
 import sys
-from typing import TYPE_CHECKING
+from typing import IO, TYPE_CHECKING
 
 from rrt_pin import backends
 from rrt_pin.commands import _chapter
 from rrt_pin.commands._common import (
+    add_output_arguments,
     add_robot_arguments,
     add_scene_arguments,
     finite_float,
-    nonempty,
     params_from_args,
-    plot_path,
     positive_seconds,
     resolve_backend,
     robot_from_args,
+    run_metadata,
     write_run_outputs,
 )
+from rrt_pin.commands._progress import Progress
 from rrt_pin.errors import InputError
-from rrt_pin.io import check_outputs
+from rrt_pin.io import STDOUT, check_outputs, check_space
 
 if TYPE_CHECKING:
     import numpy as np
 
+    from rrt_pin.grid import Grid
     from rrt_pin.robot import Robot
-    from rrt_pin.wrenches import JointWrenches
+    from rrt_pin.tables import TableWriter
+
+#: The most samples the plot draws (longer runs are thinned evenly, ends kept).
+PLOT_POINTS = 200_000
 
 HELP = "inverse dynamics along the chapter's rest-to-rest motion, eq. (30) (SI units)"
 
@@ -59,7 +65,11 @@ m/s², N for prismatic ones), and --wrenches adds fx_<joint>, fy_<joint>,
 fz_<joint> [N] and mx_<joint>, my_<joint>, mz_<joint> [N·m]: the load of the
 parent on the child at the joint origin, in the joint frame. Gravity is
 (0, 0, -g) in the URDF's world frame.
-Without --csv a short summary goes to stdout: each joint's peak |effort| and when."""
+A short summary always goes to stdout (to stderr when --csv - or --json - sends
+data there): each joint's peak |effort| and when; --json PATH writes it with the
+run's metadata. Long runs are computed and written 65,536 rows at a time, so
+memory stays flat; a run whose output would not fit on the disk, or of more than
+10^9 samples, is refused before any work."""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -79,20 +89,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--dt", type=finite_float, default=0.001, metavar="S", help="time step [s] (default 0.001)"
     )
-    parser.add_argument(
-        "--csv", type=nonempty, metavar="PATH", help="write the samples here (atomically)"
-    )
-    parser.add_argument(
-        "--plot",
-        type=plot_path,
-        metavar="PATH.png",
-        help="write a plot of the efforts against time (matplotlib); the format follows the "
-        "suffix: .png, .svg or .pdf",
+    add_output_arguments(
+        parser,
+        "write a plot of the efforts against time (matplotlib); the format follows "
+        "the suffix: .png, .svg or .pdf",
     )
     parser.add_argument(
         "--wrenches",
         action="store_true",
-        help="add each joint's whole transmitted load: CSV columns (below), or peak "
+        help="add each joint's whole transmitted load: CSV columns (below), and peak "
         "magnitudes in the summary",
     )
     parser.add_argument(
@@ -102,27 +107,25 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="; ".join(
             f"{b.name}: {b.summary}" for b in backends.BACKENDS.values() if b.runs("inverse")
         )
-        + " (loading compiled costs ~1 s per process, reported on stderr); auto: compiled "
-        "only when its code is already built and the job is large enough for it to be at "
-        "least twice as fast, start-up included (about 2 million samples), else pinocchio; "
-        "-v says why (default: pinocchio)",
+        + " (loading compiled costs ~1 s per process, more than it saves here; reported on "
+        "stderr); auto: compiled only when its code is already built, else pinocchio "
+        "(default: pinocchio)",
     )
     add_robot_arguments(parser, "inverse")
     add_scene_arguments(parser)
 
 
 def run(args: argparse.Namespace) -> int:
-    """Compute the efforts (and wrenches) and write or summarise them."""
+    """Compute the efforts (and wrenches) block by block, write them, print the summary."""
+    from rrt_pin.tables import TableWriter, check_format, estimate_bytes
+
     params = params_from_args(args)
-    outputs = [(args.csv, "--csv"), (args.plot, "--plot")]
+    fmt = check_format(args.csv, "--csv")
+    outputs = [(args.csv, "--csv"), (args.plot, "--plot"), (args.json, "--json")]
     check_outputs(outputs)  # before any work: folders exist, no two name the same file
     robot = robot_from_args(args, params, "inverse")
 
-    import numpy as np
-
-    from rrt_pin.grid import time_grid
-    from rrt_pin.inverse import inverse_dynamics
-    from rrt_pin.trajectory import rest_to_rest
+    from rrt_pin.grid import grid_size
 
     d = robot.defaults
     tf = positive_seconds("--tf", d.Tp if args.tf is None and d.Tp is not None else
@@ -130,70 +133,197 @@ def run(args: argparse.Namespace) -> int:
     dt = positive_seconds("--dt", args.dt)
     if dt > tf:
         raise InputError(f"--dt={dt!r} is larger than --tf={tf!r} [s]")
-    t = time_grid(tf, dt)
-    args.backend = resolve_backend(args.backend, robot, "inverse", work=t.size)
-    # The motion lasts the robot's Tp (the chapter's arm: Tp; a URDF: --set Tp, else --tf)
-    # and rests at qf after it.
-    duration = d.Tp if d.Tp is not None else tf
-    traj = rest_to_rest(d.q0, d.qf, duration, t)
-    tau = inverse_dynamics(robot, traj.q, traj.qd, traj.qdd, backend=args.backend)
+    grid = grid_size(tf, dt, what="--tf/--dt" if args.tf is not None else "Tp (the --tf)/--dt")
+    job = InverseJob(robot, grid, d.Tp if d.Tp is not None else tf, args.wrenches)
+    job.keep_plot = bool(args.plot)
+    check_space(args.csv, estimate_bytes(fmt, grid.size, len(job.header)), "--csv")
+    args.backend = resolve_backend(args.backend, robot, "inverse", work=grid.size)
+    job.backend = args.backend
+    meta = run_metadata(
+        args, robot, params, command="inverse", backend=args.backend, tf=tf, dt=dt,
+        samples=grid.size, columns=job.header, units=job.units,
+    )  # fmt: skip
 
-    header = ["t", *robot.q_names, *robot.qd_names, *robot.qdd_names, *robot.effort_names]
-    columns = [traj.t[:, None], traj.q, traj.qd, traj.qdd, tau]
-    wrenches = None
-    if args.wrenches:
-        from rrt_pin.wrenches import joint_wrenches, robot_wrench_table
+    what = f"writing {args.csv}" if args.csv else "computing"
+    progress = Progress(grid.size, what, force=args.progress)
 
-        wrenches = joint_wrenches(robot.model, robot.configuration(traj.q), traj.qd, traj.qdd)
-        names, table = robot_wrench_table(robot, wrenches)
-        header += names
-        columns.append(table)
+    def table(fh: IO[bytes]) -> None:
+        with TableWriter(fh, fmt, job.header, job.units, meta, rows=grid.size) as sink:
+            job.run(sink, progress)
 
-    if args.csv or args.plot:
-        from rrt_pin.csvio import csv_text
-
-        write_run_outputs(
-            args.csv,
-            lambda: csv_text(header, np.hstack(columns)),
-            args.plot,
-            lambda: _picture(robot, traj.t, tau, args.plot),
-        )
-        for path in (args.plot, args.csv):
-            if path:
-                print(f"wrote {path} (backend {args.backend})", file=sys.stderr)
     if not args.csv:
-        sys.stdout.write(summary(robot, traj.t, tau, args.backend, dt, wrenches))
+        job.run(None, progress)
+    facts: dict = {}
+
+    def summary_json() -> str:
+        facts.update(summary(robot, job))
+        return (
+            json.dumps(
+                {"metadata": meta, "summary": facts}, indent=2, allow_nan=False, ensure_ascii=False
+            )
+            + "\n"
+        )
+
+    try:
+        write_run_outputs(
+            args.csv, table, args.plot, lambda: _picture(robot, *job.plot_samples(), args.plot),
+            args.json, summary_json,
+        )  # fmt: skip
+    finally:
+        progress.close()
+    for path in (args.plot, args.csv, args.json):
+        if path:
+            print(f"wrote {path} (backend {args.backend})", file=sys.stderr)
+    to = sys.stderr if STDOUT in (args.csv, args.json) else sys.stdout
+    to.write(summary_text(facts or summary(robot, job)))
     return 0
 
 
-def summary(
-    robot: Robot,
-    t: np.ndarray,
-    tau: np.ndarray,
-    backend: str,
-    dt: float,
-    wrenches: JointWrenches | None = None,
-) -> str:
-    """Peak |effort| of each joint and when it occurs (and of its whole load), as text."""
-    import numpy as np
+class InverseJob:
+    """The efforts along eq. (30), computed and handed on a block of rows at a time.
 
+    Holds, besides the block being computed, only what the summary and the plot
+    need: each column's peak so far and a thinned copy of the efforts for the plot
+    (at most :data:`PLOT_POINTS` samples).
+    """
+
+    def __init__(self, robot: Robot, grid: Grid, duration: float, wrenches: bool) -> None:
+        import numpy as np
+
+        self.robot, self.grid, self.duration = robot, grid, duration
+        self.backend = "pinocchio"
+        self.wrenches = wrenches
+        self.header = [
+            "t", *robot.q_names, *robot.qd_names, *robot.qdd_names, *robot.effort_names
+        ]  # fmt: skip
+        self.units = dict(robot.units)
+        if wrenches:
+            names, _ = self._wrench_table(self.grid_times(0, 1))
+            self.header += names
+            self.units.update({n: "N" if n[0] in "Ff" else "N·m" for n in names})
+        n = len(robot.effort_names) + (2 * len(robot.load_labels()) if wrenches else 0)
+        self.peak = np.full(n, -1.0)  # peak |value| of each effort and load magnitude
+        self.peak_t = np.zeros(n)
+        self.stride = max(1, -(-grid.size // PLOT_POINTS))
+        self._plot: list[tuple[np.ndarray, np.ndarray]] = []
+        self.keep_plot = True  # whether to keep the thinned efforts for a plot
+
+    def grid_times(self, start: int, stop: int) -> np.ndarray:
+        """Samples ``start`` … ``stop - 1`` of the grid [s]."""
+        from rrt_pin.grid import grid_slice
+
+        return grid_slice(self.grid, start, stop)
+
+    def _wrench_table(self, t: np.ndarray) -> tuple[tuple[str, ...], np.ndarray]:
+        from rrt_pin.trajectory import rest_to_rest
+        from rrt_pin.wrenches import joint_wrenches, robot_wrench_table
+
+        traj = rest_to_rest(self.robot.defaults.q0, self.robot.defaults.qf, self.duration, t)
+        q = self.robot.configuration(traj.q)
+        w = joint_wrenches(self.robot.model, q, traj.qd, traj.qdd)
+        self._last_wrenches = w
+        return robot_wrench_table(self.robot, w)
+
+    def block(self, start: int, stop: int) -> np.ndarray:
+        """Rows ``start`` … ``stop - 1`` of the table (SI units); updates the peaks."""
+        import numpy as np
+
+        from rrt_pin.inverse import inverse_dynamics
+        from rrt_pin.trajectory import rest_to_rest
+
+        d = self.robot.defaults
+        t = self.grid_times(start, stop)
+        traj = rest_to_rest(d.q0, d.qf, self.duration, t)
+        tau = inverse_dynamics(self.robot, traj.q, traj.qd, traj.qdd, backend=self.backend)
+        columns = [t[:, None], traj.q, traj.qd, traj.qdd, tau]
+        watched = [tau]
+        if self.wrenches:
+            _, table = self._wrench_table(t)
+            columns.append(table)
+            w = self._last_wrenches
+            for j in range(w.force.shape[1]):
+                watched.append(np.linalg.norm(w.force[:, j], axis=1)[:, None])
+                watched.append(np.linalg.norm(w.moment[:, j], axis=1)[:, None])
+        values = np.abs(np.hstack(watched))
+        i = np.argmax(values, axis=0)
+        best = values[i, np.arange(values.shape[1])]
+        better = best > self.peak
+        self.peak[better], self.peak_t[better] = best[better], t[i[better]]
+        if self.keep_plot:
+            index = np.arange(start, stop)
+            keep = (index % self.stride == 0) | (index == self.grid.size - 1)
+            self._plot.append((t[keep], tau[keep]))
+        return np.hstack(columns)
+
+    def run(self, sink: TableWriter | None, progress: Progress | None = None) -> None:
+        """Compute every block in order, writing each to ``sink`` (when given)."""
+        from rrt_pin.tables import BLOCK_ROWS
+
+        self.peak[:] = -1.0
+        self._plot.clear()
+        for start in range(0, self.grid.size, BLOCK_ROWS):
+            stop = min(start + BLOCK_ROWS, self.grid.size)
+            rows = self.block(start, stop)
+            if sink is not None:
+                sink.write(rows)
+            if progress is not None:
+                progress.update(stop - start)
+
+    def plot_samples(self) -> tuple[np.ndarray, np.ndarray]:
+        """The thinned times [s] and efforts [N·m or N] for the plot."""
+        import numpy as np
+
+        return (
+            np.concatenate([t for t, _ in self._plot]),
+            np.concatenate([tau for _, tau in self._plot]),
+        )
+
+
+def summary(robot: Robot, job: InverseJob) -> dict:
+    """The run's summary as data: samples, grid, backend, each effort's (and load's) peak.
+
+    A pure function of what the job gathered; :func:`summary_text` prints it and
+    ``--json`` writes it.
+    """
+    g = job.grid
+    names = list(robot.effort_names)
+    units = list(robot.effort_units)
+    if job.wrenches:
+        for f_name, m_name in robot.load_labels():
+            names += [f_name, m_name]
+            units += ["N", "N·m"]
+    peaks = [
+        {"name": n, "unit": u, "peak": float(job.peak[k]), "t": float(job.peak_t[k]),
+         "kind": "effort" if k < len(robot.effort_names) else "load"}
+        for k, (n, u) in enumerate(zip(names, units, strict=True))
+    ]  # fmt: skip
+    return {
+        "command": "inverse",
+        "robot": robot.name,
+        "motion": robot.motion,
+        "samples": g.size,
+        "t0": g.t0,
+        "tf": g.tf,
+        "dt": g.dt,
+        "backend": job.backend,
+        "peaks": peaks,
+    }
+
+
+def summary_text(facts: dict) -> str:
+    """The summary for people: each effort's peak |value| and when (and each load's)."""
     lines = [
-        f"inverse dynamics of the {robot.name} along {robot.motion}: {t.size} samples, "
-        f"t = {t[0]:g} .. {t[-1]:g} s, dt = {dt:g} s, backend {backend}",
+        f"inverse dynamics of the {facts['robot']} along {facts['motion']}: "
+        f"{facts['samples']} samples, t = {facts['t0']:g} .. {facts['tf']:g} s, "
+        f"dt = {facts['dt']:g} s, backend {facts['backend']}",
         f"{'effort':<24} {'peak |effort|':>16}  {'at t [s]':>10}",
     ]
-
-    def peak(name: str, values: np.ndarray, unit: str) -> str:
-        i = int(np.argmax(np.abs(values)))
-        return f"{name:<24} {abs(values[i]):>12.6g} {unit:<3}  {t[i]:>10.6g}"
-
-    for k, (name, unit) in enumerate(zip(robot.effort_names, robot.effort_units, strict=True)):
-        lines.append(peak(name, tau[:, k], unit))
-    if wrenches is not None:
-        lines.append(f"{'joint load':<24} {'peak magnitude':>16}  {'at t [s]':>10}")
-        for j, (f_name, m_name) in enumerate(robot.load_labels()):
-            lines.append(peak(f_name, np.linalg.norm(wrenches.force[:, j], axis=1), "N"))
-            lines.append(peak(m_name, np.linalg.norm(wrenches.moment[:, j], axis=1), "N·m"))
+    header_done = False
+    for p in facts["peaks"]:
+        if p["kind"] == "load" and not header_done:
+            lines.append(f"{'joint load':<24} {'peak magnitude':>16}  {'at t [s]':>10}")
+            header_done = True
+        lines.append(f"{p['name']:<24} {p['peak']:>12.6g} {p['unit']:<3}  {p['t']:>10.6g}")
     return "\n".join(lines) + "\n"
 
 

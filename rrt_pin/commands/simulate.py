@@ -7,31 +7,37 @@ matplotlib only for ``--plot``. Importing this module stays cheap (no numpy).
 from __future__ import annotations
 
 import argparse
+import json
 import sys
-from typing import TYPE_CHECKING
+from typing import IO, TYPE_CHECKING
 
 from rrt_pin import backends, methods
 from rrt_pin.commands import _chapter
 from rrt_pin.commands._common import (
+    add_output_arguments,
     add_robot_arguments,
     add_scene_arguments,
-    nonempty,
     params_from_args,
-    plot_path,
     positive_float,
     positive_seconds,
     resolve_backend,
     robot_from_args,
+    run_metadata,
     write_run_outputs,
 )
+from rrt_pin.commands._progress import Progress
 from rrt_pin.errors import InputError
-from rrt_pin.io import check_outputs
+from rrt_pin.io import STDOUT, check_outputs, check_space
 
 if TYPE_CHECKING:
     from rrt_pin.robot import Robot
     from rrt_pin.simulate import SimulationResult
 
 HELP = "direct dynamics under the chapter's feedback law, eq. (31) (SI units)"
+
+#: The most output samples a simulation may have: its states stay in memory
+#: (10⁷ samples of the chapter's arm: 0.8 GB).
+MAX_OUTPUT_SAMPLES = 10**7
 
 
 def _method_lines() -> str:
@@ -58,9 +64,11 @@ rad, rad/s, N·m for revolute joints, m, m/s, N for prismatic ones). Gravity is
 Methods (default: odepack on --backend pinocchio, DOP853 on compiled; adaptive
 ones default to rtol {methods.DEFAULT_RTOL:g}, atol {methods.DEFAULT_ATOL:g}):
 {_method_lines()}
-Without --csv a summary goes to stdout: each joint's final distance to qf, its 2 %
-settling time (after which |q - qf| stays within 2 % of |q0 - qf|), and each
-effort's peak |value| and when."""
+A summary always goes to stdout (to stderr when --csv - or --json - sends data
+there): each joint's final distance to qf, its 2 % settling time (after which
+|q - qf| stays within 2 % of |q0 - qf|), and each effort's peak |value| and when;
+--json PATH writes it with the run's metadata. The states stay in memory (at most
+10^7 output samples); the table is written 65,536 rows at a time."""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -108,15 +116,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="absolute tolerance of the adaptive methods [rad, m, rad/s, m/s] "
         f"(default {methods.DEFAULT_ATOL:g})",
     )
-    parser.add_argument(
-        "--csv", type=nonempty, metavar="PATH", help="write the samples here (atomically)"
-    )
-    parser.add_argument(
-        "--plot",
-        type=plot_path,
-        metavar="PATH.png",
-        help="write a plot of q(t) (targets dashed) and the efforts (matplotlib); the format "
-        "follows the suffix: .png, .svg or .pdf",
+    add_output_arguments(
+        parser,
+        "write a plot of q(t) (targets dashed) and the efforts (matplotlib); the "
+        "format follows the suffix: .png, .svg or .pdf",
     )
     parser.add_argument(
         "--backend",
@@ -127,28 +130,38 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         )
         + " (loading compiled costs ~1 s per process, compiling it ~15 s once, both reported "
         "on stderr; a run then takes ~0.2 ms instead of ~3 ms); auto: compiled only when its "
-        "code is already built, it runs the method asked for (auto never changes the "
-        "method or tolerances) and the job is long enough for it to be at least twice as "
-        "fast, start-up included, else pinocchio; -v says why (default: pinocchio)",
+        "code is already built and it runs the method asked for, else pinocchio "
+        "(default: pinocchio)",
     )
     add_robot_arguments(parser, "simulate")
     add_scene_arguments(parser)
 
 
 def run(args: argparse.Namespace) -> int:
-    """Simulate, then write the CSV and plot or print the summary."""
+    """Simulate, then write the table, plot and JSON, and print the summary."""
+    from rrt_pin.tables import check_format, estimate_bytes
+
     params = params_from_args(args)
-    outputs = [(args.csv, "--csv"), (args.plot, "--plot")]
+    fmt = check_format(args.csv, "--csv")
+    outputs = [(args.csv, "--csv"), (args.plot, "--plot"), (args.json, "--json")]
     check_outputs(outputs)  # before any work: folders exist, no two name the same file
-    from rrt_pin.grid import time_grid
+    from rrt_pin.grid import grid_size, time_grid
 
     # Cheap checks first: loading the compiled backend costs about a second.
-    t = time_grid(positive_seconds("--tf", args.tf), positive_seconds("--dt", args.dt))
+    tf, dt = positive_seconds("--tf", args.tf), positive_seconds("--dt", args.dt)
+    grid = grid_size(tf, dt, what="--tf/--dt")
+    if grid.size > MAX_OUTPUT_SAMPLES:
+        raise InputError(
+            f"--tf/--dt: tf={tf:g} s at dt={dt:g} s makes {grid.size:,} output samples, over "
+            f"the {MAX_OUTPUT_SAMPLES:,} a simulation keeps in memory; use a larger dt"
+        )
     if args.method is not None:
         methods.get(args.method)
     robot = robot_from_args(args, params, "simulate")
+    columns = 1 + 3 * robot.nv
+    check_space(args.csv, estimate_bytes(fmt, grid.size, columns), "--csv")
     args.backend = resolve_backend(
-        args.backend, robot, "simulate", args.method, work=float(t[-1] - t[0])
+        args.backend, robot, "simulate", args.method, work=float(args.tf)
     )
     method = args.method or backends.get(args.backend).default_method
     fixed = not methods.get(method).adaptive
@@ -167,64 +180,161 @@ def run(args: argparse.Namespace) -> int:
         regulator(robot),
         d.q0,
         d.qd0,
-        t,
+        time_grid(tf, dt),
         method=method,
         rtol=args.rtol,
         atol=args.atol,
         backend=args.backend,
         step=(args.step or args.dt) if fixed else None,
     )
-    if args.csv or args.plot:
-        from rrt_pin.csvio import csv_text
+    units = {name: robot.units.get(name, "") for name in result.header}
+    meta = run_metadata(
+        args, robot, params, command="simulate", backend=result.backend,
+        method=result.method, rtol=result.rtol, atol=result.atol, step=result.step,
+        tf=tf, dt=dt, samples=int(result.t.size), columns=list(result.header), units=units,
+        regulator=robot.regulator,
+        kp=[float(x) for x in d.kp] if d.kp is not None else None,
+        kd=[float(x) for x in d.kd] if d.kd is not None else None,
+        qd0=[float(x) for x in d.qd0] if d.qd0 is not None else None,
+    )  # fmt: skip
+    facts = summary(robot, result)
+    progress = Progress(result.t.size, f"writing {args.csv}", force=args.progress)
 
+    def table(fh: IO[bytes]) -> None:
+        write_result(fh, fmt, result, units, meta, progress)
+
+    def summary_json() -> str:
+        doc = {"metadata": meta, "summary": facts}
+        return json.dumps(doc, indent=2, allow_nan=False, ensure_ascii=False) + "\n"
+
+    try:
         write_run_outputs(
             args.csv,
-            lambda: csv_text(result.header, result.table()),
+            table,
             args.plot,
             lambda: _picture(robot, result, args.plot),
+            args.json,
+            summary_json,
         )
-        for path in (args.plot, args.csv):
-            if path:
-                print(
-                    f"wrote {path} (method {result.method}, backend {result.backend})",
-                    file=sys.stderr,
-                )
-    if not args.csv:
-        sys.stdout.write(summary(robot, result))
+    finally:
+        progress.close()
+    for path in (args.plot, args.csv, args.json):
+        if path:
+            print(
+                f"wrote {path} (method {result.method}, backend {result.backend})", file=sys.stderr
+            )
+    to = sys.stderr if STDOUT in (args.csv, args.json) else sys.stdout
+    to.write(summary_text(facts))
     return 0
 
 
-def summary(robot: Robot, result: SimulationResult) -> str:
-    """Final distance to qf, 2 % settling time per joint and peak efforts, as text."""
+def write_result(
+    fh: IO[bytes],
+    fmt: str,
+    result: SimulationResult,
+    units: dict[str, str],
+    metadata: dict,
+    progress: Progress | None = None,
+) -> None:
+    """Write a result's table (t, q…, qd…, tau…) to ``fh``, a block of rows at a time."""
     import numpy as np
 
-    from rrt_pin.metrics import settling_times
-    from rrt_pin.text import duration
+    from rrt_pin.tables import BLOCK_ROWS, TableWriter
+
+    n = result.t.size
+    with TableWriter(fh, fmt, result.header, units, metadata, rows=n) as sink:
+        for start in range(0, n, BLOCK_ROWS):
+            stop = min(start + BLOCK_ROWS, n)
+            sink.write(
+                np.column_stack(
+                    (
+                        result.t[start:stop],
+                        result.q[start:stop],
+                        result.qd[start:stop],
+                        result.tau[start:stop],
+                    )
+                )
+            )
+            if progress is not None:
+                progress.update(stop - start)
+
+
+def summary(robot: Robot, result: SimulationResult) -> dict:
+    """The run's summary as data: final distances to qf, settling times, peak efforts.
+
+    A pure function of the result; :func:`summary_text` prints it and ``--json``
+    writes it.
+    """
+    import numpy as np
+
+    from rrt_pin.metrics import SETTLING_BAND, settling_times
 
     t, q, tau = result.t, result.q, result.tau
     qf = robot.defaults.qf
+    settled = settling_times(t, q, robot.defaults.q0, qf)
+    joints = [
+        {
+            "name": name,
+            "unit": robot.coordinate_units[k],
+            "q_tf": float(q[-1, k]),
+            "qf": float(qf[k]),
+            "distance": float(abs(q[-1, k] - qf[k])),
+            "settled_at": None if settled[k] is None else float(settled[k]),
+        }
+        for k, name in enumerate(result.q_names)
+    ]
+    peaks = []
+    for k, name in enumerate(result.tau_names):
+        i = int(np.argmax(np.abs(tau[:, k])))
+        peaks.append(
+            {"name": name, "unit": robot.effort_units[k], "peak": float(abs(tau[i, k])),
+             "t": float(t[i])}
+        )  # fmt: skip
+    return {
+        "command": "simulate",
+        "robot": robot.name,
+        "regulator": robot.regulator,
+        "samples": int(t.size),
+        "t0": float(t[0]),
+        "tf": float(t[-1]),
+        "method": result.method,
+        "backend": result.backend,
+        "rtol": result.rtol,
+        "atol": result.atol,
+        "step": result.step,
+        "evaluations": int(result.n_evals),
+        "wall_time": float(result.wall_time),
+        "settling_band": SETTLING_BAND,
+        "joints": joints,
+        "peaks": peaks,
+    }
+
+
+def summary_text(facts: dict) -> str:
+    """The summary for people: final distance to qf, 2 % settling time, peak efforts."""
+    from rrt_pin.text import duration
+
     tol = (
-        f"rtol {result.rtol:g}, atol {result.atol:g}" if result.rtol else f"step {result.step:g} s"
+        f"rtol {facts['rtol']:g}, atol {facts['atol']:g}"
+        if facts["rtol"]
+        else f"step {facts['step']:g} s"
     )
     lines = [
-        f"simulated the {robot.name} under {robot.regulator}: {t.size} samples, "
-        f"t = {t[0]:g} .. {t[-1]:g} s, method {result.method} ({tol}), backend {result.backend}, "
-        f"{result.n_evals} evaluations, {duration(result.wall_time)}",
+        f"simulated the {facts['robot']} under {facts['regulator']}: {facts['samples']} samples, "
+        f"t = {facts['t0']:g} .. {facts['tf']:g} s, method {facts['method']} ({tol}), "
+        f"backend {facts['backend']}, {facts['evaluations']} evaluations, "
+        f"{duration(facts['wall_time'])}",
         f"{'joint':<24} {'q(tf)':>14} {'qf':>14} {'|q(tf) - qf|':>16}  {'settled (2 %) at t':>18}",
     ]
-    settled = settling_times(t, q, robot.defaults.q0, qf)
-    for k, name in enumerate(result.q_names):
-        unit = robot.coordinate_units[k]
-        when = f"{settled[k]:.6g} s" if settled[k] is not None else "not settled"
+    for j in facts["joints"]:
+        when = f"{j['settled_at']:.6g} s" if j["settled_at"] is not None else "not settled"
         lines.append(
-            f"{name:<24} {q[-1, k]:>14.10g} {qf[k]:>14.10g} "
-            f"{abs(q[-1, k] - qf[k]):>12.3e} {unit:<3}  {when:>18}"
+            f"{j['name']:<24} {j['q_tf']:>14.10g} {j['qf']:>14.10g} "
+            f"{j['distance']:>12.3e} {j['unit']:<3}  {when:>18}"
         )
     lines.append(f"{'effort':<24} {'peak |effort|':>16}  {'at t [s]':>10}")
-    for k, name in enumerate(result.tau_names):
-        unit = robot.effort_units[k]
-        i = int(np.argmax(np.abs(tau[:, k])))
-        lines.append(f"{name:<24} {abs(tau[i, k]):>12.6g} {unit:<3}  {t[i]:>10.6g}")
+    for p in facts["peaks"]:
+        lines.append(f"{p['name']:<24} {p['peak']:>12.6g} {p['unit']:<3}  {p['t']:>10.6g}")
     return "\n".join(lines) + "\n"
 
 

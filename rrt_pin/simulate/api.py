@@ -99,8 +99,8 @@ def simulate(
     model: Any,
     controller: Any,
     q0: Sequence[float] | np.ndarray,
-    qd0: Sequence[float] | np.ndarray | None,
-    t_eval: Sequence[float] | np.ndarray,
+    qd0: Sequence[float] | np.ndarray | None = None,
+    t_eval: Sequence[float] | np.ndarray | None = None,
     *,
     method: str | None = None,
     rtol: float | None = None,
@@ -120,8 +120,9 @@ def simulate(
             or None (no effort: passive motion).
         q0: initial joint coordinates (nv,) [rad or m] (angles for continuous
             joints; Pinocchio's (nq,) configuration is accepted too).
-        qd0: initial velocities (nv,) [rad/s or m/s]; None for rest.
-        t_eval: increasing output times [s]; the run starts at ``t_eval[0]``.
+        qd0: initial velocities (nv,) [rad/s or m/s]; None (the default) for rest.
+        t_eval: increasing output times [s] (required; e.g.
+            ``rrt_pin.time_grid(15.0, 0.01)``); the run starts at ``t_eval[0]``.
         method: a method of :data:`rrt_pin.methods.METHODS` that the backend
             runs (default: the backend's, ``odepack`` on Pinocchio, ``DOP853``
             compiled; the result says which).
@@ -143,6 +144,8 @@ def simulate(
     """
     from rrt_pin.control import as_controller
 
+    if t_eval is None:
+        raise InputError("simulate needs t_eval, the output times [s]: e.g. time_grid(15.0, 0.01)")
     robot = as_robot(model, params)
     _prepare(robot, backend, method)
     start = time.perf_counter()
@@ -160,23 +163,36 @@ def simulate(
         integrate = _compiled()
         p = _params_for(robot, params, [controller])
         model = robot.model if robot.params is None or robot.params is not p else None
-        return integrate.simulate_compiled(
-            p,
-            controller,
-            q0,
-            qd0,
-            t,
-            options.method.name,
-            options.rtol,
-            options.atol,
-            options.step,
-            model=model,
-            start=start,
+        return _with_units(
+            integrate.simulate_compiled(
+                p,
+                controller,
+                q0,
+                qd0,
+                t,
+                options.method.name,
+                options.rtol,
+                options.atol,
+                options.step,
+                model=model,
+                start=start,
+            ),
+            robot,
         )
     from rrt_pin.simulate.pinocchio_backend import run_one
 
     law = _passive(robot) if controller is None else as_controller(controller, robot.nv)
-    return run_one(robot, law, q0, qd0, t, options, start)
+    return _with_units(run_one(robot, law, q0, qd0, t, options, start), robot)
+
+
+def _with_units(result: Any, robot: Robot) -> Any:
+    """The result, knowing its robot's coordinate units (for ``to_frame``)."""
+    import dataclasses
+
+    units = tuple(robot.coordinate_units)
+    if tuple(result.coordinate_units) == units:
+        return result
+    return dataclasses.replace(result, coordinate_units=units)
 
 
 def _prepare(robot: Robot, backend: Any, method: Any = None) -> None:
@@ -310,19 +326,24 @@ def simulate_batch(
             plants = list(params)
         else:
             plants = _params_for(robot, params, controllers)
-        return integrate.simulate_batch_compiled(
-            plants,
-            controllers,
-            q0s,
-            qd0s,
-            t,
-            options.method.name,
-            options.rtol,
-            options.atol,
-            options.step,
-            efforts,
-            start=start,
+        return _with_units(
+            integrate.simulate_batch_compiled(
+                plants,
+                controllers,
+                q0s,
+                qd0s,
+                t,
+                options.method.name,
+                options.rtol,
+                options.atol,
+                options.step,
+                efforts,
+                start=start,
+            ),
+            robot,
         )
     from rrt_pin.simulate.pinocchio_backend import run_batch
 
-    return run_batch(robot, laws, q0s, qd0s, t, options, threads, efforts, start)
+    return _with_units(
+        run_batch(robot, laws, q0s, qd0s, t, options, threads, efforts, start), robot
+    )

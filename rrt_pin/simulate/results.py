@@ -7,6 +7,7 @@ times [s], coordinates [rad or m], velocities [rad/s or m/s], efforts [N·m or N
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -39,6 +40,8 @@ class _Run:
         q_names: coordinate names (``q1``…, or ``q_<joint>``).
         qd_names: velocity names (``qd1``…, or ``qd_<joint>``).
         tau_names: effort names (``T01x, T12y, F23z``, or ``tau_<joint>``).
+        coordinate_units: each coordinate's unit, ``rad`` or ``m`` (the chapter's arm:
+            rad, rad, m); velocities and efforts follow (rad/s, N·m; m/s, N).
     """
 
     t: np.ndarray
@@ -57,6 +60,7 @@ class _Run:
     q_names: tuple[str, ...] = ("q1", "q2", "q3")
     qd_names: tuple[str, ...] = ("qd1", "qd2", "qd3")
     tau_names: tuple[str, ...] = ("T01x", "T12y", "F23z")
+    coordinate_units: tuple[str, ...] = ("rad", "rad", "m")
 
     def __post_init__(self) -> None:
         for name in ("t", "q", "qd", "tau"):
@@ -72,6 +76,19 @@ class _Run:
         """Column names of a table: t, coordinates, velocities, efforts."""
         return ("t", *self.q_names, *self.qd_names, *self.tau_names)
 
+    @property
+    def units(self) -> dict[str, str]:
+        """The SI unit of every column of :attr:`header`."""
+        rate = {"rad": "rad/s", "m": "m/s"}
+        effort = {"rad": "N·m", "m": "N"}
+        units = self.coordinate_units
+        return {
+            "t": "s",
+            **dict(zip(self.q_names, units, strict=True)),
+            **{n: rate.get(u, f"{u}/s") for n, u in zip(self.qd_names, units, strict=True)},
+            **{n: effort.get(u, "") for n, u in zip(self.tau_names, units, strict=True)},
+        }
+
 
 @dataclass(frozen=True, eq=False)
 class SimulationResult(_Run):
@@ -80,6 +97,34 @@ class SimulationResult(_Run):
     def table(self) -> np.ndarray:
         """The run as rows ``t, q…, qd…, tau…`` (SI units), shape (N, 1 + 3·nv)."""
         return np.column_stack((self.t, self.q, self.qd, self.tau))
+
+    def to_frame(self) -> Any:
+        """The run as a pandas DataFrame: columns :attr:`header`, one row per output time.
+
+        ``frame.attrs["units"]`` maps each column to its SI unit, and
+        ``frame.attrs["run"]`` holds the method, backend, tolerances and cost.
+        Write it with ``frame.to_csv(path, index=False)`` or
+        ``frame.to_parquet(path)`` (pyarrow keeps ``attrs`` in the file).
+
+        Raises:
+            ImportError: pandas is missing (``pip install rrt-pin[parquet]``).
+        """
+        try:
+            import pandas as pd
+        except ImportError as e:
+            raise ImportError("to_frame needs pandas: pip install rrt-pin[parquet]") from e
+        frame = pd.DataFrame(self.table(), columns=list(self.header))
+        frame.attrs["units"] = self.units
+        frame.attrs["run"] = {
+            "method": self.method,
+            "backend": self.backend,
+            "rtol": self.rtol,
+            "atol": self.atol,
+            "step": self.step,
+            "n_evals": self.n_evals,
+            "wall_time": self.wall_time,
+        }
+        return frame
 
 
 @dataclass(frozen=True, eq=False)
@@ -114,4 +159,5 @@ class BatchResult(_Run):
             q_names=self.q_names,
             qd_names=self.qd_names,
             tau_names=self.tau_names,
+            coordinate_units=self.coordinate_units,
         )
