@@ -281,3 +281,17 @@ def test_public_names():
         mod = __import__(f"rrt_pin.{module}", fromlist=["__all__"])
         for name in mod.__all__:
             assert hasattr(mod, name), f"rrt_pin.{module}.{name}"
+
+
+def test_plot_of_a_long_run_is_thinned_evenly_with_both_ends(monkeypatch):
+    monkeypatch.setattr(inverse_cmd, "PLOT_POINTS", 100)
+    monkeypatch.setattr(rrt_pin.tables, "BLOCK_ROWS", 64)
+    p = Params()
+    job = inverse_cmd.InverseJob(chapter_arm(p), grid_size(10.0, 0.01), p.Tp, wrenches=False)
+    job.run(None)
+    t, tau = job.plot_samples()
+    whole = whole_inverse(p, 0.01, tf=10.0)
+    stride = 11  # ceil(1001 / 100)
+    index = np.r_[np.arange(0, 1001, stride), 1000]
+    np.testing.assert_array_equal(t, whole[index, 0])
+    np.testing.assert_array_equal(tau, whole[index, 10:13])
