@@ -64,10 +64,9 @@ def _pyarrow(flag: str | None) -> Any:
         import pyarrow as pa
         import pyarrow.parquet  # noqa: F401
     except ImportError as e:
-        where = f"{flag} " if flag else ""
-        raise InputError(
-            f"{where}.parquet needs pyarrow: pip install rrt-pin[parquet] (or write .csv)"
-        ) from e
+        from rrt_pin.extras import MissingExtra
+
+        raise MissingExtra("pyarrow", "parquet", f"{flag or 'a'} .parquet output") from e
     return pa
 
 

@@ -83,7 +83,7 @@ def test_summary_without_csv(capsys, seed_csv):
 def test_wrench_columns(tmp_path, capsys, seed_params):
     path = tmp_path / "w.csv"
     code, out, err = run(["inverse", "--wrenches", "--dt", "0.01", "--csv", str(path)], capsys)
-    assert code == 0 and err == f"wrote {path} (backend pinocchio)\n"
+    assert code == 0 and err == f"rrt-pin: wrote {path} (backend pinocchio)\n"
     assert out.startswith("inverse dynamics of the RRT arm") and "|F01| at A" in out
     header, data = read_csv(path)
     assert header == HEADER.split(",") + list(RRT_WRENCH_COLUMNS)
@@ -262,7 +262,7 @@ def test_wrenches_summary(capsys):
 def test_plot(tmp_path, capsys):
     png = tmp_path / "efforts.png"
     code, out, err = run(["inverse", "--dt", "0.05", "--plot", str(png)], capsys)
-    assert code == 0 and "T01x" in out and err == f"wrote {png} (backend pinocchio)\n"
+    assert code == 0 and "T01x" in out and err == f"rrt-pin: wrote {png} (backend pinocchio)\n"
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
@@ -390,7 +390,7 @@ def test_subprocess_csv_imports_only_what_it_needs(tmp_path):
     assert "pinocchio" in imported
     for heavy in ("meshcat", "sympy", "matplotlib", "numba", "selenium", "scipy"):
         assert heavy not in imported, heavy
-    assert proc.stderr.splitlines()[-1] == f"wrote {out} (backend pinocchio)"
+    assert proc.stderr.splitlines()[-1] == f"rrt-pin: wrote {out} (backend pinocchio)"
     assert out.read_text().count("\n") == 15002
 
 

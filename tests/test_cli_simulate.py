@@ -26,7 +26,7 @@ def run(argv, capsys):
 def test_csv_contract(tmp_path, capsys):
     target = tmp_path / "run.csv"
     code, out, err = run(["simulate", "--csv", str(target)], capsys)
-    assert code == 0 and err == f"wrote {target} (method odepack, backend pinocchio)\n"
+    assert code == 0 and err == f"rrt-pin: wrote {target} (method odepack, backend pinocchio)\n"
     assert out.startswith("simulated the RRT arm") and "settled (2 %)" in out
     assert target.read_text().splitlines()[0] == ",".join(HEADER)
     header, data = read_csv(target, HEADER)

@@ -191,7 +191,7 @@ def test_parquet_without_pyarrow_is_one_line(tmp_path, capsys, monkeypatch):
     monkeypatch.setitem(sys.modules, "pyarrow.parquet", None)
     code, out, err = run(["inverse", "--csv", str(tmp_path / "x.parquet")], capsys)
     assert code == 2 and out == "" and err.count("\n") == 1
-    assert "pip install rrt-pin[parquet]" in err
+    assert "pyarrow not found (needed for --csv .parquet output)" in err and "[parquet]" in err
     assert list(tmp_path.iterdir()) == []
 
 
@@ -224,7 +224,7 @@ def test_progress_only_when_asked_or_on_a_terminal(tmp_path, capsys, monkeypatch
     monkeypatch.setattr(progress, "DELAY", 0.0)
     path = str(tmp_path / "a.csv")
     code, _, err = run(["inverse", "--dt", "0.01", "--csv", path], capsys)
-    assert code == 0 and err == f"wrote {path} (backend pinocchio)\n"  # not a TTY: nothing
+    assert code == 0 and err == f"rrt-pin: wrote {path} (backend pinocchio)\n"  # not a TTY: nothing
     code, _, err = run(["inverse", "--dt", "0.01", "--csv", path, "--progress"], capsys)
     assert code == 0 and "rrt-pin: writing" in err and "1,501 / 1,501 rows" in err
 

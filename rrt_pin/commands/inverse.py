@@ -13,6 +13,7 @@ import sys
 from typing import IO, TYPE_CHECKING
 
 from rrt_pin import backends
+from rrt_pin._logging import note
 from rrt_pin.commands import _chapter
 from rrt_pin.commands._common import (
     add_output_arguments,
@@ -173,7 +174,7 @@ def run(args: argparse.Namespace) -> int:
         progress.close()
     for path in (args.plot, args.csv, args.json):
         if path:
-            print(f"wrote {path} (backend {args.backend})", file=sys.stderr)
+            note(f"wrote {path} (backend {args.backend})")
     to = sys.stderr if STDOUT in (args.csv, args.json) else sys.stdout
     to.write(summary_text(facts or summary(robot, job)))
     return 0

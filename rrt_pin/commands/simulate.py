@@ -12,6 +12,7 @@ import sys
 from typing import IO, TYPE_CHECKING
 
 from rrt_pin import backends, methods
+from rrt_pin._logging import note
 from rrt_pin.commands import _chapter
 from rrt_pin.commands._common import (
     add_output_arguments,
@@ -220,9 +221,7 @@ def run(args: argparse.Namespace) -> int:
         progress.close()
     for path in (args.plot, args.csv, args.json):
         if path:
-            print(
-                f"wrote {path} (method {result.method}, backend {result.backend})", file=sys.stderr
-            )
+            note(f"wrote {path} (method {result.method}, backend {result.backend})")
     to = sys.stderr if STDOUT in (args.csv, args.json) else sys.stdout
     to.write(summary_text(facts))
     return 0

@@ -112,7 +112,9 @@ class SimulationResult(_Run):
         try:
             import pandas as pd
         except ImportError as e:
-            raise ImportError("to_frame needs pandas: pip install rrt-pin[parquet]") from e
+            from rrt_pin.extras import MissingExtra
+
+            raise MissingExtra("pandas", "parquet", "to_frame") from e
         frame = pd.DataFrame(self.table(), columns=list(self.header))
         frame.attrs["units"] = self.units
         frame.attrs["run"] = {
