@@ -331,6 +331,23 @@ def write_run_outputs(
     )
 
 
+def report_run(args: argparse.Namespace, how: str, summary: str) -> None:
+    """Say which outputs were written (``how``: backend, method) and print the summary.
+
+    The summary goes to stdout, or to stderr when stdout carries the data
+    (``--csv -`` or ``--json -``).
+    """
+    import sys
+
+    from rrt_pin.io import STDOUT
+
+    for path in (args.plot, args.csv, args.json):
+        if path:
+            note(f"wrote {path} ({how})")
+    to = sys.stderr if STDOUT in (args.csv, args.json) else sys.stdout
+    to.write(summary)
+
+
 def resolve_backend(
     requested: str, robot: Robot, task: str, method: str | None = None, work: float = 0.0
 ) -> str:

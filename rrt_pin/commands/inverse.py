@@ -9,11 +9,9 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 from typing import IO, TYPE_CHECKING
 
 from rrt_pin import backends
-from rrt_pin._logging import note
 from rrt_pin.commands import _chapter
 from rrt_pin.commands._common import (
     add_output_arguments,
@@ -22,6 +20,7 @@ from rrt_pin.commands._common import (
     finite_float,
     params_from_args,
     positive_seconds,
+    report_run,
     resolve_backend,
     robot_from_args,
     run_metadata,
@@ -29,7 +28,7 @@ from rrt_pin.commands._common import (
 )
 from rrt_pin.commands._progress import Progress
 from rrt_pin.errors import InputError
-from rrt_pin.io import STDOUT, check_outputs, check_space
+from rrt_pin.io import check_outputs, check_space
 
 if TYPE_CHECKING:
     import numpy as np
@@ -172,11 +171,7 @@ def run(args: argparse.Namespace) -> int:
         )  # fmt: skip
     finally:
         progress.close()
-    for path in (args.plot, args.csv, args.json):
-        if path:
-            note(f"wrote {path} (backend {args.backend})")
-    to = sys.stderr if STDOUT in (args.csv, args.json) else sys.stdout
-    to.write(summary_text(facts or summary(robot, job)))
+    report_run(args, f"backend {args.backend}", summary_text(facts or summary(robot, job)))
     return 0
 
 

@@ -8,11 +8,9 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 from typing import IO, TYPE_CHECKING
 
 from rrt_pin import backends, methods
-from rrt_pin._logging import note
 from rrt_pin.commands import _chapter
 from rrt_pin.commands._common import (
     add_output_arguments,
@@ -21,6 +19,7 @@ from rrt_pin.commands._common import (
     params_from_args,
     positive_float,
     positive_seconds,
+    report_run,
     resolve_backend,
     robot_from_args,
     run_metadata,
@@ -28,7 +27,7 @@ from rrt_pin.commands._common import (
 )
 from rrt_pin.commands._progress import Progress
 from rrt_pin.errors import InputError
-from rrt_pin.io import STDOUT, check_outputs, check_space
+from rrt_pin.io import check_outputs, check_space
 
 if TYPE_CHECKING:
     from rrt_pin.robot import Robot
@@ -219,11 +218,7 @@ def run(args: argparse.Namespace) -> int:
         )
     finally:
         progress.close()
-    for path in (args.plot, args.csv, args.json):
-        if path:
-            note(f"wrote {path} (method {result.method}, backend {result.backend})")
-    to = sys.stderr if STDOUT in (args.csv, args.json) else sys.stdout
-    to.write(summary_text(facts))
+    report_run(args, f"method {result.method}, backend {result.backend}", summary_text(facts))
     return 0
 
 
