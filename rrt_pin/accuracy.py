@@ -25,8 +25,6 @@ Units: q errors in rad (revolute joints) or m (prismatic joints).
 
 from __future__ import annotations
 
-import math
-from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -238,8 +236,5 @@ def reference(scene: Scene, backend: str | None = None) -> Reference:
 
 
 def max_error(q: np.ndarray, q_ref: np.ndarray) -> float:
-    """max |q − q_ref| over times and coordinates [rad or m]."""
+    """The largest |q − q_ref| over times and coordinates [rad or m]."""
     return float(np.abs(np.asarray(q) - np.asarray(q_ref)).max())
-
-
-_ = (math, Callable)

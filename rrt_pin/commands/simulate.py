@@ -26,7 +26,7 @@ from rrt_pin.io import check_outputs
 
 if TYPE_CHECKING:
     from rrt_pin.robot import Robot
-    from rrt_pin.simulate import SimulationResult
+    from rrt_pin.simulate import ErrorEstimate, SimulationResult
 
 HELP = "direct dynamics under the chapter's feedback law, eq. (31) (SI units)"
 
@@ -53,11 +53,18 @@ and the columns are t, q_<joint>, qd_<joint>, tau_<joint> (joint names from the 
 rad, rad/s, N·m for revolute joints, m, m/s, N for prismatic ones). Gravity is
 (0, 0, -g) in the URDF's world frame.
 Methods (default: odepack on --backend pinocchio, DOP853 on compiled; adaptive
-ones default to rtol {methods.DEFAULT_RTOL:g}, atol {methods.DEFAULT_ATOL:g}):
+ones default to rtol {methods.DEFAULT_RTOL:g}, atol {methods.DEFAULT_ATOL:g}, odepack to rtol
+{methods.ODEPACK_RTOL:g}, atol {methods.ODEPACK_ATOL:g}: the defaults keep max |q - q_exact| <= {methods.ACCURACY:g} rad or m
+on every scene of the accuracy catalogue, docs/benchmarks.md):
 {_method_lines()}
 Without --csv a summary goes to stdout: each joint's final distance to qf, its 2 %
 settling time (after which |q - qf| stays within 2 % of |q0 - qf|), and each
-effort's peak |value| and when."""
+effort's peak |value| and when.
+Every run estimates the global error of q(t) from a second run of the same method
+at tolerances ten times tighter (half the step for fixed-step methods; it costs
+1.2-2 times the first run): the summary reports it, and a run whose estimate exceeds
+the accuracy asked for, max({methods.ACCURACY:g}, rtol, atol) [rad or m], says so on stderr.
+--no-error-estimate skips the second run."""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -86,7 +93,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         type=positive_float,
         default=None,
         metavar="X",
-        help=f"relative tolerance of the adaptive methods (default {methods.DEFAULT_RTOL:g})",
+        help="relative tolerance of the adaptive methods (default "
+        f"{methods.DEFAULT_RTOL:g}; odepack {methods.ODEPACK_RTOL:g})",
     )
     parser.add_argument(
         "--atol",
@@ -94,7 +102,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=None,
         metavar="X",
         help="absolute tolerance of the adaptive methods [rad, m, rad/s, m/s] "
-        f"(default {methods.DEFAULT_ATOL:g})",
+        f"(default {methods.DEFAULT_ATOL:g}; odepack {methods.ODEPACK_ATOL:g})",
+    )
+    parser.add_argument(
+        "--no-error-estimate",
+        dest="error_estimate",
+        action="store_false",
+        help="skip the second run that estimates the global error of q(t) [rad or m] "
+        "(saves 50-65 %% of the run's time)",
     )
     parser.add_argument(
         "--csv", type=nonempty, metavar="PATH", help="write the samples here (atomically)"
@@ -137,22 +152,32 @@ def run(args: argparse.Namespace) -> int:
     method = args.method or backends.get(args.backend).default_method
     fixed = not methods.get(method).adaptive
 
+    import warnings
+
     from rrt_pin.control import regulator
-    from rrt_pin.simulate import simulate
+    from rrt_pin.simulate import AccuracyWarning, simulate
 
     d = robot.defaults
-    result = simulate(
-        robot,
-        regulator(robot),
-        d.q0,
-        d.qd0,
-        t,
-        method=method,
-        rtol=args.rtol,
-        atol=args.atol,
-        backend=args.backend,
-        step=args.dt if fixed else None,
-    )
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", AccuracyWarning)  # said below, in one line
+        result = simulate(
+            robot,
+            regulator(robot),
+            d.q0,
+            d.qd0,
+            t,
+            method=method,
+            rtol=args.rtol,
+            atol=args.atol,
+            backend=args.backend,
+            step=args.dt if fixed else None,
+            estimate_error=getattr(args, "error_estimate", True),
+        )
+    if result.estimate is not None and result.estimate.exceeded:
+        print(
+            f"rrt-pin simulate: warning: {_accuracy_warning(result, result.estimate)}",
+            file=sys.stderr,
+        )
     if args.csv or args.plot:
         from rrt_pin.csvio import csv_text
 
@@ -173,6 +198,34 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
+def _accuracy_warning(result: SimulationResult, est: ErrorEstimate) -> str:
+    k = int(est.q.argmax())
+    how = (
+        f"--rtol {result.rtol:g} --atol {result.atol:g}: tighten them"
+        if result.rtol is not None
+        else f"step {result.step:g} s: shorten --dt"
+    )
+    return (
+        f"estimated global error of q(t) {est.max:.2g} ({result.q_names[k]}) exceeds the "
+        f"accuracy asked for, {est.accuracy:.2g} [rad or m] (method {result.method}, {how})"
+    )
+
+
+def _estimate_line(robot: Robot, result: SimulationResult) -> str:
+    est = result.estimate
+    if est is None:
+        return "estimated global error of q(t): not computed"
+    per = ", ".join(
+        f"{name} {e:.2g} {unit}"
+        for name, e, unit in zip(result.q_names, est.q, robot.coordinate_units, strict=True)
+    )
+    verdict = "exceeds" if est.exceeded else "within"
+    return (
+        f"estimated global error of q(t), max over t: {per} ({verdict} the accuracy asked "
+        f"for, {est.accuracy:.2g} rad or m; second run: {est.how}, {est.wall_time * 1e3:.3g} ms)"
+    )
+
+
 def summary(robot: Robot, result: SimulationResult) -> str:
     """Final distance to qf, 2 % settling time per joint and peak efforts, as text."""
     import numpy as np
@@ -188,6 +241,7 @@ def summary(robot: Robot, result: SimulationResult) -> str:
         f"simulated the {robot.name} under {robot.regulator}: {t.size} samples, "
         f"t = {t[0]:g} .. {t[-1]:g} s, method {result.method} ({tol}), backend {result.backend}, "
         f"{result.n_evals} evaluations, {result.wall_time * 1e3:.3g} ms",
+        _estimate_line(robot, result),
         f"{'joint':<24} {'q(tf)':>14} {'qf':>14} {'|q(tf) - qf|':>16}  {'settled (2 %) at t':>18}",
     ]
     settled = settling_times(t, q, robot.defaults.q0, qf)

@@ -17,8 +17,9 @@ __all__ = ["BatchResult", "ErrorEstimate", "SimulationResult"]
 
 @dataclass(frozen=True, eq=False)
 class ErrorEstimate:
-    """An estimate of a run's global error in q, from a second run (see
-    :mod:`rrt_pin.simulate.estimate`).
+    """An estimate of a run's global error in q, from a second run.
+
+    See :mod:`rrt_pin.simulate.estimate` for how it is made.
 
     Attributes:
         q: per coordinate, max over the output times (and the variants of a
@@ -48,7 +49,7 @@ class ErrorEstimate:
 
     @property
     def max(self) -> float:
-        """max over coordinates, times (and variants) [rad or m]."""
+        """The largest estimate over coordinates, times (and variants) [rad or m]."""
         return float(self.q.max()) if self.q.size else 0.0
 
     @property
