@@ -16,7 +16,7 @@ Sections:
    scenes against its total time; the script marks the settings on each backend's
    Pareto front (nothing on that backend is both faster and more accurate).
 
-    .venv/bin/python scripts/bench_accuracy.py [--repeat 3] [--scenes a,b] [--markdown]
+    .venv/bin/python scripts/bench_accuracy.py [--repeat 3] [--scenes a,b] [--sections 2,3] [--markdown]
 """
 
 from __future__ import annotations
@@ -166,22 +166,26 @@ def main() -> None:
     parser.add_argument("--repeat", type=int, default=3, help="timing rounds (median)")
     parser.add_argument("--scenes", default=",".join(SCENES), help="comma-separated names")
     parser.add_argument("--markdown", action="store_true", help="print section 2 as markdown")
-    parser.add_argument("--skip-work-precision", action="store_true")
+    parser.add_argument(
+        "--sections", default="1,2,3", help="which sections to run after the references"
+    )
     args = parser.parse_args()
     names = args.scenes.split(",")
+    sections = set(args.sections.split(","))
     print("1. references (rtol 1e-13): disagreement max |q_a − q_b| [rad or m]")
     refs = references(names)
-    print("\n2. catalogue: defaults, their estimate and cost (medians)")
-    rows = catalogue(names, refs, args.repeat)
-    worst = max(r[5] for r in rows if r[2] == "default")
-    ratios = [r[6] / r[5] for r in rows]
-    print(
-        f"   worst default error {worst:.1e} (target {ACCURACY:g}); estimate/error in "
-        f"[{min(ratios):.2f}, {max(ratios):.2f}]"
-    )
-    if args.markdown:
-        print(markdown(rows))
-    if not args.skip_work_precision:
+    if "2" in sections:
+        print("\n2. catalogue: defaults, their estimate and cost (medians)")
+        rows = catalogue(names, refs, args.repeat)
+        worst = max(r[5] for r in rows if r[2] == "default")
+        ratios = [r[6] / r[5] for r in rows]
+        print(
+            f"   worst default error {worst:.1e} (target {ACCURACY:g}); estimate/error in "
+            f"[{min(ratios):.2f}, {max(ratios):.2f}]"
+        )
+        if args.markdown:
+            print(markdown(rows))
+    if "3" in sections:
         print("\n3. work-precision over the catalogue (atol = rtol/100)")
         work_precision(names, refs, args.repeat)
 
