@@ -186,8 +186,15 @@ def test_any_urdf_robot_gets_an_estimate(tmp_path):
 
 # --- the estimate's switches and warnings ----------------------------------------------
 def test_estimate_can_be_skipped():
-    run = SCENES["chapter"].run(estimate_error=False)
+    scene = SCENES["chapter"]
+    run = scene.run(estimate_error=False)
     assert run.estimate is None and run.error_estimate is None and run.error_estimate_q is None
+    arm = scene.arm
+    batch = simulate_batch(
+        arm, scene.controller(arm), np.array([arm.defaults.q0]), None, scene.times()[:101],
+        estimate_error=False,
+    )  # fmt: skip
+    assert batch.estimate is None and batch.variant(0).error_estimate is None
 
 
 def test_a_run_beyond_its_accuracy_warns():
