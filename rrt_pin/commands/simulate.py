@@ -52,17 +52,17 @@ With --urdf the law is PD plus gravity compensation, tau = -kd*qd - kp*(q - qf) 
 and the columns are t, q_<joint>, qd_<joint>, tau_<joint> (joint names from the URDF;
 rad, rad/s, N·m for revolute joints, m, m/s, N for prismatic ones). Gravity is
 (0, 0, -g) in the URDF's world frame.
-Methods (default: odepack on --backend pinocchio, DOP853 on compiled; adaptive
-ones default to rtol {methods.DEFAULT_RTOL:g}, atol {methods.DEFAULT_ATOL:g}, odepack to rtol
-{methods.ODEPACK_RTOL:g}, atol {methods.ODEPACK_ATOL:g}: the defaults keep max |q - q_exact| <= {methods.ACCURACY:g} rad or m
-on every scene of the accuracy catalogue, docs/benchmarks.md):
+Methods (default: odepack on --backend pinocchio, DOP853 on compiled). Adaptive
+methods default to rtol {methods.DEFAULT_RTOL:g}, atol {methods.DEFAULT_ATOL:g}; odepack to rtol {methods.ODEPACK_RTOL:g}, atol {methods.ODEPACK_ATOL:g}.
+The defaults keep max |q - q_exact| <= {methods.ACCURACY:g} rad or m on every scene of the
+accuracy catalogue (docs/benchmarks.md):
 {_method_lines()}
 Without --csv a summary goes to stdout: each joint's final distance to qf, its 2 %
 settling time (after which |q - qf| stays within 2 % of |q0 - qf|), and each
 effort's peak |value| and when.
 Every run estimates the global error of q(t) from a second run of the same method
 at tolerances ten times tighter (half the step for fixed-step methods; it costs
-1.2-2 times the first run): the summary reports it, and a run whose estimate exceeds
+about as much as the first run): the summary reports it, and a run whose estimate exceeds
 the accuracy asked for, max({methods.ACCURACY:g}, rtol, atol) [rad or m], says so on stderr.
 --no-error-estimate skips the second run."""
 
@@ -109,7 +109,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         dest="error_estimate",
         action="store_false",
         help="skip the second run that estimates the global error of q(t) [rad or m] "
-        "(saves 50-65 %% of the run's time)",
+        "(typically half of the call's time)",
     )
     parser.add_argument(
         "--csv", type=nonempty, metavar="PATH", help="write the samples here (atomically)"
