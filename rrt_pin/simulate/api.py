@@ -141,7 +141,8 @@ def simulate(
             tighter (half the step for fixed-step methods; see
             :mod:`rrt_pin.simulate.estimate`), and warn (``AccuracyWarning``) when it
             exceeds the accuracy asked for, max(1e-8, rtol, atol). The second run
-            costs 1.2–2 times the first; False skips it.
+            costs about as much as the first (0.2–1.9 times on the accuracy
+            catalogue); False skips it.
 
     Returns:
         States and applied efforts at ``t_eval``, evaluation count and wall time
