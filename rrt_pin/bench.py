@@ -308,27 +308,25 @@ def direct_work_precision(
                 continue  # scipy's Fortran and implicit loops have no compiled twin
             for setting, kw in _settings(method, quick):
                 plan.append((backend, method, setting, kw))
+    from rrt_pin import backends as registry
     from rrt_pin.errors import RrtPinError
-    from rrt_pin.methods import DEFAULT_ATOL, DEFAULT_RTOL
-
-    DEFAULT_METHOD = "odepack"
+    from rrt_pin.methods import get as method_named
 
     for backend in backends:
         if backend == "compiled" and not have_compiled:
             continue
-        method = DEFAULT_METHOD
-        if backend == "compiled":
-            from rrt_pin.compiled.integrate import DEFAULT_METHOD as method
-        kw = {"rtol": DEFAULT_RTOL, "atol": DEFAULT_ATOL}
-        plan.append((backend, method, f"default rtol={DEFAULT_RTOL:.0e}", kw))
+        default = method_named(registry.get(backend).default_method)
+        kw = {"rtol": default.rtol, "atol": default.atol}
+        plan.append((backend, default.name, f"default rtol={default.rtol:.0e}", kw))
     rounds = max(1, repeats)
     if progress is not None:
         progress.total += len(plan) + rounds
 
     def runner(backend: str, method: str, kw: dict) -> Callable[[], object]:
         return lambda: simulate(
-            model, ctrl, p.q0, p.qd0, t, method=method, backend=backend, params=p, **kw
-        )
+            model, ctrl, p.q0, p.qd0, t, method=method, backend=backend, params=p,
+            estimate_error=False, **kw
+        )  # fmt: skip
 
     runner("pinocchio", "RK45", {"rtol": 1e-3, "atol": 1e-5})()  # warm imports and caches
     # One run of each configuration first: its cost and error (both deterministic), and
@@ -410,7 +408,8 @@ def energy_drift(
     for method, rtol in (("DOP853", 1e-12), ("RK45", 1e-10), ("odepack", 1e-12), ("Radau", 1e-10)):
 
         def run(method=method, rtol=rtol):
-            r = simulate(model, passive, p.q0, p.qd0, t, method=method, rtol=rtol, atol=rtol * 1e-2)
+            r = simulate(model, passive, p.q0, p.qd0, t, method=method, rtol=rtol, atol=rtol * 1e-2,
+                         estimate_error=False)  # fmt: skip
             return r.q, r.qd, r.n_evals
 
         runs.append((method, f"rtol={rtol:.0e}", run))
@@ -418,7 +417,9 @@ def energy_drift(
     for method in ("rk4", "verlet", "symplectic_euler", "leapfrog"):
 
         def run(method=method):
-            r = simulate(model, passive, p.q0, p.qd0, t, method=method, step=h)
+            r = simulate(
+                model, passive, p.q0, p.qd0, t, method=method, step=h, estimate_error=False
+            )
             return r.q, r.qd, r.n_evals
 
         runs.append((method, f"dt={h:g}", run))

@@ -477,7 +477,7 @@ CASES = (
     Case(
         "compiled backend without numba",
         ("inverse", "--backend", "compiled", "--csv", OUT),
-        "numba not found (needed for the compiled backend): ",
+        "numba not found (needed for backend 'compiled'): ",
         missing=("numba",),
     ),
     # plots: the format follows the suffix

@@ -77,7 +77,7 @@ def test_result_contract(seed_run, seed_params, reference):
     r = seed_run
     assert isinstance(r, SimulationResult)
     assert r.method == "odepack" and r.backend == "pinocchio"
-    assert (r.rtol, r.atol, r.step) == (1e-9, 1e-11, None)
+    assert (r.rtol, r.atol, r.step) == (1e-12, 1e-14, None)  # odepack's defaults
     assert r.q.shape == r.qd.shape == r.tau.shape == (1501, 3)
     np.testing.assert_array_equal(r.t, reference.t)
     np.testing.assert_array_equal(r.q[0], seed_params.q0)
@@ -162,7 +162,7 @@ def test_each_method_runs_and_converges(method, seed_model, seed_params, referen
     assert np.all(np.abs(r.q[-1] - np.array(seed_params.qf)) < CONVERGED)
     assert np.abs(r.q - reference.q).max() <= METHOD_ACCURACY[method]
     if method in ADAPTIVE_METHODS:
-        assert r.rtol == 1e-9 and r.step is None
+        assert r.rtol == (1e-12 if method == "odepack" else 1e-10) and r.step is None
     else:
         assert r.rtol is None and r.step == pytest.approx(0.01)
 
@@ -379,9 +379,13 @@ def test_compiled_backend_is_dispatched_lazily(monkeypatch, seed_model, seed_par
     monkeypatch.setattr(api, "_prepare", lambda robot, backend, method=None: None)
     c = seed_controller(seed_params)
     r = simulate(seed_model, c, seed_params.q0, seed_params.qd0, seed_run.t, backend="compiled")
-    assert r is seed_run
-    # the backend's default method and the registry's default tolerances, named in the result
-    assert calls == [(seed_params, "DOP853", 1e-9, 1e-11, None, seed_model)]
+    np.testing.assert_array_equal(r.q, seed_run.q)
+    # the backend's default method and the registry's default tolerances, named in the
+    # result, then the error estimate's run at tolerances ten times tighter
+    assert calls[0] == (seed_params, "DOP853", 1e-10, 1e-12, None, seed_model)
+    assert calls[1][:2] == (seed_params, "DOP853") and len(calls) == 2
+    assert calls[1][2:4] == pytest.approx((1e-11, 1e-13), rel=1e-12)
+    assert r.error_estimate == 0.0  # the fake returned the same run twice
     simulate(
         seed_model,
         c,
@@ -392,7 +396,7 @@ def test_compiled_backend_is_dispatched_lazily(monkeypatch, seed_model, seed_par
         backend="compiled",
         step=0.1,
     )
-    assert calls[-1] == (seed_params, "rk4", None, None, 0.1, seed_model)
+    assert calls[-2:] == [(seed_params, "rk4", None, None, s, seed_model) for s in (0.1, 0.05)]
     monkeypatch.setattr(backends.Backend, "available", lambda self: False)
     monkeypatch.undo()
     monkeypatch.setattr(backends.Backend, "available", lambda self: self.name != "compiled")

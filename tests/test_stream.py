@@ -151,8 +151,17 @@ def test_the_summary_is_printed_with_a_csv_and_matches_json(tmp_path, capsys):
     meta = doc["metadata"]
     assert meta["rrt_pin_version"] == rrt_pin.__version__
     assert meta["command_line"][:2] == ["rrt-pin", "simulate"] and str(js) in meta["command_line"]
-    assert meta["method"] == "odepack" and meta["rtol"] == 1e-9 and meta["backend"] == "pinocchio"
+    from rrt_pin import methods
+
+    assert meta["method"] == "odepack" and meta["backend"] == "pinocchio"
+    assert meta["rtol"] == methods.get("odepack").rtol  # the registry's default, recorded
     assert meta["parameters"]["m3"] == Params().m3 and meta["units"]["F23z"] == "N"
+    # The error estimate: in the summary, the JSON and the metadata, the same numbers.
+    est = facts["error_estimate"]
+    assert meta["error_estimate"] == est and 0 < est["max"] < 1e-8
+    assert [e["name"] for e in est["per_coordinate"]] == ["q1", "q2", "q3"]
+    assert est["max"] == max(e["value"] for e in est["per_coordinate"])
+    assert f"{est['max']:.2g}" in out
 
 
 def test_inverse_summary_dict_is_pure_and_complete(tmp_path, capsys):

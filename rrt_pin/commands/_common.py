@@ -414,10 +414,16 @@ def resolve_backend(
             "--backend pinocchio"
         )
     if requested == "compiled":
+        from rrt_pin.extras import MissingExtra
+
+        if not backends.get("compiled").available():
+            raise MissingExtra("numba", "fast", "backend 'compiled'")
         try:
             from rrt_pin import compiled
 
             report = compiled.ensure_compiled()
+        except MissingExtra:
+            raise
         except ImportError as e:
             raise InputError(f"backend 'compiled' is not available: {e}") from e
         note(report.describe())

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from typing import IO, TYPE_CHECKING
 
 from rrt_pin import backends, methods
@@ -31,7 +32,7 @@ from rrt_pin.io import check_outputs, check_space
 
 if TYPE_CHECKING:
     from rrt_pin.robot import Robot
-    from rrt_pin.simulate import SimulationResult
+    from rrt_pin.simulate import ErrorEstimate, SimulationResult
 
 HELP = "direct dynamics under the chapter's feedback law, eq. (31) (SI units)"
 
@@ -61,14 +62,22 @@ With --urdf the law is PD plus gravity compensation, tau = -kd*qd - kp*(q - qf) 
 and the columns are t, q_<joint>, qd_<joint>, tau_<joint> (joint names from the URDF;
 rad, rad/s, N·m for revolute joints, m, m/s, N for prismatic ones). Gravity is
 (0, 0, -g) in the URDF's world frame.
-Methods (default: odepack on --backend pinocchio, DOP853 on compiled; adaptive
-ones default to rtol {methods.DEFAULT_RTOL:g}, atol {methods.DEFAULT_ATOL:g}):
+Methods (default: odepack on --backend pinocchio, DOP853 on compiled). Adaptive
+methods default to rtol {methods.DEFAULT_RTOL:g}, atol {methods.DEFAULT_ATOL:g}; odepack to rtol {methods.ODEPACK_RTOL:g}, atol {methods.ODEPACK_ATOL:g}.
+The defaults keep max |q - q_exact| <= {methods.ACCURACY:g} rad or m on every scene of the
+accuracy catalogue (docs/benchmarks.md):
 {_method_lines()}
 A summary always goes to stdout (to stderr when --csv - or --json - sends data
 there): each joint's final distance to qf, its 2 % settling time (after which
 |q - qf| stays within 2 % of |q0 - qf|), and each effort's peak |value| and when;
 --json PATH writes it with the run's metadata. The states stay in memory (at most
-10^7 output samples); the table is written 65,536 rows at a time."""
+10^7 output samples); the table is written 65,536 rows at a time.
+
+Every run estimates the global error of q(t) from a second run of the same method
+at tolerances ten times tighter (half the step for fixed-step methods; it costs
+about as much as the first run): the summary reports it, and a run whose estimate exceeds
+the accuracy asked for, max({methods.ACCURACY:g}, rtol, atol) [rad or m], says so on stderr.
+--no-error-estimate skips the second run."""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -106,7 +115,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         type=positive_float,
         default=None,
         metavar="X",
-        help=f"relative tolerance of the adaptive methods (default {methods.DEFAULT_RTOL:g})",
+        help="relative tolerance of the adaptive methods (default "
+        f"{methods.DEFAULT_RTOL:g}; odepack {methods.ODEPACK_RTOL:g})",
     )
     parser.add_argument(
         "--atol",
@@ -114,7 +124,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=None,
         metavar="X",
         help="absolute tolerance of the adaptive methods [rad, m, rad/s, m/s] "
-        f"(default {methods.DEFAULT_ATOL:g})",
+        f"(default {methods.DEFAULT_ATOL:g}; odepack {methods.ODEPACK_ATOL:g})",
+    )
+    parser.add_argument(
+        "--no-error-estimate",
+        dest="error_estimate",
+        action="store_false",
+        help="skip the second run that estimates the global error of q(t) [rad or m] "
+        "(typically half of the call's time)",
     )
     add_output_arguments(
         parser,
@@ -171,23 +188,34 @@ def run(args: argparse.Namespace) -> int:
             "adaptive (its steps follow --rtol and --atol)"
         )
 
+    import warnings
+
     from rrt_pin.control import regulator
-    from rrt_pin.simulate import simulate
+    from rrt_pin.simulate import AccuracyWarning, simulate
 
     d = robot.defaults
-    result = simulate(
-        robot,
-        regulator(robot),
-        d.q0,
-        d.qd0,
-        time_grid(tf, dt),
-        method=method,
-        rtol=args.rtol,
-        atol=args.atol,
-        backend=args.backend,
-        step=(args.step or args.dt) if fixed else None,
-    )
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", AccuracyWarning)  # said below, in one line
+        result = simulate(
+            robot,
+            regulator(robot),
+            d.q0,
+            d.qd0,
+            time_grid(tf, dt),
+            method=method,
+            rtol=args.rtol,
+            atol=args.atol,
+            backend=args.backend,
+            step=(args.step or args.dt) if fixed else None,
+            estimate_error=getattr(args, "error_estimate", True),
+        )
+    if result.estimate is not None and result.estimate.exceeded:
+        print(
+            f"rrt-pin simulate: warning: {_accuracy_warning(result, result.estimate)}",
+            file=sys.stderr,
+        )
     units = {name: robot.units.get(name, "") for name in result.header}
+    facts = summary(robot, result)
     meta = run_metadata(
         args, robot, params, command="simulate", backend=result.backend,
         method=result.method, rtol=result.rtol, atol=result.atol, step=result.step,
@@ -196,8 +224,8 @@ def run(args: argparse.Namespace) -> int:
         kp=[float(x) for x in d.kp] if d.kp is not None else None,
         kd=[float(x) for x in d.kd] if d.kd is not None else None,
         qd0=[float(x) for x in d.qd0] if d.qd0 is not None else None,
+        error_estimate=facts["error_estimate"],
     )  # fmt: skip
-    facts = summary(robot, result)
     progress = Progress(result.t.size, f"writing {args.csv}", force=args.progress)
 
     def table(fh: IO[bytes]) -> None:
@@ -220,6 +248,52 @@ def run(args: argparse.Namespace) -> int:
         progress.close()
     report_run(args, f"method {result.method}, backend {result.backend}", summary_text(facts))
     return 0
+
+
+def _accuracy_warning(result: SimulationResult, est: ErrorEstimate) -> str:
+    k = int(est.q.argmax())
+    how = (
+        f"--rtol {result.rtol:g} --atol {result.atol:g}: tighten them"
+        if result.rtol is not None
+        else f"step {result.step:g} s: shorten --dt"
+    )
+    return (
+        f"estimated global error of q(t) {est.max:.2g} ({result.q_names[k]}) exceeds the "
+        f"accuracy asked for, {est.accuracy:.2g} [rad or m] (method {result.method}, {how})"
+    )
+
+
+def _estimate_facts(robot: Robot, result: SimulationResult) -> dict | None:
+    """The error estimate for the summary and --json (None when not computed)."""
+    est = result.estimate
+    if est is None:
+        return None
+    return {
+        "max": float(est.max),
+        "per_coordinate": [
+            {"name": name, "value": float(e), "unit": unit}
+            for name, e, unit in zip(result.q_names, est.q, robot.coordinate_units, strict=True)
+        ],
+        "accuracy": float(est.accuracy),
+        "exceeded": bool(est.exceeded),
+        "how": est.how,
+        "wall_time": float(est.wall_time),
+    }
+
+
+def _estimate_line(facts: dict) -> str:
+    est = facts.get("error_estimate")
+    if est is None:
+        return "estimated global error of q(t): not computed"
+    from rrt_pin.text import duration
+
+    per = ", ".join(f"{e['name']} {e['value']:.2g} {e['unit']}" for e in est["per_coordinate"])
+    verdict = "exceeds" if est["exceeded"] else "within"
+    return (
+        f"estimated global error of q(t), max over t: {per} ({verdict} the accuracy asked "
+        f"for, {est['accuracy']:.2g} rad or m; second run: {est['how']}, "
+        f"{duration(est['wall_time'])})"
+    )
 
 
 def write_result(
@@ -298,6 +372,7 @@ def summary(robot: Robot, result: SimulationResult) -> dict:
         "step": result.step,
         "evaluations": int(result.n_evals),
         "wall_time": float(result.wall_time),
+        "error_estimate": _estimate_facts(robot, result),
         "settling_band": SETTLING_BAND,
         "joints": joints,
         "peaks": peaks,
@@ -318,6 +393,7 @@ def summary_text(facts: dict) -> str:
         f"t = {facts['t0']:g} .. {facts['tf']:g} s, method {facts['method']} ({tol}), "
         f"backend {facts['backend']}, {facts['evaluations']} evaluations, "
         f"{duration(facts['wall_time'])}",
+        _estimate_line(facts),
         f"{'joint':<24} {'q(tf)':>14} {'qf':>14} {'|q(tf) - qf|':>16}  {'settled (2 %) at t':>18}",
     ]
     for j in facts["joints"]:

@@ -159,7 +159,7 @@ def ensure_compiled() -> CompileReport:
     except ImportError as e:
         from rrt_pin.extras import MissingExtra
 
-        raise MissingExtra("numba", "fast", "the compiled backend") from e
+        raise MissingExtra("numba", "fast", "backend 'compiled'") from e
     imported = time.perf_counter()
     jit = importlib.import_module(_JIT)
     done = time.perf_counter()

@@ -243,8 +243,8 @@ def simulate_compiled(
         t_eval: increasing output times [s]; the run starts at ``t_eval[0]``.
         method: a method of :data:`rrt_pin.methods.METHODS` that runs compiled (default DOP853).
         rtol: relative tolerance of DOP853/RK45 (default that of
-            :func:`rrt_pin.simulate.simulate`, 1e-9).
-        atol: absolute tolerance [rad, m, rad/s, m/s] (default 1e-11).
+            :func:`rrt_pin.simulate.simulate`, 1e-10).
+        atol: absolute tolerance [rad, m, rad/s, m/s] (default 1e-12).
         step: longest step of the fixed-step methods [s]; default the shortest
             interval of ``t_eval``.
         model: if given, checked to be ``rrt_model(params)`` (the arm this backend simulates).
@@ -351,8 +351,8 @@ def simulate_batch_compiled(
         qd0s: initial velocities (B, 3) [rad/s, rad/s, m/s].
         t_eval: increasing output times [s], shared by the variants.
         method: a method of :data:`rrt_pin.methods.METHODS` that runs compiled (default DOP853).
-        rtol: relative tolerance (default 1e-9; each variant has its own steps).
-        atol: absolute tolerance [rad, m, rad/s, m/s] (default 1e-11).
+        rtol: relative tolerance (default 1e-10; each variant has its own steps).
+        atol: absolute tolerance [rad, m, rad/s, m/s] (default 1e-12).
         step: longest step of the fixed-step methods [s].
         efforts: return the applied efforts (they are computed in any case).
         max_steps: step budget of each variant.

@@ -10,7 +10,7 @@ import numpy as np
 
 from rrt_pin import validate
 from rrt_pin.errors import InputError
-from rrt_pin.simulate.options import resolve
+from rrt_pin.simulate.options import Options, resolve
 
 if TYPE_CHECKING:
     from rrt_pin.params import Params
@@ -109,6 +109,7 @@ def simulate(
     step: float | None = None,
     jacobian: str = "analytic",
     params: Params | None = None,
+    estimate_error: bool = True,
 ) -> SimulationResult:
     """Simulate a robot under ``controller`` from (q0, qd0), sampled at ``t_eval``.
 
@@ -126,17 +127,27 @@ def simulate(
         method: a method of :data:`rrt_pin.methods.METHODS` that the backend
             runs (default: the backend's, ``odepack`` on Pinocchio, ``DOP853``
             compiled; the result says which).
-        rtol: relative tolerance of the adaptive methods, in (0, 1) (default 1e-9).
-        atol: absolute tolerance [rad, m, rad/s, m/s], in (0, 1) (default 1e-11).
+        rtol: relative tolerance of the adaptive methods, in (0, 1) (default
+            the method's: 1e-12 for ``odepack``, 1e-10 for the others).
+        atol: absolute tolerance [rad, m, rad/s, m/s], in (0, 1) (default
+            1e-14 for ``odepack``, 1e-12 for the others).
         backend: ``pinocchio`` (any robot) or ``compiled`` (the chapter's arm).
         step: longest step of the fixed-step methods [s]; default the shortest
             interval of ``t_eval``.
         jacobian: ``analytic`` or ``finite-difference`` for LSODA, Radau, BDF.
         params: the arm's parameters for the compiled backend (default: the
             robot's, or the controller's).
+        estimate_error: also estimate the global error of q (``result.error_estimate``
+            [rad or m]) from a second run of the same method at tolerances ten times
+            tighter (half the step for fixed-step methods; see
+            :mod:`rrt_pin.simulate.estimate`), and warn (``AccuracyWarning``) when it
+            exceeds the accuracy asked for, max(1e-8, rtol, atol). The second run
+            costs about as much as the first (0.2–1.9 times on the accuracy
+            catalogue); False skips it.
 
     Returns:
-        States and applied efforts at ``t_eval``, evaluation count and wall time.
+        States and applied efforts at ``t_eval``, evaluation count and wall time
+        (of the first run), and the error estimate.
 
     Raises:
         InputError: a bad robot, controller, state, time grid or option (named).
@@ -163,26 +174,36 @@ def simulate(
         integrate = _compiled()
         p = _params_for(robot, params, [controller])
         model = robot.model if robot.params is None or robot.params is not p else None
-        return _with_units(
-            integrate.simulate_compiled(
-                p,
-                controller,
-                q0,
-                qd0,
-                t,
-                options.method.name,
-                options.rtol,
-                options.atol,
-                options.step,
-                model=model,
-                start=start,
-            ),
-            robot,
-        )
-    from rrt_pin.simulate.pinocchio_backend import run_one
 
-    law = _passive(robot) if controller is None else as_controller(controller, robot.nv)
-    return _with_units(run_one(robot, law, q0, qd0, t, options, start), robot)
+        def run(o: Options, began: float) -> SimulationResult:
+            return integrate.simulate_compiled(
+                p, controller, q0, qd0, t, o.method.name, o.rtol, o.atol, o.step,
+                model=model, start=began,
+            )  # fmt: skip
+    else:
+        from rrt_pin.simulate.pinocchio_backend import run_one
+
+        law = _passive(robot) if controller is None else as_controller(controller, robot.nv)
+
+        def run(o: Options, began: float) -> SimulationResult:
+            return run_one(robot, law, q0, qd0, t, o, began)
+
+    result = _with_units(run(options, start), robot)
+    return _with_estimate(result, options, run) if estimate_error else result
+
+
+def _with_estimate(result: Any, options: Options, run: Any) -> Any:
+    """``result`` with its error estimate, warning when it exceeds the accuracy asked for."""
+    from dataclasses import replace
+
+    from rrt_pin.simulate.estimate import estimate, warn_if_exceeded
+
+    est = estimate(result, options, lambda o: run(o, time.perf_counter()))
+    if est is None:
+        return result
+    result = replace(result, estimate=est)
+    warn_if_exceeded(result, stacklevel=4)
+    return result
 
 
 def _with_units(result: Any, robot: Robot) -> Any:
@@ -254,6 +275,7 @@ def simulate_batch(
     threads: int | None = None,
     efforts: bool = True,
     params: Params | Sequence[Params] | None = None,
+    estimate_error: bool = True,
 ) -> BatchResult:
     """Simulate B variants of a robot at once; the same defaults as :func:`simulate`.
 
@@ -275,14 +297,16 @@ def simulate_batch(
         qd0s: initial velocities, shape (B, nv) [rad/s or m/s]; None for rest.
         t_eval: increasing output times [s].
         method: a method that runs in a batch on the backend (default: the backend's).
-        rtol: relative tolerance (default 1e-9), in (0, 1).
-        atol: absolute tolerance [rad, m, rad/s, m/s] (default 1e-11), in (0, 1).
+        rtol: relative tolerance, in (0, 1) (default the method's, as :func:`simulate`).
+        atol: absolute tolerance [rad, m, rad/s, m/s], in (0, 1) (default the method's).
         backend: ``pinocchio`` or ``compiled``.
         step: longest step of the fixed-step methods [s].
         threads: OpenMP threads of ``pin.abaInParallel`` (default: the CPUs
             available, capped by ``OMP_NUM_THREADS``); the compiled batch uses one.
         efforts: also return the applied efforts at every output time.
         params: the arm's Params for the compiled backend: one, or one per variant.
+        estimate_error: also estimate the global error of q, per variant and over
+            all (a second batch, states only; see :func:`simulate`); False skips it.
 
     Returns:
         States (B, T, nv) and efforts; ``result.variant(i)`` is one run.
@@ -326,24 +350,19 @@ def simulate_batch(
             plants = list(params)
         else:
             plants = _params_for(robot, params, controllers)
-        return _with_units(
-            integrate.simulate_batch_compiled(
-                plants,
-                controllers,
-                q0s,
-                qd0s,
-                t,
-                options.method.name,
-                options.rtol,
-                options.atol,
-                options.step,
-                efforts,
-                start=start,
-            ),
-            robot,
-        )
-    from rrt_pin.simulate.pinocchio_backend import run_batch
 
-    return _with_units(
-        run_batch(robot, laws, q0s, qd0s, t, options, threads, efforts, start), robot
-    )
+        def run(o: Options, began: float, keep: bool) -> BatchResult:
+            return integrate.simulate_batch_compiled(
+                plants, controllers, q0s, qd0s, t, o.method.name, o.rtol, o.atol, o.step,
+                keep, start=began,
+            )  # fmt: skip
+    else:
+        from rrt_pin.simulate.pinocchio_backend import run_batch
+
+        def run(o: Options, began: float, keep: bool) -> BatchResult:
+            return run_batch(robot, laws, q0s, qd0s, t, o, threads, keep, began)
+
+    result = _with_units(run(options, start, efforts), robot)
+    if not estimate_error:
+        return result
+    return _with_estimate(result, options, lambda o, began: run(o, began, False))

@@ -6,14 +6,63 @@ times [s], coordinates [rad or m], velocities [rad/s or m/s], efforts [N·m or N
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 
 from rrt_pin.errors import InputError
 
-__all__ = ["BatchResult", "SimulationResult"]
+__all__ = ["BatchResult", "ErrorEstimate", "SimulationResult"]
+
+
+@dataclass(frozen=True, eq=False)
+class ErrorEstimate:
+    """An estimate of a run's global error in q, from a second run.
+
+    See :mod:`rrt_pin.simulate.estimate` for how it is made.
+
+    Attributes:
+        q: per coordinate, max over the output times (and the variants of a
+            batch) of the estimated |q − q_exact|, shape (nv,) [rad or m].
+        accuracy: the accuracy the run asked for [rad or m]: the larger of
+            :data:`rrt_pin.methods.ACCURACY` (1e-8) and its rtol and atol.
+        how: the second run, e.g. ``"odepack at rtol 1e-13, atol 1e-15"``.
+        n_evals: the second run's right-hand-side evaluations.
+        wall_time: the second run's duration [s] (not in the result's ``wall_time``).
+        variants: a batch's estimate per variant, shape (B, nv) [rad or m]; else None.
+    """
+
+    q: np.ndarray
+    accuracy: float
+    how: str
+    n_evals: int
+    wall_time: float
+    variants: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        for name in ("q", "variants"):
+            value = getattr(self, name)
+            if value is not None:
+                arr = np.array(value, dtype=float)
+                arr.setflags(write=False)
+                object.__setattr__(self, name, arr)
+
+    @property
+    def max(self) -> float:
+        """The largest estimate over coordinates, times (and variants) [rad or m]."""
+        return float(self.q.max()) if self.q.size else 0.0
+
+    @property
+    def exceeded(self) -> bool:
+        """Whether the estimate exceeds the accuracy asked for."""
+        return self.max > self.accuracy
+
+    def variant(self, i: int) -> ErrorEstimate:
+        """Variant ``i``'s estimate (a batch's); the same estimate for a single run."""
+        if self.variants is None:
+            return self
+        return replace(self, q=self.variants[i], variants=None)
 
 
 @dataclass(frozen=True, eq=False)
@@ -42,6 +91,8 @@ class _Run:
         tau_names: effort names (``T01x, T12y, F23z``, or ``tau_<joint>``).
         coordinate_units: each coordinate's unit, ``rad`` or ``m`` (the chapter's arm:
             rad, rad, m); velocities and efforts follow (rad/s, N·m; m/s, N).
+        estimate: the estimate of the global error in q (:class:`ErrorEstimate`),
+            or None (``estimate_error=False``, or no second run possible).
     """
 
     t: np.ndarray
@@ -61,6 +112,7 @@ class _Run:
     qd_names: tuple[str, ...] = ("qd1", "qd2", "qd3")
     tau_names: tuple[str, ...] = ("T01x", "T12y", "F23z")
     coordinate_units: tuple[str, ...] = ("rad", "rad", "m")
+    estimate: ErrorEstimate | None = None
 
     def __post_init__(self) -> None:
         for name in ("t", "q", "qd", "tau"):
@@ -70,6 +122,16 @@ class _Run:
             arr = np.asarray(value, dtype=float)
             arr.setflags(write=False)
             object.__setattr__(self, name, arr)
+
+    @property
+    def error_estimate(self) -> float | None:
+        """Estimated global error of q: max over coordinates and times [rad or m], or None."""
+        return None if self.estimate is None else self.estimate.max
+
+    @property
+    def error_estimate_q(self) -> np.ndarray | None:
+        """Estimated global error per coordinate, max over times, shape (nv,) [rad or m]."""
+        return None if self.estimate is None else self.estimate.q
 
     @property
     def header(self) -> tuple[str, ...]:
@@ -162,4 +224,5 @@ class BatchResult(_Run):
             qd_names=self.qd_names,
             tau_names=self.tau_names,
             coordinate_units=self.coordinate_units,
+            estimate=None if self.estimate is None else self.estimate.variant(i),
         )

@@ -253,7 +253,8 @@ def _arm_one_by_one(p, table, bad, why, qf, count, rows):  # noqa: ANN001, ANN20
         law = ChapterController(kp=params.kp, kd=params.kd, qf=params.qf, params=params)
         try:
             run = simulate(chapter_arm(params), law, params.q0, params.qd0, p.t,
-                           method=p.method, rtol=p.rtol, atol=p.atol, step=p.step)  # fmt: skip
+                           method=p.method, rtol=p.rtol, atol=p.atol, step=p.step,
+                           estimate_error=False)  # fmt: skip
         except DivergenceError as e:
             failures[i] = e
             continue
@@ -282,7 +283,8 @@ def _urdf_simulate(p: Plan, values: dict, start: int, count: int, rows: list[int
                             model=robot.model, robot=robot) if not bad[i] else None
         for i in range(count)
     ]  # fmt: skip
-    options = {"method": p.method, "rtol": p.rtol, "atol": p.atol, "step": p.step}
+    options = {"method": p.method, "rtol": p.rtol, "atol": p.atol, "step": p.step,
+               "estimate_error": False}  # fmt: skip
     # efforts only where a metric (or a kept trajectory) needs them
     efforts = bool({"peak_effort", "control_energy"} & set(p.spec.metrics)) or bool(rows)
     edges = sorted({0, count, *range((-start) % BLOCK, count, BLOCK)})
