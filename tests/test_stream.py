@@ -304,3 +304,17 @@ def test_plot_of_a_long_run_is_thinned_evenly_with_both_ends(monkeypatch):
     index = np.r_[np.arange(0, 1001, stride), 1000]
     np.testing.assert_array_equal(t, whole[index, 0])
     np.testing.assert_array_equal(tau, whole[index, 10:13])
+
+
+def test_parquet_metadata_carries_the_error_estimate(tmp_path, capsys):
+    import pyarrow.parquet as pq
+
+    path, js = tmp_path / "s.parquet", tmp_path / "s.json"
+    assert run(["simulate", "--tf", "2", "--csv", str(path), "--json", str(js)], capsys)[0] == 0
+    run_meta = json.loads(pq.read_schema(path).metadata[b"rrt_pin.run"])
+    assert run_meta["error_estimate"] == json.loads(js.read_text())["summary"]["error_estimate"]
+    assert run_meta["error_estimate"]["accuracy"] == 1e-8
+    # Skipped: recorded as not computed, everywhere.
+    assert run(["simulate", "--tf", "2", "--no-error-estimate", "--csv", str(path)], capsys)[0] == 0
+    assert json.loads(pq.read_schema(path).metadata[b"rrt_pin.run"])["error_estimate"] is None
+    assert "estimated global error of q(t): not computed" in capsys.readouterr().out
