@@ -10,12 +10,21 @@ background thread: it binds only the host asked for (127.0.0.1 by default),
 starts no process, and stopping it (``close()``, Ctrl-C, end of
 ``--serve-for``) leaves nothing behind. Any number of browsers can watch at
 once. The page has no authentication.
+
+Against DNS rebinding (a page on ``evil.example`` whose name is made to resolve
+to 127.0.0.1), every request — the page, its files and the websocket — must
+name in its ``Host`` header a host this server answers to (:func:`allowed_host`):
+an IP literal (loopback, the address it listens on, any when it listens on every
+interface), ``localhost``, or the ``--host`` name given. Anything else gets 403.
+A malformed request (``/static/%00``) gets 400; neither is a traceback: errors of
+requests are logged at DEBUG level only.
 """
 
 from __future__ import annotations
 
 import asyncio
 import errno
+import ipaddress
 import logging
 import socket
 import threading
@@ -24,7 +33,7 @@ from typing import Any
 from rrt_pin.errors import ViewerError
 from rrt_pin.viewer._deps import import_meshcat
 
-__all__ = ["DEFAULT_PORT", "PORT_ATTEMPTS", "ViewerServer", "url_host"]
+__all__ = ["DEFAULT_PORT", "PORT_ATTEMPTS", "ViewerServer", "allowed_host", "url_host"]
 
 logger = logging.getLogger("rrt_pin")
 
@@ -42,6 +51,44 @@ def url_host(host: str) -> str:
     if host == "::":
         return "[::1]"
     return f"[{host}]" if ":" in host else host
+
+
+def _split_host(header: str) -> str:
+    """The host of a ``Host`` header, without its port or IPv6 brackets, lower-case."""
+    header = header.strip().lower()
+    if header.startswith("["):  # [::1]:7000
+        return header[1 : header.find("]")] if "]" in header else header
+    if header.count(":") == 1:  # name:port or a.b.c.d:port
+        return header.split(":", 1)[0]
+    return header  # a name, an IPv4 literal, or an unbracketed IPv6 literal
+
+
+def allowed_host(header: str | None, bound: str) -> bool:
+    """Whether a request's ``Host`` header names this server (bound to ``bound``).
+
+    IP literals cannot be rebound to another address by DNS: loopback ones, the
+    bound address, and any when the server listens on every interface, pass.
+    Names pass only when they are ``localhost`` or the name the server was bound
+    to (``--host``): a page on any other name is refused, whatever it resolves to.
+    """
+    if not header:
+        return False
+    host = _split_host(header)
+    bound_host = bound.strip().lower().strip("[]")
+    everywhere = bound_host in ("", "0.0.0.0", "::")
+    try:
+        ip = ipaddress.ip_address(host)
+    except ValueError:
+        return host in ("localhost", bound_host)
+    if ip.is_loopback or everywhere:
+        return True
+    try:
+        return ip == ipaddress.ip_address(bound_host)
+    except ValueError:  # bound to a name: its addresses are whatever it resolved to
+        try:
+            return str(ip) in {a[4][0] for a in socket.getaddrinfo(bound_host, None)}
+        except OSError:
+            return False
 
 
 def _bind(host: str, port: int) -> list[socket.socket]:
@@ -141,7 +188,30 @@ class ViewerServer:
 
         server = self
 
-        class Handler(tornado.websocket.WebSocketHandler):
+        class Guarded:
+            """Refuses foreign Host headers (403); logs request errors at DEBUG, not as tracebacks."""
+
+            def prepare(self) -> None:
+                if not allowed_host(self.request.headers.get("Host"), server.host):
+                    logger.debug("viewer: refused Host %r", self.request.headers.get("Host"))
+                    raise tornado.web.HTTPError(403)
+
+            def log_exception(self, typ, value, tb) -> None:  # noqa: ANN001
+                logger.debug("viewer: %s %s: %s", self.request.method, self.request.uri, value)
+
+        class Static(Guarded, StaticFileHandlerNoCache):
+            def validate_absolute_path(self, root: str, absolute_path: str) -> str | None:
+                if "\x00" in absolute_path:
+                    raise tornado.web.HTTPError(400)
+                return super().validate_absolute_path(root, absolute_path)
+
+            @classmethod
+            def get_absolute_path(cls, root: str, path: str) -> str:
+                if "\x00" in path:
+                    raise tornado.web.HTTPError(400)
+                return super().get_absolute_path(root, path)
+
+        class Handler(Guarded, tornado.websocket.WebSocketHandler):
             async def get(self, *args: Any, **kwargs: Any) -> None:
                 if self.request.headers.get("Upgrade", "").lower() != "websocket":
                     self.redirect("/static/")
@@ -160,9 +230,13 @@ class ViewerServer:
                 server._websockets.discard(self)
                 logger.debug("viewer: browser left (%d)", len(server._websockets))
 
-        class NoIcon(tornado.web.RequestHandler):
+        class NoIcon(Guarded, tornado.web.RequestHandler):
             def get(self) -> None:
                 self.set_status(204)
+
+        class NotFound(Guarded, tornado.web.RequestHandler):
+            def get(self, *args: Any) -> None:
+                raise tornado.web.HTTPError(404)
 
         def log_request(handler: tornado.web.RequestHandler) -> None:
             r = handler.request
@@ -173,13 +247,14 @@ class ViewerServer:
             [
                 (
                     r"/static/(.*)",
-                    StaticFileHandlerNoCache,
+                    Static,
                     {"path": root, "default_filename": "index.html"},
                 ),
                 (r"/favicon.ico", NoIcon),
                 (r"/", Handler),
             ],
             log_function=log_request,
+            default_handler_class=NotFound,
         )
 
     def _start(self) -> None:
