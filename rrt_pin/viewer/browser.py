@@ -5,6 +5,13 @@ Uses Debian's ``/usr/bin/chromium`` and ``/usr/bin/chromedriver`` (or the
 ``chromium``/``chromedriver`` on PATH). The browser runs with a fresh temporary
 profile and no network beyond the viewer's own address; every process it
 starts is ended on exit, Ctrl-C included. Times in seconds [s], sizes in pixels.
+
+Nothing outlives us, not even a SIGKILL: a watchdog process (its own session,
+so a terminal's signals and a killed process group spare it) holds the read end
+of a pipe whose write end only this process has. When this process ends without
+saying "done" on it (killed), the pipe closes and the watchdog kills every process
+whose command line names the throw-away profile — chromedriver (its log is in the
+profile) and every Chromium process — then removes the profile.
 """
 
 from __future__ import annotations
@@ -13,6 +20,8 @@ import contextlib
 import os
 import shutil
 import signal
+import subprocess
+import sys
 import tempfile
 import time
 from dataclasses import dataclass
@@ -62,6 +71,59 @@ const done = arguments[arguments.length - 1];
 viewer.set_dirty();
 requestAnimationFrame(() => requestAnimationFrame(() => done(true)));
 """
+
+
+# The watchdog (run by ``python -I -c``, so it imports nothing of ours): argv[1] is
+# the profile folder. It waits for EOF on stdin; unless it read b"done", it kills
+# every process whose command line names the profile, until none is left, then
+# removes the profile.
+_WATCHDOG = r"""
+import os, shutil, signal, sys, time
+profile = sys.argv[1]
+signal.signal(signal.SIGINT, signal.SIG_IGN)
+signal.signal(signal.SIGTERM, signal.SIG_IGN)
+said = sys.stdin.buffer.read()
+def marked():
+    out = []
+    for name in os.listdir("/proc") if os.path.isdir("/proc") else ():
+        if name.isdigit() and int(name) != os.getpid():
+            try:
+                with open(f"/proc/{name}/cmdline", "rb") as fh:
+                    if profile.encode() in fh.read():
+                        out.append(int(name))
+            except OSError:
+                pass
+    return out
+if said != b"done":
+    deadline = time.monotonic() + 15
+    while time.monotonic() < deadline:
+        pids = marked()
+        if not pids:
+            break
+        for pid in pids:
+            try:
+                os.kill(pid, signal.SIGKILL)
+            except OSError:
+                pass
+        time.sleep(0.05)
+    for _ in range(20):
+        shutil.rmtree(profile, ignore_errors=True)
+        if not os.path.exists(profile):
+            break
+        time.sleep(0.1)
+"""
+
+
+def _processes_naming(marker: str, exclude: frozenset[int] = frozenset()) -> list[int]:
+    """Pids of the processes whose command line contains ``marker`` (Linux /proc; else none)."""
+    pids = []
+    with contextlib.suppress(OSError):
+        for name in os.listdir("/proc"):
+            if name.isdigit() and int(name) not in exclude:
+                with contextlib.suppress(OSError), open(f"/proc/{name}/cmdline", "rb") as fh:
+                    if marker.encode() in fh.read():
+                        pids.append(int(name))
+    return pids
 
 
 @dataclass(frozen=True)
@@ -131,13 +193,23 @@ class Chromium:
                 "(or set RRT_PIN_CHROMIUM and RRT_PIN_CHROMEDRIVER)"
             )
         self._profile = tempfile.mkdtemp(prefix="rrt-pin-chromium-")
+        self._watchdog = subprocess.Popen(
+            [sys.executable, "-I", "-c", _WATCHDOG, self._profile],
+            stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+            start_new_session=True, close_fds=True,
+        )  # fmt: skip
         options = webdriver.ChromeOptions()
         options.binary_location = paths.browser
         for flag in (*CHROMIUM_FLAGS, f"--window-size={size[0]},{size[1]}"):
             options.add_argument(flag)
         options.add_argument(f"--user-data-dir={self._profile}")
         # Its own session: a terminal's Ctrl-C reaches us, and we end the whole group.
-        self._service = Service(paths.driver, popen_kw={"start_new_session": True})
+        # Its log in the profile: chromedriver's command line names the profile too.
+        self._service = Service(
+            paths.driver,
+            log_output=os.path.join(self._profile, "chromedriver.log"),
+            popen_kw={"start_new_session": True},
+        )
         self.driver: Any = None
         try:
             self.driver = webdriver.Chrome(service=self._service, options=options)
@@ -201,7 +273,27 @@ class Chromium:
                     os.killpg(process.pid, signal.SIGKILL)
                 with contextlib.suppress(Exception):
                     process.wait(5)
-            shutil.rmtree(self._profile, ignore_errors=True)
+            # Chromium's processes may take a moment to die after SIGKILL: until none
+            # names the profile, it can still be written to (and survive rmtree).
+            deadline = time.monotonic() + 10
+            spare = frozenset({self._watchdog.pid} if self._watchdog is not None else ())
+            while (pids := _processes_naming(self._profile, spare)) and time.monotonic() < deadline:
+                for pid in pids:
+                    with contextlib.suppress(ProcessLookupError, PermissionError):
+                        os.kill(pid, signal.SIGKILL)
+                time.sleep(0.05)
+            for _ in range(20):
+                shutil.rmtree(self._profile, ignore_errors=True)
+                if not os.path.exists(self._profile):
+                    break
+                time.sleep(0.05)
+            watchdog, self._watchdog = self._watchdog, None
+            if watchdog is not None:
+                with contextlib.suppress(OSError, ValueError):
+                    watchdog.stdin.write(b"done")
+                    watchdog.stdin.close()
+                with contextlib.suppress(Exception):
+                    watchdog.wait(5)
 
     def __enter__(self) -> Chromium:
         return self
