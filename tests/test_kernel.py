@@ -166,3 +166,55 @@ def test_drift_check_can_fail(tmp_path):
     assert main(["--check", "-o", str(stale)]) == 1
     stale.write_text(kernel_source(), encoding="utf-8")
     assert main(["--check", "-o", str(stale)]) == 0
+
+
+def test_inverse_plan_is_proved_and_a_wrong_line_is_caught(monkeypatch):
+    pytest.importorskip("sympy")
+    from rrt_pin.symbolic import codegen
+
+    codegen.check_inverse_plan()  # the committed plan equals Kane's τ
+    lines = list(codegen.INVERSE_LINES)
+    i = [name for name, _ in lines].index("x15")
+    lines[i] = ("x15", "c2*(m3L1x2 + s2*mr)")  # cos for sin in one factor
+    monkeypatch.setattr(codegen, "INVERSE_LINES", tuple(lines))
+    with pytest.raises(AssertionError, match="tau1 of the plan differs"):
+        codegen.check_inverse_plan()
+
+
+def test_flop_count_counts_operations():
+    pytest.importorskip("sympy")
+    from rrt_pin.symbolic.codegen import flop_count
+
+    assert flop_count("a*b + c - d**2") == 4
+    assert flop_count("-(a + b)*c") == 3
+    assert flop_count("x") == 0
+    with pytest.raises(ValueError, match="only squares"):
+        flop_count("a**3")
+
+
+def test_inverse_terms_equal_the_full_terms(case):
+    """The hand-factored inverse against M·q̈ + c + G of the CSE'd ``terms`` (both generated)."""
+    params, q, qd, qdd, _, _ = case
+    M11, M12, M13, M22, M23, M33, c1, c2, c3, G1, G2, G3 = kernel.terms(
+        *q.T, *qd.T, *kernel.param_vector(params)
+    )
+    a1, a2, a3 = qdd.T
+    full = np.column_stack(
+        [
+            M11 * a1 + M12 * a2 + M13 * a3 + c1 + G1,
+            M12 * a1 + M22 * a2 + M23 * a3 + c2 + G2,
+            M13 * a1 + M23 * a2 + M33 * a3 + c3 + G3,
+        ]
+    )
+    fast = np.column_stack(
+        kernel.inverse_terms(
+            np.cos(q[:, 1]),
+            np.sin(q[:, 1]),
+            q[:, 2],
+            *qd.T,
+            *qdd.T,
+            *kernel.inverse_constants(*kernel.param_vector(params)),
+        )  # fmt: skip
+    )
+    assert rel_err(fast, full) <= 1e-14
+    assert kernel.INVERSE_FLOPS < 60  # ~166 multiplications and additions in the full form

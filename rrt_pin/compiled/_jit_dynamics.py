@@ -305,76 +305,98 @@ def bias_batch(q, qd, p, which, out):
     return check
 
 
-@jit(None, inline=True)
-def _inverse_column(r, b, k):
-    """τ of column k of the buffer b from the kernel's terms r; 1 if a value is not finite.
+#: The generated inverse dynamics (hand-factored form, cos q2 and sin q2 as inputs).
+inverse_terms = jit(None, inline=True)(kernel.inverse_terms)
+inverse_constants = jit(None, inline=True)(kernel.inverse_constants)
 
-    0·x is 0 for every finite x and nan for ±inf and nan: z is nan exactly when an
-    input or an output of the column is not finite (no branch: vectorizes).
-    """
-    a1, a2, a3 = b[6, k], b[7, k], b[8, k]
-    t1 = r[0] * a1 + r[1] * a2 + r[2] * a3 + r[6] + r[9]
-    t2 = r[1] * a1 + r[3] * a2 + r[4] * a3 + r[7] + r[10]
-    t3 = r[2] * a1 + r[4] * a2 + r[5] * a3 + r[8] + r[11]
-    b[9, k] = t1
-    b[10, k] = t2
-    b[11, k] = t3
-    z = 0.0 * b[0, k] + 0.0 * b[1, k] + 0.0 * b[2, k] + 0.0 * b[3, k]
-    z += 0.0 * b[4, k] + 0.0 * b[5, k] + 0.0 * a1 + 0.0 * a2 + 0.0 * a3
-    z += 0.0 * t1 + 0.0 * t2 + 0.0 * t3
-    return z != z
+
+@jit(None, inline=True)
+def vsincos(x):
+    """(sin x, cos x) for |x| < SINCOS_LIMIT, one shared reduction (vectorizable)."""
+    j, ps, pc = _octant(x)
+    s = pc if j & 2 else ps
+    s = -s if j & 4 else s
+    c = ps if j & 2 else pc
+    c = -c if (j + 2) & 4 else c
+    return (-s if x < 0.0 else s), c
+
+
+#: Floating-point operations of vsincos (reduction 6, two polynomials 20, assembly 7).
+SINCOS_FLOPS = 33
+#: Rows of inverse_batch's column-major block buffer: q2, q3, q̇, q̈ in; τ out.
+_BLOCK = 256
 
 
 @jit(float64(_rmat, _rmat, _rmat, _rvec, _mat))
 def inverse_batch(q, qd, qdd, p, out):
     """τ = M(q) q̈ + c(q, q̇) + G(q) [N·m, N·m, N] of every row into out (N, 3).
 
-    Blocks of rows are copied to a column-major buffer so that the kernel, with
-    the vectorizable sine and cosine, runs several samples per instruction
-    (blocks holding some |q2| >= SINCOS_LIMIT use libm). The returned check is
-    nan if an input or an output is not finite.
+    Blocks of rows are copied to a column-major buffer, then the generated
+    ``inverse_terms`` runs over the block with the vectorizable sine and cosine
+    (one reduction for both), several samples per instruction (blocks holding
+    some |q2| >= SINCOS_LIMIT, or a non-finite q2, use libm). The returned
+    check is nan if an input or an output is not finite: q1, which τ does not
+    depend on, is tested as it is copied; every other input reaches an
+    output, so a non-finite one makes τ non-finite, and one comparison of
+    τ1 + τ2 + τ3 a sample, OR-ed into a flag, finds it (a false alarm when
+    the sum alone overflows costs only the caller's search).
     """
-    p0, p1, p2, p3, p4 = p[0], p[1], p[2], p[3], p[4]
-    p5, p6, p7, p8, p9 = p[5], p[6], p[7], p[8], p[9]
-    p10, p11, p12, p13, p14 = p[10], p[11], p[12], p[13], p[14]
+    k = inverse_constants(
+        p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7], p[8], p[9], p[10], p[11], p[12],
+        p[13], p[14],
+    )  # fmt: skip
+    k0, k1, k2, k3, k4, k5, k6, k7, k8, k9 = k
     n = q.shape[0]
-    block = 512
-    b = np.empty((12, block))
-    bad = 0
-    for start in range(0, n, block):
-        m = min(block, n - start)
+    # Flat views: the (N, 3) rows as one stream each (indexing them as 2-D arrays
+    # keeps the copies below from vectorizing as well).
+    qf, qdf, qddf, of = q.reshape(-1), qd.reshape(-1), qdd.reshape(-1), out.reshape(-1)
+    b = np.empty((11, _BLOCK))
+    bad = False
+    for start in range(0, n, _BLOCK):
+        m = min(_BLOCK, n - start)
+        base = 3 * start
         small = 0
-        for k in range(m):
-            i = start + k
-            b[0, k] = q[i, 0]
-            b[1, k] = q[i, 1]
-            b[2, k] = q[i, 2]
-            b[3, k] = qd[i, 0]
-            b[4, k] = qd[i, 1]
-            b[5, k] = qd[i, 2]
-            b[6, k] = qdd[i, 0]
-            b[7, k] = qdd[i, 1]
-            b[8, k] = qdd[i, 2]
-            small += abs(q[i, 1]) < SINCOS_LIMIT
+        finite1 = 0
+        for j in range(m):
+            i = base + 3 * j
+            b[0, j] = qf[i + 1]
+            b[1, j] = qf[i + 2]
+            b[2, j] = qdf[i]
+            b[3, j] = qdf[i + 1]
+            b[4, j] = qdf[i + 2]
+            b[5, j] = qddf[i]
+            b[6, j] = qddf[i + 1]
+            b[7, j] = qddf[i + 2]
+            small += abs(qf[i + 1]) < SINCOS_LIMIT
+            finite1 += abs(qf[i]) < _INF
+        bad |= finite1 != m
         if small == m:
-            for k in range(m):
-                r = terms_v(
-                    b[0, k], b[1, k], b[2, k], b[3, k], b[4, k], b[5, k],
-                    p0, p1, p2, p3, p4, p5, p6, p7, p8, p9, p10, p11, p12, p13, p14,
+            for j in range(m):
+                s2, c2 = vsincos(b[0, j])
+                t1, t2, t3 = inverse_terms(
+                    c2, s2, b[1, j], b[2, j], b[3, j], b[4, j], b[5, j], b[6, j], b[7, j],
+                    k0, k1, k2, k3, k4, k5, k6, k7, k8, k9,
                 )  # fmt: skip
-                bad += _inverse_column(r, b, k)
+                b[8, j] = t1
+                b[9, j] = t2
+                b[10, j] = t3
+                bad |= not (abs(t1 + t2 + t3) < _INF)
         else:
-            for k in range(m):
-                r = terms(
-                    b[0, k], b[1, k], b[2, k], b[3, k], b[4, k], b[5, k],
-                    p0, p1, p2, p3, p4, p5, p6, p7, p8, p9, p10, p11, p12, p13, p14,
+            for j in range(m):
+                x = b[0, j]
+                t1, t2, t3 = inverse_terms(
+                    math.cos(x), math.sin(x), b[1, j], b[2, j], b[3, j], b[4, j], b[5, j],
+                    b[6, j], b[7, j], k0, k1, k2, k3, k4, k5, k6, k7, k8, k9,
                 )  # fmt: skip
-                bad += _inverse_column(r, b, k)
-        for k in range(m):
-            i = start + k
-            out[i, 0] = b[9, k]
-            out[i, 1] = b[10, k]
-            out[i, 2] = b[11, k]
+                b[8, j] = t1
+                b[9, j] = t2
+                b[10, j] = t3
+                bad |= not (abs(t1 + t2 + t3) < _INF)
+        for j in range(m):
+            i = base + 3 * j
+            of[i] = b[8, j]
+            of[i + 1] = b[9, j]
+            of[i + 2] = b[10, j]
     return math.nan if bad else 0.0
 
 
