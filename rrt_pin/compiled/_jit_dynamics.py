@@ -323,7 +323,8 @@ def vsincos(x):
 
 #: Floating-point operations of vsincos (reduction 6, two polynomials 20, assembly 7).
 SINCOS_FLOPS = 33
-#: Rows of inverse_batch's column-major block buffer: q2, q3, q̇, q̈ in; τ out.
+#: Samples a block of inverse_batch: its q1 and q2 are scanned first, then the block
+#: takes the vectorized or the libm sine and cosine.
 _BLOCK = 256
 
 
@@ -331,7 +332,7 @@ _BLOCK = 256
 def inverse_batch(q, qd, qdd, p, out):
     """τ = M(q) q̈ + c(q, q̇) + G(q) [N·m, N·m, N] of every row into out (N, 3).
 
-    Blocks of rows are copied to a column-major buffer, then the generated
+    Per block of rows, q1 and q2 are scanned, then the generated
     ``inverse_terms`` runs over the block with the vectorizable sine and cosine
     (one reduction for both), several samples per instruction (blocks holding
     some |q2| >= SINCOS_LIMIT, or a non-finite q2, use libm). The returned
@@ -347,56 +348,45 @@ def inverse_batch(q, qd, qdd, p, out):
     )  # fmt: skip
     k0, k1, k2, k3, k4, k5, k6, k7, k8, k9 = k
     n = q.shape[0]
-    # Flat views: the (N, 3) rows as one stream each (indexing them as 2-D arrays
-    # keeps the copies below from vectorizing as well).
-    qf, qdf, qddf, of = q.reshape(-1), qd.reshape(-1), qdd.reshape(-1), out.reshape(-1)
-    b = np.empty((11, _BLOCK))
     bad = False
     for start in range(0, n, _BLOCK):
         m = min(_BLOCK, n - start)
-        base = 3 * start
+        # The block's rows as flat views, indexed from 0 (so indexed, the loops
+        # below vectorize; as 2-D arrays, or from ``start``, they do not).
+        qf = q[start : start + m].reshape(-1)
+        qdf = qd[start : start + m].reshape(-1)
+        qddf = qdd[start : start + m].reshape(-1)
+        of = out[start : start + m].reshape(-1)
         small = 0
         finite1 = 0
         for j in range(m):
-            i = base + 3 * j
-            b[0, j] = qf[i + 1]
-            b[1, j] = qf[i + 2]
-            b[2, j] = qdf[i]
-            b[3, j] = qdf[i + 1]
-            b[4, j] = qdf[i + 2]
-            b[5, j] = qddf[i]
-            b[6, j] = qddf[i + 1]
-            b[7, j] = qddf[i + 2]
-            small += abs(qf[i + 1]) < SINCOS_LIMIT
-            finite1 += abs(qf[i]) < _INF
+            small += abs(qf[3 * j + 1]) < SINCOS_LIMIT
+            finite1 += abs(qf[3 * j]) < _INF
         bad |= finite1 != m
         if small == m:
             for j in range(m):
-                s2, c2 = vsincos(b[0, j])
+                i = 3 * j
+                s2, c2 = vsincos(qf[i + 1])
                 t1, t2, t3 = inverse_terms(
-                    c2, s2, b[1, j], b[2, j], b[3, j], b[4, j], b[5, j], b[6, j], b[7, j],
-                    k0, k1, k2, k3, k4, k5, k6, k7, k8, k9,
+                    c2, s2, qf[i + 2], qdf[i], qdf[i + 1], qdf[i + 2], qddf[i], qddf[i + 1],
+                    qddf[i + 2], k0, k1, k2, k3, k4, k5, k6, k7, k8, k9,
                 )  # fmt: skip
-                b[8, j] = t1
-                b[9, j] = t2
-                b[10, j] = t3
+                of[i] = t1
+                of[i + 1] = t2
+                of[i + 2] = t3
                 bad |= not (abs(t1 + t2 + t3) < _INF)
         else:
             for j in range(m):
-                x = b[0, j]
+                i = 3 * j
+                x = qf[i + 1]
                 t1, t2, t3 = inverse_terms(
-                    math.cos(x), math.sin(x), b[1, j], b[2, j], b[3, j], b[4, j], b[5, j],
-                    b[6, j], b[7, j], k0, k1, k2, k3, k4, k5, k6, k7, k8, k9,
+                    math.cos(x), math.sin(x), qf[i + 2], qdf[i], qdf[i + 1], qdf[i + 2],
+                    qddf[i], qddf[i + 1], qddf[i + 2], k0, k1, k2, k3, k4, k5, k6, k7, k8, k9,
                 )  # fmt: skip
-                b[8, j] = t1
-                b[9, j] = t2
-                b[10, j] = t3
+                of[i] = t1
+                of[i + 1] = t2
+                of[i + 2] = t3
                 bad |= not (abs(t1 + t2 + t3) < _INF)
-        for j in range(m):
-            i = base + 3 * j
-            of[i] = b[8, j]
-            of[i + 1] = b[9, j]
-            of[i + 2] = b[10, j]
     return math.nan if bad else 0.0
 
 
