@@ -31,7 +31,9 @@ __all__ = [
     "PARAM_ORDER",
     "forward_dynamics",
     "gravity",
+    "FORWARD_FLOPS",
     "INVERSE_FLOPS",
+    "forward_terms",
     "inverse_constants",
     "inverse_dynamics",
     "inverse_terms",
@@ -146,6 +148,8 @@ def terms(
 
 #: Floating-point operations of ``inverse_terms`` per sample (sin and cos excluded).
 INVERSE_FLOPS = 42
+#: Floating-point operations of ``forward_terms`` per sample (sin and cos excluded).
+FORWARD_FLOPS = 35
 
 
 def inverse_constants(L1, L2, m1, m2, m3, I1x, I1y, I1z, I2x, I2y, I2z, I3x, I3y, I3z, g):
@@ -219,6 +223,55 @@ def inverse_terms(
     tau3 = m3*qdd3 - (qd2*qd2*mr + w1*x15) + gm3*s2
     # fmt: on
     return (tau1, tau2, tau3)
+
+
+def forward_terms(c2, s2, q3, qd1, qd2, qd3, m3, L2, g, kM11, kP, kM22, kS, L1x2, m3L1x2, gm3):
+    """The non-zero terms of M(q)·q̈ + c(q, q̇) + G(q) = τ, for the forward dynamics.
+
+    M is diagonal (M12 = M13 = M23 = 0 and M33 = m3, proved when generated) and
+    G1 = 0, so q̈ = ((τ1 − n1) / M11, (τ2 − n2 − G2) / M22, (τ3 − n3 − G3) / m3).
+    ``FORWARD_FLOPS`` operations a sample, sine and cosine excluded.
+
+    Args:
+        c2: cos q2 [1].
+        s2: sin q2 [1].
+        q3: slider position C2→C3 [m].
+        qd1: q̇1 [rad/s].
+        qd2: q̇2 [rad/s].
+        qd3: q̇3 [m/s].
+        m3: mass of link 3 [kg].
+        L2: distance B→C2 [m].
+        g: gravitational acceleration [m/s²].
+        kM11: see :func:`inverse_terms` (the trailing arguments are the same).
+        kP: see :func:`inverse_terms`.
+        kM22: see :func:`inverse_terms`.
+        kS: see :func:`inverse_terms`.
+        L1x2: see :func:`inverse_terms`.
+        m3L1x2: see :func:`inverse_terms`.
+        gm3: see :func:`inverse_terms`.
+
+    Returns:
+        (M11 [kg·m²], M22 [kg·m²], c1 [N·m], c2 [N·m], c3 [N], G2 [N·m], G3 [N]).
+    """
+    # fmt: off
+    r = L2 + q3
+    mr = m3*r
+    mrr = mr*r
+    S = kS + mr
+    u = L1x2*S
+    H = c2*(kP + mrr) + u
+    x19 = s2*H
+    x15 = c2*(m3L1x2 + c2*mr)
+    w1 = qd1*qd1
+    M11 = kM11 + c2*(H + u)
+    M22 = kM22 + mrr
+    n1 = 2*qd1*(qd3*x15 - qd2*x19)
+    n2 = w1*x19 + 2*qd2*qd3*mr
+    n3 = -(qd2*qd2*mr + w1*x15)
+    G2 = g*c2*S
+    G3 = gm3*s2
+    # fmt: on
+    return (M11, M22, n1, n2, n3, G2, G3)
 
 
 def _states(name: str, a: np.ndarray) -> np.ndarray:

@@ -32,7 +32,6 @@ results must agree with Pinocchio to round-off, and nan must stay nan.
 from __future__ import annotations
 
 import math
-import types as pytypes
 
 import numpy as np
 from numba import float64, int64, types
@@ -124,12 +123,28 @@ def vcos(x):
     return -v if (j + 2) & 4 else v
 
 
-#: The same generated code, its ``sin``/``cos`` bound to vsin/vcos (|q2| < SINCOS_LIMIT).
-terms_v = jit(None, inline=True)(
-    pytypes.FunctionType(
-        kernel.terms.__code__, {**kernel.terms.__globals__, "sin": vsin, "cos": vcos}, "terms_v"
-    )
-)
+@jit(None, inline=True)
+def vsincos(x):
+    """(sin x, cos x) for |x| < SINCOS_LIMIT, one shared reduction (vectorizable)."""
+    j, ps, pc = _octant(x)
+    s = pc if j & 2 else ps
+    s = -s if j & 4 else s
+    c = ps if j & 2 else pc
+    c = -c if (j + 2) & 4 else c
+    return (-s if x < 0.0 else s), c
+
+
+#: Floating-point operations of vsincos (reduction 6, two polynomials 20, assembly 7).
+SINCOS_FLOPS = 33
+#: Samples a block of inverse_batch: its q1 and q2 are scanned first, then the block
+#: takes the vectorized or the libm sine and cosine.
+_BLOCK = 256
+
+
+#: The generated inverse and forward dynamics (hand-factored, cos q2 and sin q2 as inputs).
+inverse_terms = jit(None, inline=True)(kernel.inverse_terms)
+inverse_constants = jit(None, inline=True)(kernel.inverse_constants)
+forward_terms = jit(None, inline=True)(kernel.forward_terms)
 
 
 @jit(None, inline=True)
@@ -232,31 +247,42 @@ def effort(kind, c, p, q1, q2, q3, qd1, qd2, qd3):
 @jit(
     types.Tuple((_f8, _f8, _f8, _f8, _f8, _f8, int64))(
         int64, _CT, _PT, _f8, _f8, _f8, _f8, _f8, _f8
-    )
+    ),
+    inline=True,
 )
 def closed_loop(kind, c, p, q1, q2, q3, qd1, qd2, qd3):
     """(q̈1, q̈2, q̈3, τ1, τ2, τ3, bad): forward dynamics under controller ``kind``.
 
     q̈ [rad/s², m/s²] solves M(q)·q̈ = τ − c(q, q̇) − G(q) with τ = the
-    controller's efforts [N·m, N·m, N]; ``bad`` is ldl_solve's flag. One kernel
+    controller's efforts [N·m, N·m, N]. M is diagonal (the generated
+    ``forward_terms``: M12 = M13 = M23 = 0 proved when generated), so q̈ is
+    three divisions; ``bad`` is 0, or 1 + the index of the first diagonal
+    entry that is not > 1e-13·trace and finite (as ldl_solve's pivots). One
     evaluation serves the dynamics and, for kinds 2 and 3, the gravity
-    compensation. The kernel's sine and cosine are the inlined vsin/vcos (no
-    libm call) unless |q2| >= SINCOS_LIMIT.
+    compensation. Sine and cosine are one inlined vsincos (no libm call)
+    unless |q2| >= SINCOS_LIMIT.
     """
     if abs(q2) < SINCOS_LIMIT:
-        r = terms_v(
-            q1, q2, q3, qd1, qd2, qd3,
-            p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7], p[8], p[9], p[10], p[11], p[12],
-            p[13], p[14],
-        )  # fmt: skip
+        s2, c2 = vsincos(q2)
     else:
-        r = kernel_terms(q1, q2, q3, qd1, qd2, qd3, p)
-    u1, u2, u3 = control(kind, c, q1, q2, q3, qd1, qd2, qd3, r[9], r[10], r[11])
-    a1, a2, a3, bad = ldl_solve(
-        r[0], r[1], r[2], r[3], r[4], r[5],
-        u1 - r[6] - r[9], u2 - r[7] - r[10], u3 - r[8] - r[11],
+        s2, c2 = math.sin(q2), math.cos(q2)
+    k0, k1, k2, k3, k4, k5, k6, k7, k8, k9 = inverse_constants(
+        p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7], p[8], p[9], p[10], p[11], p[12],
+        p[13], p[14],
     )  # fmt: skip
-    return a1, a2, a3, u1, u2, u3, bad
+    M11, M22, n1, n2, n3, G2, G3 = forward_terms(
+        c2, s2, q3, qd1, qd2, qd3, k0, k1, k2, k3, k4, k5, k6, k7, k8, k9
+    )
+    u1, u2, u3 = control(kind, c, q1, q2, q3, qd1, qd2, qd3, 0.0, G2, G3)
+    M33 = k0  # m3
+    tiny = 1e-13 * (abs(M11) + abs(M22) + abs(M33))  # nan if any entry is nan
+    if not (tiny < M11 < _INF):
+        return 0.0, 0.0, 0.0, u1, u2, u3, 1
+    if not (tiny < M22 < _INF):
+        return 0.0, 0.0, 0.0, u1, u2, u3, 2
+    if not (tiny < M33 < _INF):
+        return 0.0, 0.0, 0.0, u1, u2, u3, 3
+    return (u1 - n1) / M11, (u2 - n2 - G2) / M22, (u3 - n3 - G3) / M33, u1, u2, u3, 0
 
 
 @jit(None, inline=True)
@@ -303,29 +329,6 @@ def bias_batch(q, qd, p, which, out):
             else:
                 out[i, k] = r[9 + k]
     return check
-
-
-#: The generated inverse dynamics (hand-factored form, cos q2 and sin q2 as inputs).
-inverse_terms = jit(None, inline=True)(kernel.inverse_terms)
-inverse_constants = jit(None, inline=True)(kernel.inverse_constants)
-
-
-@jit(None, inline=True)
-def vsincos(x):
-    """(sin x, cos x) for |x| < SINCOS_LIMIT, one shared reduction (vectorizable)."""
-    j, ps, pc = _octant(x)
-    s = pc if j & 2 else ps
-    s = -s if j & 4 else s
-    c = ps if j & 2 else pc
-    c = -c if (j + 2) & 4 else c
-    return (-s if x < 0.0 else s), c
-
-
-#: Floating-point operations of vsincos (reduction 6, two polynomials 20, assembly 7).
-SINCOS_FLOPS = 33
-#: Samples a block of inverse_batch: its q1 and q2 are scanned first, then the block
-#: takes the vectorized or the libm sine and cosine.
-_BLOCK = 256
 
 
 @jit(float64(_rmat, _rmat, _rmat, _rvec, _mat))

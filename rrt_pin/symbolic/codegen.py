@@ -27,7 +27,9 @@ from rrt_pin.symbolic.symbols import PARAM_NAMES
 
 __all__ = [
     "INVERSE_CONSTANTS",
+    "FORWARD_LINES",
     "INVERSE_LINES",
+    "SHARED_LINES",
     "KERNEL_PATH",
     "OUTPUT_NAMES",
     "check_inverse_plan",
@@ -84,8 +86,8 @@ INVERSE_CONSTANTS = (
     ("m3L1x2", "2*L1*m3"),
     ("gm3", "g*m3"),
 )
-#: (name, Python expression), one per line of ``inverse_terms``, in order.
-INVERSE_LINES = (
+#: (name, Python expression): the first lines of ``inverse_terms`` and ``forward_terms``.
+SHARED_LINES = (
     ("r", "L2 + q3"),  # B→C3 [m]
     ("mr", "m3*r"),
     ("mrr", "mr*r"),
@@ -95,9 +97,23 @@ INVERSE_LINES = (
     ("x19", "s2*H"),
     ("x15", "c2*(m3L1x2 + c2*mr)"),
     ("w1", "qd1*qd1"),
+)
+#: (name, Python expression), the lines of ``inverse_terms`` after SHARED_LINES.
+INVERSE_LINES = (
     ("tau1", "(kM11 + c2*(H + u))*qdd1 + 2*qd1*(qd3*x15 - qd2*x19)"),
     ("tau2", "(kM22 + mrr)*qdd2 + w1*x19 + (2*qd2*qd3*mr + g*c2*S)"),
     ("tau3", "m3*qdd3 - (qd2*qd2*mr + w1*x15) + gm3*s2"),
+)
+#: (name, Python expression), the lines of ``forward_terms`` after SHARED_LINES: the
+#: diagonal of M (M12 = M13 = M23 = 0, M33 = m3, proved), c and the non-zero G.
+FORWARD_LINES = (
+    ("M11", "kM11 + c2*(H + u)"),
+    ("M22", "kM22 + mrr"),
+    ("n1", "2*qd1*(qd3*x15 - qd2*x19)"),
+    ("n2", "w1*x19 + 2*qd2*qd3*mr"),
+    ("n3", "-(qd2*qd2*mr + w1*x15)"),
+    ("G2", "g*c2*S"),
+    ("G3", "gm3*s2"),
 )
 _INVERSE_INPUTS = ("c2", "s2", "q3", "qd1", "qd2", "qd3", "qdd1", "qdd2", "qdd3")
 
@@ -119,11 +135,12 @@ def flop_count(source: str) -> int:
 
 
 def check_inverse_plan() -> None:
-    """Prove INVERSE_CONSTANTS and INVERSE_LINES equal to τ of Kane's equations.
+    """Prove the plans of ``inverse_terms`` and ``forward_terms`` equal to Kane's equations.
 
     τ_i = Σ_j M_ij q̈_j + c_i + G_i with M, c, G of :func:`kernel_expressions`;
-    the difference, a polynomial in c2 = cos q2 and s2 = sin q2, must vanish
-    modulo c2² + s2² − 1.
+    forward_terms' M11, M22, c and G2, G3 those of Kane, and M12 = M13 = M23 =
+    G1 = 0, M33 = m3. Each difference, a polynomial in c2 = cos q2 and
+    s2 = sin q2, must vanish modulo c2² + s2² − 1.
 
     Raises:
         AssertionError: a line of the plan is wrong.
@@ -134,17 +151,22 @@ def check_inverse_plan() -> None:
     qdd = sp.symbols("qdd1 qdd2 qdd3", real=True)
     scope: dict[str, sp.Expr] = {**by_name, "c2": c2, "s2": s2}
     scope.update({str(a): a for a in qdd})
-    for name, source in (*INVERSE_CONSTANTS, *INVERSE_LINES):
+    for name, source in (*INVERSE_CONSTANTS, *SHARED_LINES, *INVERSE_LINES, *FORWARD_LINES):
         scope[name] = sp.sympify(source, locals=scope)
     M11, M12, M13, M22, M23, M33, cv1, cv2, cv3, G1, G2, G3 = exprs
     M = sp.Matrix([[M11, M12, M13], [M12, M22, M23], [M13, M23, M33]])
     tau = M * sp.Matrix(qdd) + sp.Matrix([cv1, cv2, cv3]) + sp.Matrix([G1, G2, G3])
     q2 = by_name["q2"]
-    for i in range(3):
-        kane = tau[i].subs({sp.cos(q2): c2, sp.sin(q2): s2})
-        difference = sp.expand(scope[f"tau{i + 1}"] - kane)
+    claims = {f"tau{i + 1}": tau[i] for i in range(3)}
+    # forward_terms: the structural zeros it leaves out, then its outputs.
+    claims.update({"0 (M12)": M12, "0 (M13)": M13, "0 (M23)": M23, "0 (G1)": G1})
+    claims.update({"M11": M11, "M22": M22, "m3": M33, "G2": G2, "G3": G3})
+    claims.update({"n1": cv1, "n2": cv2, "n3": cv3})
+    for name, kane in claims.items():
+        mine = scope[name] if name in scope else sp.Integer(0)
+        difference = sp.expand(mine - kane.subs({sp.cos(q2): c2, sp.sin(q2): s2}))
         remainder = sp.rem(sp.Poly(difference, s2), sp.Poly(s2**2 + c2**2 - 1, s2))
-        assert sp.expand(remainder.as_expr()) == 0, f"tau{i + 1} of the plan differs: {remainder}"
+        assert sp.expand(remainder.as_expr()) == 0, f"{name} of the plan differs: {remainder}"
 
 
 def _inverse_source() -> str:
@@ -152,12 +174,19 @@ def _inverse_source() -> str:
     params = ", ".join(PARAM_NAMES)
     consts = "\n".join(f"    {n} = {src}" for n, src in INVERSE_CONSTANTS)
     names = ", ".join(n for n, _ in INVERSE_CONSTANTS)
-    lines = "\n".join(f"    {n} = {src}" for n, src in INVERSE_LINES)
-    flops = sum(flop_count(src) for _, src in INVERSE_LINES)
-    signature = ", ".join((*_INVERSE_INPUTS, "m3", "L2", "g", *(n for n, _ in INVERSE_CONSTANTS)))
+    lines = "\n".join(f"    {n} = {src}" for n, src in (*SHARED_LINES, *INVERSE_LINES))
+    flops = sum(flop_count(src) for _, src in (*SHARED_LINES, *INVERSE_LINES))
+    fwd_lines = "\n".join(f"    {n} = {src}" for n, src in (*SHARED_LINES, *FORWARD_LINES))
+    fwd_flops = sum(flop_count(src) for _, src in (*SHARED_LINES, *FORWARD_LINES))
+    trailing = ("m3", "L2", "g", *(n for n, _ in INVERSE_CONSTANTS))
+    signature = ", ".join((*_INVERSE_INPUTS, *trailing))
+    fwd_signature = ", ".join((*_INVERSE_INPUTS[:6], *trailing))
+    fwd_names = ", ".join(n for n, _ in FORWARD_LINES)
     return (
         "\n\n#: Floating-point operations of ``inverse_terms`` per sample (sin and cos excluded).\n"
-        f"INVERSE_FLOPS = {flops}\n\n\n"
+        f"INVERSE_FLOPS = {flops}\n"
+        "#: Floating-point operations of ``forward_terms`` per sample (sin and cos excluded).\n"
+        f"FORWARD_FLOPS = {fwd_flops}\n\n\n"
         f"def inverse_constants({params}):\n"
         f"{_CONSTANTS_DOC}"
         "    # fmt: off\n" + consts + "\n    # fmt: on\n"
@@ -165,8 +194,42 @@ def _inverse_source() -> str:
         f"def inverse_terms(\n    {signature}\n):\n"
         f"{_INVERSE_DOC}"
         "    # fmt: off\n" + lines + "\n    # fmt: on\n"
-        "    return (tau1, tau2, tau3)\n"
+        "    return (tau1, tau2, tau3)\n\n\n"
+        f"def forward_terms({fwd_signature}):\n"
+        f"{_FORWARD_DOC}"
+        "    # fmt: off\n" + fwd_lines + "\n    # fmt: on\n"
+        f"    return ({fwd_names})\n"
     )
+
+
+_FORWARD_DOC = '''    """The non-zero terms of M(q)·q̈ + c(q, q̇) + G(q) = τ, for the forward dynamics.
+
+    M is diagonal (M12 = M13 = M23 = 0 and M33 = m3, proved when generated) and
+    G1 = 0, so q̈ = ((τ1 − n1) / M11, (τ2 − n2 − G2) / M22, (τ3 − n3 − G3) / m3).
+    ``FORWARD_FLOPS`` operations a sample, sine and cosine excluded.
+
+    Args:
+        c2: cos q2 [1].
+        s2: sin q2 [1].
+        q3: slider position C2→C3 [m].
+        qd1: q̇1 [rad/s].
+        qd2: q̇2 [rad/s].
+        qd3: q̇3 [m/s].
+        m3: mass of link 3 [kg].
+        L2: distance B→C2 [m].
+        g: gravitational acceleration [m/s²].
+        kM11: see :func:`inverse_terms` (the trailing arguments are the same).
+        kP: see :func:`inverse_terms`.
+        kM22: see :func:`inverse_terms`.
+        kS: see :func:`inverse_terms`.
+        L1x2: see :func:`inverse_terms`.
+        m3L1x2: see :func:`inverse_terms`.
+        gm3: see :func:`inverse_terms`.
+
+    Returns:
+        (M11 [kg·m²], M22 [kg·m²], c1 [N·m], c2 [N·m], c3 [N], G2 [N·m], G3 [N]).
+    """
+'''
 
 
 _CONSTANTS_DOC = '''    """The per-call constants of :func:`inverse_terms`: combinations of the parameters.
@@ -310,7 +373,9 @@ __all__ = [
     "PARAM_ORDER",
     "forward_dynamics",
     "gravity",
+    "FORWARD_FLOPS",
     "INVERSE_FLOPS",
+    "forward_terms",
     "inverse_constants",
     "inverse_dynamics",
     "inverse_terms",
