@@ -134,6 +134,14 @@ def vsincos(x):
     return (-s if x < 0.0 else s), c
 
 
+@jit(None, inline=True)
+def sincos(x):
+    """(sin x, cos x): vsincos for |x| < SINCOS_LIMIT, else libm (also for inf and nan)."""
+    if abs(x) < SINCOS_LIMIT:
+        return vsincos(x)
+    return math.sin(x), math.cos(x)
+
+
 #: Floating-point operations of vsincos (reduction 6, two polynomials 20, assembly 7).
 SINCOS_FLOPS = 33
 #: Samples a block of inverse_batch: its q1 and q2 are scanned first, then the block
@@ -225,8 +233,7 @@ def control(kind, c, q1, q2, q3, qd1, qd2, qd3, G1, G2, G3):
         m2 = c[9 + _M2]
         m3 = c[9 + _M3]
         L2 = c[9 + _L2]
-        c2 = math.cos(q2)
-        s2 = math.sin(q2)
+        s2, c2 = sincos(q2)
         return u1, u2 + g * m2 * L2 * c2 + g * m3 * c2 * (L2 + q3), u3 + g * m3 * s2
     if kind == KIND_PD_PLANT_GRAVITY or kind == KIND_CHAPTER_FOLDED:
         return u1 + G1, u2 + G2, u3 + G3
@@ -262,10 +269,7 @@ def closed_loop(kind, c, p, q1, q2, q3, qd1, qd2, qd3):
     compensation. Sine and cosine are one inlined vsincos (no libm call)
     unless |q2| >= SINCOS_LIMIT.
     """
-    if abs(q2) < SINCOS_LIMIT:
-        s2, c2 = vsincos(q2)
-    else:
-        s2, c2 = math.sin(q2), math.cos(q2)
+    s2, c2 = sincos(q2)
     k0, k1, k2, k3, k4, k5, k6, k7, k8, k9 = inverse_constants(
         p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7], p[8], p[9], p[10], p[11], p[12],
         p[13], p[14],
