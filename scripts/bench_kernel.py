@@ -10,6 +10,9 @@ counted), the median ns/sample of:
 * symbolic         ``inverse_dynamics(backend="symbolic")``: the generated numpy kernel;
 * compiled         ``inverse_dynamics(backend="compiled")``: the whole call, checks included;
 * compiled kernel  ``_jit_dynamics.inverse_batch`` alone, into a preallocated output;
+* forward kernel   the direct run's right-hand side, ``_jit_dynamics.closed_loop`` under
+                   eq. (31) (``forward_terms``, one division per joint), one state at a
+                   time as the integrators call it;
 
 on the chapter's run (eq. 30, 15,001 samples) and on 10⁶ samples (the chapter's
 run repeated; the loop is timed on the first 15,001 and scaled). Next to each
@@ -94,6 +97,28 @@ def interleaved(
     return {k: statistics.median(v) for k, v in times.items()}
 
 
+def forward_loop():
+    """A numba loop calling the compiled closed loop's dynamics once per state [(N, 3) q̈]."""
+    import numba
+
+    from rrt_pin.compiled import _jit_dynamics as jd
+
+    closed_loop, as_p, as_c = jd.closed_loop, jd.as_tuple_p, jd.as_tuple_c
+
+    @numba.njit
+    def run(kind, p, c, q, qd, out):
+        pt, ct = as_p(p), as_c(c)
+        for i in range(q.shape[0]):
+            a1, a2, a3, _, _, _, _ = closed_loop(
+                kind, ct, pt, q[i, 0], q[i, 1], q[i, 2], qd[i, 0], qd[i, 1], qd[i, 2]
+            )
+            out[i, 0] = a1
+            out[i, 1] = a2
+            out[i, 2] = a3
+
+    return run
+
+
 def rnea_loop(model, q, qd, qdd) -> np.ndarray:
     import pinocchio as pin
 
@@ -127,17 +152,27 @@ def main() -> int:
     model = rrt_model(p)
     traj = rest_to_rest(p.q0, p.qf, p.Tp, time_grid(p.Tp, 1e-3))
     pa = param_array(p)
+    # The closed loop's evaluation (the direct run's right-hand side): forward_terms,
+    # vsincos, eq. (31)'s PD part (15) and gravity (3), the residuals (5), 3 divisions.
+    forward_flops = kernel.FORWARD_FLOPS + jd.SINCOS_FLOPS + 26
     flops = {
         "symbolic": f"{kernel.INVERSE_FLOPS} + libm sin, cos",
         "compiled": kernel.INVERSE_FLOPS + jd.SINCOS_FLOPS,
         "compiled kernel": kernel.INVERSE_FLOPS + jd.SINCOS_FLOPS,
+        "forward kernel": forward_flops,
     }
+    from rrt_pin.compiled.integrate import _controller_arrays
+    from rrt_pin.control import chapter_controller
+
+    kind, cvec = _controller_arrays(chapter_controller(p), p, pa)
+    forward = forward_loop()
     rate = fma_rate()
     peak = 2.0 * rate  # flops/s, every operation an FMA
     print(
         f"FMA rate, one core: {rate / 1e9:.2f} GFMA/s = {peak / 1e9:.2f} Gflop/s; "
         f"{default_num_threads()} CPUs; compiled kernel = {kernel.INVERSE_FLOPS} flops "
-        f"(generated inverse_terms) + {jd.SINCOS_FLOPS} (vsincos) a sample"
+        f"(generated inverse_terms) + {jd.SINCOS_FLOPS} (vsincos) a sample; forward kernel "
+        f"= {kernel.FORWARD_FLOPS} (forward_terms) + {jd.SINCOS_FLOPS} + 26 (eq. 31, solve)"
     )
 
     def cases():
@@ -168,6 +203,7 @@ def main() -> int:
             "compiled kernel": lambda q=q, qd=qd, qdd=qdd, out=out: jd.inverse_batch(
                 q, qd, qdd, pa, out
             ),
+            "forward kernel": lambda q=q, qd=qd, out=out: forward(kind, pa, cvec, q, qd, out),
         }
         big = n > 100_000
         repeat = max(3, args.repeat // 3) if big else args.repeat

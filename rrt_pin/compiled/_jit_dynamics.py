@@ -254,8 +254,7 @@ def effort(kind, c, p, q1, q2, q3, qd1, qd2, qd3):
 @jit(
     types.Tuple((_f8, _f8, _f8, _f8, _f8, _f8, int64))(
         int64, _CT, _PT, _f8, _f8, _f8, _f8, _f8, _f8
-    ),
-    inline=True,
+    )
 )
 def closed_loop(kind, c, p, q1, q2, q3, qd1, qd2, qd3):
     """(q̈1, q̈2, q̈3, τ1, τ2, τ3, bad): forward dynamics under controller ``kind``.
@@ -287,6 +286,12 @@ def closed_loop(kind, c, p, q1, q2, q3, qd1, qd2, qd3):
     if not (tiny < M33 < _INF):
         return 0.0, 0.0, 0.0, u1, u2, u3, 3
     return (u1 - n1) / M11, (u2 - n2 - G2) / M22, (u3 - n3 - G3) / M33, u1, u2, u3, 0
+
+
+#: closed_loop inlined at numba's IR level into its caller: the integrators' hot
+#: stage loops use it (LLVM then hoists the parameter combinations out of the loop
+#: and passes nothing by value); other call sites call closed_loop, compiled once.
+closed_loop_inline = jit(None, inline=True)(closed_loop.py_func)
 
 
 @jit(None, inline=True)
