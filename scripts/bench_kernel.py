@@ -10,9 +10,9 @@ counted), the median ns/sample of:
 * symbolic         ``inverse_dynamics(backend="symbolic")``: the generated numpy kernel;
 * compiled         ``inverse_dynamics(backend="compiled")``: the whole call, checks included;
 * compiled kernel  ``_jit_dynamics.inverse_batch`` alone, into a preallocated output;
-* forward kernel   the direct run's right-hand side, ``_jit_dynamics.closed_loop`` under
-                   eq. (31) (``forward_terms``, one division per joint), one state at a
-                   time as the integrators call it;
+* forward kernel   the direct run's right-hand side, ``_jit_dynamics.closed_loop_inline``
+                   under eq. (31) (``forward_terms``, one division per joint), one state
+                   at a time as the adaptive integrators' stage loop calls it;
 
 on the chapter's run (eq. 30, 15,001 samples) and on 10⁶ samples (the chapter's
 run repeated; the loop is timed on the first 15,001 and scaled). Next to each
@@ -98,12 +98,12 @@ def interleaved(
 
 
 def forward_loop():
-    """A numba loop calling the compiled closed loop's dynamics once per state [(N, 3) q̈]."""
+    """A numba loop evaluating the closed loop's dynamics (inlined) once per state [(N, 3) q̈]."""
     import numba
 
     from rrt_pin.compiled import _jit_dynamics as jd
 
-    closed_loop, as_p, as_c = jd.closed_loop, jd.as_tuple_p, jd.as_tuple_c
+    closed_loop, as_p, as_c = jd.closed_loop_inline, jd.as_tuple_p, jd.as_tuple_c
 
     @numba.njit
     def run(kind, p, c, q, qd, out):
