@@ -324,10 +324,11 @@ def inverse_dynamics(q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, params: Par
     q, qd, qdd = _states("q", q), _states("qd", qd), _states("qdd", qdd)
     shape = np.broadcast_shapes(q.shape, qd.shape, qdd.shape)[:-1]
     q2 = q[..., 1]
-    tau = inverse_terms(
-        np.cos(q2), np.sin(q2), q[..., 2], qd[..., 0], qd[..., 1], qd[..., 2],
-        qdd[..., 0], qdd[..., 1], qdd[..., 2], *inverse_constants(*param_vector(params)),
-    )  # fmt: skip
+    with np.errstate(over="ignore", invalid="ignore"):  # callers check the result's finiteness
+        tau = inverse_terms(
+            np.cos(q2), np.sin(q2), q[..., 2], qd[..., 0], qd[..., 1], qd[..., 2],
+            qdd[..., 0], qdd[..., 1], qdd[..., 2], *inverse_constants(*param_vector(params)),
+        )  # fmt: skip
     return _stack(shape, tau)
 
 
