@@ -4,6 +4,11 @@ The kernel's ``terms`` is straight-line Python made by common-subexpression
 elimination (``sympy.cse``) of the mass matrix, the velocity terms and the
 gravity terms of Kane's equations, using only ``sin``, ``cos`` (from numpy)
 and arithmetic: it runs on floats, on numpy arrays and under ``numba.njit``.
+Its ``inverse_terms`` (τ) and ``forward_terms`` (the diagonal of M, c and G) are
+printed from hand-factored plans (``SHARED_LINES``, ``INVERSE_LINES``,
+``FORWARD_LINES``) that :func:`check_inverse_plan` proves equal to Kane's
+equations before every write; ``INVERSE_FLOPS``/``FORWARD_FLOPS`` count their
+operations.
 
 Usage::
 
