@@ -139,23 +139,27 @@ def inverse_dynamics(
             f"backend={backend!r} is the RRT arm's kernel, but {model.nq=} and {model.nv=}; "
             "use backend='pinocchio' for other models"
         )
-    q, single = validate.samples("q", q, 3, "rad or m")
-    qd, _ = validate.samples("qd", qd, 3, "rad/s or m/s")
-    qdd, _ = validate.samples("qdd", qdd, 3, "rad/s² or m/s²")
+    # The compiled loop flags non-finite inputs and efforts itself (then names
+    # them as below): no numpy pass over the arrays here.
+    compiled = b.name == "compiled"
+    named = (("q", q, "rad or m"), ("qd", qd, "rad/s or m/s"), ("qdd", qdd, "rad/s² or m/s²"))
+    (q, single), (qd, _), (qdd, _) = (
+        validate.samples(n, v, 3, u, finite=not compiled) for n, v, u in named
+    )
     _same_count(q, qd, qdd)
-    if b.name == "symbolic":
-        from rrt_pin import kernel
-
-        tau = np.asarray(kernel.inverse_dynamics(q, qd, qdd, params), dtype=float)
-    else:
+    if compiled:
         if not b.available():
             from rrt_pin.extras import MissingExtra
 
             raise MissingExtra("numba", "fast", "backend 'compiled'")
-        from rrt_pin import compiled
+        from rrt_pin import compiled as backend
 
-        tau = np.asarray(compiled.inverse_dynamics(q, qd, qdd, params), dtype=float)
-    _check_finite(tau, ("T01x", "T12y", "F23z"))
+        tau = np.asarray(backend.inverse_dynamics(q, qd, qdd, params), dtype=float)
+    else:
+        from rrt_pin import kernel
+
+        tau = np.asarray(kernel.inverse_dynamics(q, qd, qdd, params), dtype=float)
+        _check_finite(tau, ("T01x", "T12y", "F23z"))
     return tau[0] if single else tau
 
 

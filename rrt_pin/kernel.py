@@ -6,7 +6,10 @@ when this file drifts from the derivation. It imports numpy only (no sympy).
 
 ``terms`` is straight-line code (common subexpressions eliminated) using only
 ``sin``, ``cos`` and arithmetic, so it runs on floats, on numpy arrays
-(vectorized over samples) and unchanged under ``numba.njit``. The wrappers
+(vectorized over samples) and unchanged under ``numba.njit``. ``inverse_terms``
+is the inverse dynamics alone, hand-factored in the generator and proved equal
+to Kane's equations there: no product by a structural zero, shared products
+computed once, cos q2 and sin q2 taken as inputs. The wrappers
 below take arrays of states of shape (N, 3) (or one state of shape (3,)) and
 a :class:`rrt_pin.params.Params`. Units: q [rad, rad, m], q̇ [rad/s, rad/s, m/s],
 q̈ [rad/s², rad/s², m/s²], τ = (T01x [N·m], T12y [N·m], F23z [N]).
@@ -28,7 +31,12 @@ __all__ = [
     "PARAM_ORDER",
     "forward_dynamics",
     "gravity",
+    "FORWARD_FLOPS",
+    "INVERSE_FLOPS",
+    "forward_terms",
+    "inverse_constants",
     "inverse_dynamics",
+    "inverse_terms",
     "mass_matrix",
     "nonlinear_effects",
     "param_vector",
@@ -138,6 +146,134 @@ def terms(
     return (M11, M12, M13, M22, M23, M33, c1, c2, c3, G1, G2, G3)
 
 
+#: Floating-point operations of ``inverse_terms`` per sample (sin and cos excluded).
+INVERSE_FLOPS = 42
+#: Floating-point operations of ``forward_terms`` per sample (sin and cos excluded).
+FORWARD_FLOPS = 35
+
+
+def inverse_constants(L1, L2, m1, m2, m3, I1x, I1y, I1z, I2x, I2y, I2z, I3x, I3y, I3z, g):
+    """The per-call constants of :func:`inverse_terms`: combinations of the parameters.
+
+    Takes the parameters in ``PARAM_ORDER`` (SI units), as ``terms`` does.
+
+    Returns:
+        (m3 [kg], L2 [m], g [m/s²], kM11 [kg·m²], kP [kg·m²], kM22 [kg·m²],
+        kS [kg·m], L1x2 [m], m3L1x2 [kg·m], gm3 [N]), the trailing arguments of
+        :func:`inverse_terms` in order.
+    """
+    # fmt: off
+    kM11 = I1x + I2z + I3z + L1**2*(m1 + 4*(m2 + m3))
+    kP = I2x - I2z + I3x - I3z + m2*L2**2
+    kM22 = I2y + I3y + m2*L2**2
+    kS = m2*L2
+    L1x2 = 2*L1
+    m3L1x2 = 2*L1*m3
+    gm3 = g*m3
+    # fmt: on
+    return (m3, L2, g, kM11, kP, kM22, kS, L1x2, m3L1x2, gm3)
+
+
+def inverse_terms(
+    c2, s2, q3, qd1, qd2, qd3, qdd1, qdd2, qdd3, m3, L2, g, kM11, kP, kM22, kS, L1x2, m3L1x2, gm3
+):
+    """τ = M(q)·q̈ + c(q, q̇) + G(q) from cos q2 and sin q2, at one sample or many.
+
+    The hand-factored form of ``rrt_pin.symbolic.codegen.INVERSE_LINES``, proved
+    equal to Kane's equations when generated: no product by a structural zero of
+    M or G, products shared by the joints computed once, ``INVERSE_FLOPS``
+    operations a sample.
+
+    Args:
+        c2: cos q2 [1].
+        s2: sin q2 [1].
+        q3: slider position C2→C3 [m].
+        qd1: q̇1 [rad/s].
+        qd2: q̇2 [rad/s].
+        qd3: q̇3 [m/s].
+        qdd1: q̈1 [rad/s²].
+        qdd2: q̈2 [rad/s²].
+        qdd3: q̈3 [m/s²].
+        m3: mass of link 3 [kg].
+        L2: distance B→C2 [m].
+        g: gravitational acceleration [m/s²].
+        kM11: I1x + I2z + I3z + L1²·(m1 + 4·(m2 + m3)) [kg·m²].
+        kP: I2x − I2z + I3x − I3z + m2·L2² [kg·m²].
+        kM22: I2y + I3y + m2·L2² [kg·m²].
+        kS: m2·L2 [kg·m].
+        L1x2: 2·L1 = LB [m].
+        m3L1x2: 2·L1·m3 [kg·m].
+        gm3: g·m3 [N].
+
+    Returns:
+        (T01x [N·m], T12y [N·m], F23z [N]).
+    """
+    # fmt: off
+    r = L2 + q3
+    mr = m3*r
+    mrr = mr*r
+    S = kS + mr
+    u = L1x2*S
+    H = c2*(kP + mrr) + u
+    x19 = s2*H
+    x15 = c2*(m3L1x2 + c2*mr)
+    w1 = qd1*qd1
+    tau1 = (kM11 + c2*(H + u))*qdd1 + 2*qd1*(qd3*x15 - qd2*x19)
+    tau2 = (kM22 + mrr)*qdd2 + w1*x19 + (2*qd2*qd3*mr + g*c2*S)
+    tau3 = m3*qdd3 - (qd2*qd2*mr + w1*x15) + gm3*s2
+    # fmt: on
+    return (tau1, tau2, tau3)
+
+
+def forward_terms(c2, s2, q3, qd1, qd2, qd3, m3, L2, g, kM11, kP, kM22, kS, L1x2, m3L1x2, gm3):
+    """The non-zero terms of M(q)·q̈ + c(q, q̇) + G(q) = τ, for the forward dynamics.
+
+    M is diagonal (M12 = M13 = M23 = 0 and M33 = m3, proved when generated) and
+    G1 = 0, so q̈ = ((τ1 − n1) / M11, (τ2 − n2 − G2) / M22, (τ3 − n3 − G3) / m3).
+    ``FORWARD_FLOPS`` operations a sample, sine and cosine excluded.
+
+    Args:
+        c2: cos q2 [1].
+        s2: sin q2 [1].
+        q3: slider position C2→C3 [m].
+        qd1: q̇1 [rad/s].
+        qd2: q̇2 [rad/s].
+        qd3: q̇3 [m/s].
+        m3: mass of link 3 [kg].
+        L2: distance B→C2 [m].
+        g: gravitational acceleration [m/s²].
+        kM11: see :func:`inverse_terms` (the trailing arguments are the same).
+        kP: see :func:`inverse_terms`.
+        kM22: see :func:`inverse_terms`.
+        kS: see :func:`inverse_terms`.
+        L1x2: see :func:`inverse_terms`.
+        m3L1x2: see :func:`inverse_terms`.
+        gm3: see :func:`inverse_terms`.
+
+    Returns:
+        (M11 [kg·m²], M22 [kg·m²], c1 [N·m], c2 [N·m], c3 [N], G2 [N·m], G3 [N]).
+    """
+    # fmt: off
+    r = L2 + q3
+    mr = m3*r
+    mrr = mr*r
+    S = kS + mr
+    u = L1x2*S
+    H = c2*(kP + mrr) + u
+    x19 = s2*H
+    x15 = c2*(m3L1x2 + c2*mr)
+    w1 = qd1*qd1
+    M11 = kM11 + c2*(H + u)
+    M22 = kM22 + mrr
+    n1 = 2*qd1*(qd3*x15 - qd2*x19)
+    n2 = w1*x19 + 2*qd2*qd3*mr
+    n3 = -(qd2*qd2*mr + w1*x15)
+    G2 = g*c2*S
+    G3 = gm3*s2
+    # fmt: on
+    return (M11, M22, n1, n2, n3, G2, G3)
+
+
 def _states(name: str, a: np.ndarray) -> np.ndarray:
     """``a`` as a finite float64 array of shape (N, 3) (or (3,))."""
     a = np.asarray(a, dtype=np.float64)
@@ -184,18 +320,16 @@ def gravity(q: np.ndarray, params: Params) -> np.ndarray:
 
 
 def inverse_dynamics(q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, params: Params) -> np.ndarray:
-    """τ = M(q)·q̈ + c(q, q̇) + G(q), shape (N, 3) (or (3,)) [N·m, N·m, N]."""
+    """τ = M(q)·q̈ + c(q, q̇) + G(q), shape (N, 3) (or (3,)) [N·m, N·m, N] (``inverse_terms``)."""
     q, qd, qdd = _states("q", q), _states("qd", qd), _states("qdd", qdd)
-    M11, M12, M13, M22, M23, M33, c1, c2, c3, G1, G2, G3 = _terms(q, qd, params)
-    a1, a2, a3 = qdd[..., 0], qdd[..., 1], qdd[..., 2]
-    return _stack(
-        np.broadcast_shapes(q.shape, qd.shape, qdd.shape)[:-1],
-        (
-            M11 * a1 + M12 * a2 + M13 * a3 + c1 + G1,
-            M12 * a1 + M22 * a2 + M23 * a3 + c2 + G2,
-            M13 * a1 + M23 * a2 + M33 * a3 + c3 + G3,
-        ),
-    )
+    shape = np.broadcast_shapes(q.shape, qd.shape, qdd.shape)[:-1]
+    q2 = q[..., 1]
+    with np.errstate(over="ignore", invalid="ignore"):  # callers check the result's finiteness
+        tau = inverse_terms(
+            np.cos(q2), np.sin(q2), q[..., 2], qd[..., 0], qd[..., 1], qd[..., 2],
+            qdd[..., 0], qdd[..., 1], qdd[..., 2], *inverse_constants(*param_vector(params)),
+        )  # fmt: skip
+    return _stack(shape, tau)
 
 
 def forward_dynamics(q: np.ndarray, qd: np.ndarray, tau: np.ndarray, params: Params) -> np.ndarray:

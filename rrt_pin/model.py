@@ -82,14 +82,47 @@ def rrt_model(params: Params | None = None) -> pin.Model:
     """The RRT arm's Pinocchio model, generated from ``params`` (the seed's when None).
 
     A URDF carries no gravity, so the model's gravity is set to (0, 0, −g) [m/s²]
-    from ``params.g`` (world z is the seed's vertical ı0).
+    from ``params.g`` (world z is the seed's vertical ı0). The mount's rotation
+    is set to the exact permutation :data:`rrt_pin.urdf.MOUNT_ROTATION` (the
+    URDF's roll/pitch/yaw leave 2e-16 entries, which put ~4e-13 N·m into T01x).
     """
     from rrt_pin.urdf import urdf_xml
 
     p = params if params is not None else Params()
     model = model_from_xml(urdf_xml(p))
     model.gravity.linear[:] = (0.0, 0.0, -p.g)
+    _exact_mount(model)
     return model
+
+
+def _exact_mount(model: pin.Model) -> None:
+    """Replace the near-permutation the URDF's mount leaves by the exact one.
+
+    The mount is a fixed joint, merged by Pinocchio into the placement of q1
+    and of the frames on the world (``mount``, ``link0``): each of those
+    rotations is the mount's, to within 1e-15, and becomes it exactly.
+    """
+    import numpy as np
+    import pinocchio as pin
+
+    from rrt_pin.urdf import MOUNT_ROTATION
+
+    exact = np.array(MOUNT_ROTATION)
+
+    def snapped(placement: pin.SE3) -> pin.SE3 | None:
+        if np.abs(placement.rotation - exact).max() > 1e-15:
+            return None
+        return pin.SE3(exact, placement.translation.copy())
+
+    q1 = model.getJointId("q1")
+    new = snapped(model.jointPlacements[q1])
+    if new is None:  # pragma: no cover - the generated URDF always has the mount
+        raise UrdfError("the RRT arm's URDF has no mount rotation on q1")
+    model.jointPlacements[q1] = new
+    for i, frame in enumerate(model.frames):
+        if frame.parentJoint == 0 and (new := snapped(frame.placement)) is not None:
+            frame.placement = new
+            model.frames[i] = frame
 
 
 def build_model(params: Params | None = None, urdf: str | Path | None = None) -> pin.Model:

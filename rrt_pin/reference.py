@@ -48,7 +48,7 @@ REFERENCE_RTOL = 1e-13
 REFERENCE_ATOL = 1e-15
 REFERENCE_METHODS = ("DOP853", "Radau")
 #: Bump when the way references are computed changes (invalidates the cache).
-_VERSION = 1
+_VERSION = 2  # 2: the exact mount rotation (rrt_model)
 
 
 @dataclass(frozen=True, eq=False)

@@ -25,12 +25,16 @@ from pathlib import Path
 
 from rrt_pin.params import Params
 
-__all__ = ["JOINT_NAMES", "MOUNT_RPY", "urdf_xml", "write_urdf"]
+__all__ = ["JOINT_NAMES", "MOUNT_ROTATION", "MOUNT_RPY", "urdf_xml", "write_urdf"]
 
 #: Names of the three actuated joints, in the order of q.
 JOINT_NAMES = ("q1", "q2", "q3")
 #: Roll, pitch, yaw [rad] of the mount joint: the chapter's (ı0, ȷ0, k0) → world (z, x, y).
 MOUNT_RPY = (-math.pi / 2, -math.pi / 2, 0.0)
+#: The exact rotation MOUNT_RPY stands for (columns: ı0, ȷ0, k0 in the world). URDF has
+#: no exact form of it: from roll/pitch/yaw, cos(π/2) = 6e-17 leaves entries of 2e-16;
+#: :func:`rrt_pin.model.rrt_model` puts this matrix in the model after loading.
+MOUNT_ROTATION = ((0.0, 1.0, 0.0), (0.0, 0.0, 1.0), (1.0, 0.0, 0.0))
 REVOLUTE_LIMIT = 4 * math.pi
 
 _COLOURS = {

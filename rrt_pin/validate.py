@@ -152,8 +152,13 @@ def states(name: str, value: Any, n: int, unit: str = "") -> np.ndarray:
     return _finite(name, np.array(arr, dtype=float, order="C"), unit)
 
 
-def samples(name: str, value: Any, width: int, unit: str = "") -> tuple[np.ndarray, bool]:
+def samples(
+    name: str, value: Any, width: int, unit: str = "", *, finite: bool = True
+) -> tuple[np.ndarray, bool]:
     """Finite samples (N, width); a single sample (width,) becomes (1, width).
+
+    ``finite=False`` checks only the shape: for a caller whose compiled loop
+    flags non-finite values itself and then calls this again to name the value.
 
     Returns:
         The array and whether the input was a single sample.
@@ -169,7 +174,8 @@ def samples(name: str, value: Any, width: int, unit: str = "") -> tuple[np.ndarr
         raise InputError(
             f"{name} has shape {np.shape(value)} but needs (N, {width}) or ({width},){_unit(unit)}"
         )
-    return _finite(name, np.ascontiguousarray(arr, dtype=float), unit), single
+    arr = np.ascontiguousarray(arr, dtype=float)
+    return (_finite(name, arr, unit) if finite else arr), single
 
 
 def times(value: Any, name: str = "t_eval") -> np.ndarray:

@@ -166,3 +166,87 @@ def test_drift_check_can_fail(tmp_path):
     assert main(["--check", "-o", str(stale)]) == 1
     stale.write_text(kernel_source(), encoding="utf-8")
     assert main(["--check", "-o", str(stale)]) == 0
+
+
+@pytest.mark.parametrize(
+    "table, name, wrong, message",
+    [
+        ("SHARED_LINES", "x15", "c2*(m3L1x2 + s2*mr)", "tau1 of the plan differs"),
+        ("INVERSE_LINES", "tau3", "m3*qdd3 - (qd2*qd2*mr + w1*x15)", "tau3 of the plan differs"),
+        ("FORWARD_LINES", "M22", "kM22 + mr", "M22 of the plan differs"),
+        ("FORWARD_LINES", "n2", "w1*x19 + qd2*qd3*mr", "n2 of the plan differs"),
+    ],
+)
+def test_the_plans_are_proved_and_a_wrong_line_is_caught(monkeypatch, table, name, wrong, message):
+    pytest.importorskip("sympy")
+    from rrt_pin.symbolic import codegen
+
+    codegen.check_inverse_plan()  # the committed plans equal Kane's equations
+    lines = list(getattr(codegen, table))
+    i = [n for n, _ in lines].index(name)
+    lines[i] = (name, wrong)
+    monkeypatch.setattr(codegen, table, tuple(lines))
+    with pytest.raises(AssertionError, match=message):
+        codegen.check_inverse_plan()
+
+
+def test_flop_count_counts_operations():
+    pytest.importorskip("sympy")
+    from rrt_pin.symbolic.codegen import flop_count
+
+    assert flop_count("a*b + c - d**2") == 4
+    assert flop_count("-(a + b)*c") == 3
+    assert flop_count("x") == 0
+    with pytest.raises(ValueError, match="only squares"):
+        flop_count("a**3")
+
+
+def test_inverse_terms_equal_the_full_terms(case):
+    """The hand-factored inverse against M·q̈ + c + G of the CSE'd ``terms`` (both generated)."""
+    params, q, qd, qdd, _, _ = case
+    M11, M12, M13, M22, M23, M33, c1, c2, c3, G1, G2, G3 = kernel.terms(
+        *q.T, *qd.T, *kernel.param_vector(params)
+    )
+    a1, a2, a3 = qdd.T
+    full = np.column_stack(
+        [
+            M11 * a1 + M12 * a2 + M13 * a3 + c1 + G1,
+            M12 * a1 + M22 * a2 + M23 * a3 + c2 + G2,
+            M13 * a1 + M23 * a2 + M33 * a3 + c3 + G3,
+        ]
+    )
+    fast = np.column_stack(
+        kernel.inverse_terms(
+            np.cos(q[:, 1]),
+            np.sin(q[:, 1]),
+            q[:, 2],
+            *qd.T,
+            *qdd.T,
+            *kernel.inverse_constants(*kernel.param_vector(params)),
+        )  # fmt: skip
+    )
+    assert rel_err(fast, full) <= 1e-14
+    assert kernel.INVERSE_FLOPS < 60  # ~166 multiplications and additions in the full form
+
+
+def test_forward_terms_equal_the_full_terms(case):
+    """forward_terms' diagonal M, c and G against the CSE'd ``terms``; its q̈ against ABA."""
+    params, q, qd, _, _, model = case
+    full = kernel.terms(*q.T, *qd.T, *kernel.param_vector(params))
+    full = np.array([np.broadcast_to(v, q.shape[:1]) for v in full])
+    M11, M22, n1, n2, n3, G2, G3 = kernel.forward_terms(
+        np.cos(q[:, 1]), np.sin(q[:, 1]), q[:, 2], *qd.T,
+        *kernel.inverse_constants(*kernel.param_vector(params)),
+    )  # fmt: skip
+    for mine, theirs in zip(
+        (M11, M22, n1, n2, n3, G2, G3), full[[0, 3, 6, 7, 8, 10, 11]], strict=True
+    ):
+        np.testing.assert_allclose(mine, theirs, rtol=1e-13, atol=1e-12 * np.abs(theirs).max())
+    np.testing.assert_array_equal(full[[1, 2, 4, 9]], 0.0)  # what it leaves out
+    tau = np.random.default_rng(3).normal(0.0, 50.0, q.shape)
+    qdd = np.column_stack(
+        [(tau[:, 0] - n1) / M11, (tau[:, 1] - n2 - G2) / M22, (tau[:, 2] - n3 - G3) / params.m3]
+    )
+    data = model.createData()
+    aba = np.array([pin.aba(model, data, a, b, c) for a, b, c in zip(q, qd, tau, strict=True)])
+    assert rel_err(qdd, aba) <= DERIVED

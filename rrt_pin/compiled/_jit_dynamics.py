@@ -22,7 +22,9 @@ Layouts shared with the integrators:
 The hot path, :func:`closed_loop`, takes ``p`` and ``c`` as tuples: calls
 between separately compiled numba functions are not inlined by LLVM, and an
 array argument costs two atomic reference-count updates per call, more than
-the dynamics themselves; tuples are passed by value.
+the dynamics themselves; tuples are passed by value. The adaptive integrators'
+stage loop uses :data:`closed_loop_inline`, the same function inlined at
+numba's IR level (inlined at every call site, it doubled the compilation).
 
 Numba's "numpy" error model is used: a division by zero gives inf or nan, which
 the callers detect (no exception inside machine code). No fast-math: the
@@ -32,7 +34,6 @@ results must agree with Pinocchio to round-off, and nan must stay nan.
 from __future__ import annotations
 
 import math
-import types as pytypes
 
 import numpy as np
 from numba import float64, int64, types
@@ -124,12 +125,36 @@ def vcos(x):
     return -v if (j + 2) & 4 else v
 
 
-#: The same generated code, its ``sin``/``cos`` bound to vsin/vcos (|q2| < SINCOS_LIMIT).
-terms_v = jit(None, inline=True)(
-    pytypes.FunctionType(
-        kernel.terms.__code__, {**kernel.terms.__globals__, "sin": vsin, "cos": vcos}, "terms_v"
-    )
-)
+@jit(None, inline=True)
+def vsincos(x):
+    """(sin x, cos x) for |x| < SINCOS_LIMIT, one shared reduction (vectorizable)."""
+    j, ps, pc = _octant(x)
+    s = pc if j & 2 else ps
+    s = -s if j & 4 else s
+    c = ps if j & 2 else pc
+    c = -c if (j + 2) & 4 else c
+    return (-s if x < 0.0 else s), c
+
+
+@jit(None, inline=True)
+def sincos(x):
+    """(sin x, cos x): vsincos for |x| < SINCOS_LIMIT, else libm (also for inf and nan)."""
+    if abs(x) < SINCOS_LIMIT:
+        return vsincos(x)
+    return math.sin(x), math.cos(x)
+
+
+#: Floating-point operations of vsincos (reduction 6, two polynomials 20, assembly 7).
+SINCOS_FLOPS = 33
+#: Samples a block of inverse_batch: its q1 and q2 are scanned first, then the block
+#: takes the vectorized or the libm sine and cosine.
+_BLOCK = 256
+
+
+#: The generated inverse and forward dynamics (hand-factored, cos q2 and sin q2 as inputs).
+inverse_terms = jit(None, inline=True)(kernel.inverse_terms)
+inverse_constants = jit(None, inline=True)(kernel.inverse_constants)
+forward_terms = jit(None, inline=True)(kernel.forward_terms)
 
 
 @jit(None, inline=True)
@@ -210,8 +235,7 @@ def control(kind, c, q1, q2, q3, qd1, qd2, qd3, G1, G2, G3):
         m2 = c[9 + _M2]
         m3 = c[9 + _M3]
         L2 = c[9 + _L2]
-        c2 = math.cos(q2)
-        s2 = math.sin(q2)
+        s2, c2 = sincos(q2)
         return u1, u2 + g * m2 * L2 * c2 + g * m3 * c2 * (L2 + q3), u3 + g * m3 * s2
     if kind == KIND_PD_PLANT_GRAVITY or kind == KIND_CHAPTER_FOLDED:
         return u1 + G1, u2 + G2, u3 + G3
@@ -238,25 +262,38 @@ def closed_loop(kind, c, p, q1, q2, q3, qd1, qd2, qd3):
     """(q̈1, q̈2, q̈3, τ1, τ2, τ3, bad): forward dynamics under controller ``kind``.
 
     q̈ [rad/s², m/s²] solves M(q)·q̈ = τ − c(q, q̇) − G(q) with τ = the
-    controller's efforts [N·m, N·m, N]; ``bad`` is ldl_solve's flag. One kernel
+    controller's efforts [N·m, N·m, N]. M is diagonal (the generated
+    ``forward_terms``: M12 = M13 = M23 = 0 proved when generated), so q̈ is
+    three divisions; ``bad`` is 0, or 1 + the index of the first diagonal
+    entry that is not > 1e-13·trace and finite (as ldl_solve's pivots). One
     evaluation serves the dynamics and, for kinds 2 and 3, the gravity
-    compensation. The kernel's sine and cosine are the inlined vsin/vcos (no
-    libm call) unless |q2| >= SINCOS_LIMIT.
+    compensation. Sine and cosine are one inlined vsincos (no libm call)
+    unless |q2| >= SINCOS_LIMIT.
     """
-    if abs(q2) < SINCOS_LIMIT:
-        r = terms_v(
-            q1, q2, q3, qd1, qd2, qd3,
-            p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7], p[8], p[9], p[10], p[11], p[12],
-            p[13], p[14],
-        )  # fmt: skip
-    else:
-        r = kernel_terms(q1, q2, q3, qd1, qd2, qd3, p)
-    u1, u2, u3 = control(kind, c, q1, q2, q3, qd1, qd2, qd3, r[9], r[10], r[11])
-    a1, a2, a3, bad = ldl_solve(
-        r[0], r[1], r[2], r[3], r[4], r[5],
-        u1 - r[6] - r[9], u2 - r[7] - r[10], u3 - r[8] - r[11],
+    s2, c2 = sincos(q2)
+    k0, k1, k2, k3, k4, k5, k6, k7, k8, k9 = inverse_constants(
+        p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7], p[8], p[9], p[10], p[11], p[12],
+        p[13], p[14],
     )  # fmt: skip
-    return a1, a2, a3, u1, u2, u3, bad
+    M11, M22, n1, n2, n3, G2, G3 = forward_terms(
+        c2, s2, q3, qd1, qd2, qd3, k0, k1, k2, k3, k4, k5, k6, k7, k8, k9
+    )
+    u1, u2, u3 = control(kind, c, q1, q2, q3, qd1, qd2, qd3, 0.0, G2, G3)
+    M33 = k0  # m3
+    tiny = 1e-13 * (abs(M11) + abs(M22) + abs(M33))  # nan if any entry is nan
+    if not (tiny < M11 < _INF):
+        return 0.0, 0.0, 0.0, u1, u2, u3, 1
+    if not (tiny < M22 < _INF):
+        return 0.0, 0.0, 0.0, u1, u2, u3, 2
+    if not (tiny < M33 < _INF):
+        return 0.0, 0.0, 0.0, u1, u2, u3, 3
+    return (u1 - n1) / M11, (u2 - n2 - G2) / M22, (u3 - n3 - G3) / M33, u1, u2, u3, 0
+
+
+#: closed_loop inlined at numba's IR level into its caller: the integrators' hot
+#: stage loops use it (LLVM then hoists the parameter combinations out of the loop
+#: and passes nothing by value); other call sites call closed_loop, compiled once.
+closed_loop_inline = jit(None, inline=True)(closed_loop.py_func)
 
 
 @jit(None, inline=True)
@@ -305,76 +342,65 @@ def bias_batch(q, qd, p, which, out):
     return check
 
 
-@jit(None, inline=True)
-def _inverse_column(r, b, k):
-    """τ of column k of the buffer b from the kernel's terms r; 1 if a value is not finite.
-
-    0·x is 0 for every finite x and nan for ±inf and nan: z is nan exactly when an
-    input or an output of the column is not finite (no branch: vectorizes).
-    """
-    a1, a2, a3 = b[6, k], b[7, k], b[8, k]
-    t1 = r[0] * a1 + r[1] * a2 + r[2] * a3 + r[6] + r[9]
-    t2 = r[1] * a1 + r[3] * a2 + r[4] * a3 + r[7] + r[10]
-    t3 = r[2] * a1 + r[4] * a2 + r[5] * a3 + r[8] + r[11]
-    b[9, k] = t1
-    b[10, k] = t2
-    b[11, k] = t3
-    z = 0.0 * b[0, k] + 0.0 * b[1, k] + 0.0 * b[2, k] + 0.0 * b[3, k]
-    z += 0.0 * b[4, k] + 0.0 * b[5, k] + 0.0 * a1 + 0.0 * a2 + 0.0 * a3
-    z += 0.0 * t1 + 0.0 * t2 + 0.0 * t3
-    return z != z
-
-
 @jit(float64(_rmat, _rmat, _rmat, _rvec, _mat))
 def inverse_batch(q, qd, qdd, p, out):
     """τ = M(q) q̈ + c(q, q̇) + G(q) [N·m, N·m, N] of every row into out (N, 3).
 
-    Blocks of rows are copied to a column-major buffer so that the kernel, with
-    the vectorizable sine and cosine, runs several samples per instruction
-    (blocks holding some |q2| >= SINCOS_LIMIT use libm). The returned check is
-    nan if an input or an output is not finite.
+    Per block of rows, q1 and q2 are scanned, then the generated
+    ``inverse_terms`` runs over the block with the vectorizable sine and cosine
+    (one reduction for both), several samples per instruction (blocks holding
+    some |q2| >= SINCOS_LIMIT, or a non-finite q2, use libm). The returned
+    check is nan if an input or an output is not finite: q1, which τ does not
+    depend on, is tested as it is copied; every other input reaches an
+    output, so a non-finite one makes τ non-finite, and one comparison of
+    τ1 + τ2 + τ3 a sample, OR-ed into a flag, finds it (a false alarm when
+    the sum alone overflows costs only the caller's search).
     """
-    p0, p1, p2, p3, p4 = p[0], p[1], p[2], p[3], p[4]
-    p5, p6, p7, p8, p9 = p[5], p[6], p[7], p[8], p[9]
-    p10, p11, p12, p13, p14 = p[10], p[11], p[12], p[13], p[14]
+    k = inverse_constants(
+        p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7], p[8], p[9], p[10], p[11], p[12],
+        p[13], p[14],
+    )  # fmt: skip
+    k0, k1, k2, k3, k4, k5, k6, k7, k8, k9 = k
     n = q.shape[0]
-    block = 512
-    b = np.empty((12, block))
-    bad = 0
-    for start in range(0, n, block):
-        m = min(block, n - start)
+    bad = False
+    for start in range(0, n, _BLOCK):
+        m = min(_BLOCK, n - start)
+        # The block's rows as flat views, indexed from 0 (so indexed, the loops
+        # below vectorize; as 2-D arrays, or from ``start``, they do not).
+        qf = q[start : start + m].reshape(-1)
+        qdf = qd[start : start + m].reshape(-1)
+        qddf = qdd[start : start + m].reshape(-1)
+        of = out[start : start + m].reshape(-1)
         small = 0
-        for k in range(m):
-            i = start + k
-            b[0, k] = q[i, 0]
-            b[1, k] = q[i, 1]
-            b[2, k] = q[i, 2]
-            b[3, k] = qd[i, 0]
-            b[4, k] = qd[i, 1]
-            b[5, k] = qd[i, 2]
-            b[6, k] = qdd[i, 0]
-            b[7, k] = qdd[i, 1]
-            b[8, k] = qdd[i, 2]
-            small += abs(q[i, 1]) < SINCOS_LIMIT
+        finite1 = 0
+        for j in range(m):
+            small += abs(qf[3 * j + 1]) < SINCOS_LIMIT
+            finite1 += abs(qf[3 * j]) < _INF
+        bad |= finite1 != m
         if small == m:
-            for k in range(m):
-                r = terms_v(
-                    b[0, k], b[1, k], b[2, k], b[3, k], b[4, k], b[5, k],
-                    p0, p1, p2, p3, p4, p5, p6, p7, p8, p9, p10, p11, p12, p13, p14,
+            for j in range(m):
+                i = 3 * j
+                s2, c2 = vsincos(qf[i + 1])
+                t1, t2, t3 = inverse_terms(
+                    c2, s2, qf[i + 2], qdf[i], qdf[i + 1], qdf[i + 2], qddf[i], qddf[i + 1],
+                    qddf[i + 2], k0, k1, k2, k3, k4, k5, k6, k7, k8, k9,
                 )  # fmt: skip
-                bad += _inverse_column(r, b, k)
+                of[i] = t1
+                of[i + 1] = t2
+                of[i + 2] = t3
+                bad |= not (abs(t1 + t2 + t3) < _INF)
         else:
-            for k in range(m):
-                r = terms(
-                    b[0, k], b[1, k], b[2, k], b[3, k], b[4, k], b[5, k],
-                    p0, p1, p2, p3, p4, p5, p6, p7, p8, p9, p10, p11, p12, p13, p14,
+            for j in range(m):
+                i = 3 * j
+                x = qf[i + 1]
+                t1, t2, t3 = inverse_terms(
+                    math.cos(x), math.sin(x), qf[i + 2], qdf[i], qdf[i + 1], qdf[i + 2],
+                    qddf[i], qddf[i + 1], qddf[i + 2], k0, k1, k2, k3, k4, k5, k6, k7, k8, k9,
                 )  # fmt: skip
-                bad += _inverse_column(r, b, k)
-        for k in range(m):
-            i = start + k
-            out[i, 0] = b[9, k]
-            out[i, 1] = b[10, k]
-            out[i, 2] = b[11, k]
+                of[i] = t1
+                of[i + 1] = t2
+                of[i + 2] = t3
+                bad |= not (abs(t1 + t2 + t3) < _INF)
     return math.nan if bad else 0.0
 
 

@@ -26,7 +26,14 @@ import numpy as np
 from numba import float64, int64, types
 
 from rrt_pin.compiled import _dop853_coefficients as dop
-from rrt_pin.compiled._jit_dynamics import as_tuple_c, as_tuple_p, closed_loop, effort, jit
+from rrt_pin.compiled._jit_dynamics import (
+    as_tuple_c,
+    as_tuple_p,
+    closed_loop,
+    closed_loop_inline,
+    effort,
+    jit,
+)
 from rrt_pin.compiled.codes import (
     FIXED_STEP_FROM,
     METHOD_DOP853,
@@ -113,6 +120,19 @@ def rhs(y, p, c, kind, out):
     ``p`` and ``c`` are tuples (see ``closed_loop``).
     """
     a1, a2, a3, _, _, _, bad = closed_loop(kind, c, p, y[0], y[1], y[2], y[3], y[4], y[5])
+    out[0] = y[3]
+    out[1] = y[4]
+    out[2] = y[5]
+    out[3] = a1
+    out[4] = a2
+    out[5] = a3
+    return bad
+
+
+@jit(None, inline=True)
+def rhs_inline(y, p, c, kind, out):
+    """``rhs`` with the dynamics inlined: for the adaptive methods' stage loops."""
+    a1, a2, a3, _, _, _, bad = closed_loop_inline(kind, c, p, y[0], y[1], y[2], y[3], y[4], y[5])
     out[0] = y[3]
     out[1] = y[4]
     out[2] = y[5]
@@ -271,7 +291,7 @@ def adaptive(method, y0, t_eval, atol, rtol, max_step, max_steps, p_arr, kind, c
             for s in range(1, n_stages + 1):
                 target = y_new if s == n_stages else ytmp
                 combine(y, K, A, s, h, target)
-                bad = rhs(target, p, c, kind, K[s])
+                bad = rhs_inline(target, p, c, kind, K[s])
                 if bad != 0:
                     return (
                         STATUS_SINGULAR_MASS, bad - 1, n_evals + s, n_steps, n_rejected, i_out,

@@ -110,12 +110,15 @@ def _refuse_nonfinite(
 
 
 def _refuse_overflow(check: float, out: np.ndarray) -> None:
-    """Raise if a result is not finite although every input is (values out of range)."""
+    """Raise if an effort is not finite although every input is (values out of range)."""
     if not np.isfinite(check):
-        rows = np.flatnonzero(~np.isfinite(out).all(axis=1))
-        if rows.size:
+        bad = np.argwhere(~np.isfinite(out))
+        if bad.size:
+            i, k = (int(x) for x in bad[0])
             raise InputError(
-                f"the result of sample {int(rows[0])} is not finite: the inputs are out of range"
+                f"the efforts overflow: {('T01x', 'T12y', 'F23z')[k]} = {float(out[i, k])!r} at "
+                f"sample {i} (positions, velocities, accelerations or parameters beyond any "
+                "sensible range)"
             )
 
 
@@ -169,8 +172,11 @@ def gravity(q: Any, params: Params) -> np.ndarray:
 def inverse_dynamics(q: Any, qd: Any, qdd: Any, params: Params) -> np.ndarray:
     """τ = M(q)·q̈ + c(q, q̇) + G(q), shape (N, 3) (or (3,)) [N·m, N·m, N] (RNEA).
 
+    The compiled loop flags non-finite inputs and efforts as it runs; the numpy
+    passes that name them run only when it does.
+
     Raises:
-        InputError: bad shapes or non-finite values.
+        InputError: bad shapes, non-finite values, or efforts that overflow.
     """
     (q, qd, qdd), one = _states(("q", q), ("qd", qd), ("qdd", qdd))
     p = param_array(params)

@@ -4,6 +4,11 @@ The kernel's ``terms`` is straight-line Python made by common-subexpression
 elimination (``sympy.cse``) of the mass matrix, the velocity terms and the
 gravity terms of Kane's equations, using only ``sin``, ``cos`` (from numpy)
 and arithmetic: it runs on floats, on numpy arrays and under ``numba.njit``.
+Its ``inverse_terms`` (τ) and ``forward_terms`` (the diagonal of M, c and G) are
+printed from hand-factored plans (``SHARED_LINES``, ``INVERSE_LINES``,
+``FORWARD_LINES``) that :func:`check_inverse_plan` proves equal to Kane's
+equations before every write; ``INVERSE_FLOPS``/``FORWARD_FLOPS`` count their
+operations.
 
 Usage::
 
@@ -25,7 +30,19 @@ from rrt_pin.symbolic.eom import equations_of_motion
 from rrt_pin.symbolic.simplify import readable
 from rrt_pin.symbolic.symbols import PARAM_NAMES
 
-__all__ = ["KERNEL_PATH", "OUTPUT_NAMES", "kernel_expressions", "kernel_source", "main"]
+__all__ = [
+    "INVERSE_CONSTANTS",
+    "FORWARD_LINES",
+    "INVERSE_LINES",
+    "SHARED_LINES",
+    "KERNEL_PATH",
+    "OUTPUT_NAMES",
+    "check_inverse_plan",
+    "kernel_expressions",
+    "kernel_source",
+    "main",
+    "flop_count",
+]
 
 #: Where the generated kernel lives.
 KERNEL_PATH = Path(__file__).resolve().parents[1] / "kernel.py"
@@ -55,6 +72,214 @@ def kernel_expressions() -> tuple[tuple[sp.Symbol, ...], tuple[sp.Expr, ...]]:
         *(sp.factor(e.xreplace(rename)) for e in eom.gravity),
     ]
     return args, tuple(exprs)
+
+
+# The inverse dynamics τ = M(q)·q̈ + c(q, q̇) + G(q), factored by hand and PROVED equal
+# to Kane's equations by check_inverse_plan() every time the kernel is generated: the
+# structural zeros M12 = M13 = M23 = G1 = 0 are never multiplied, q3 enters only
+# through r = L2 + q3 (the distance B→C3 [m]), and the products that several joints
+# share are computed once. Per call, parameter-only combinations (INVERSE_CONSTANTS);
+# per sample, cos q2 (c2) and sin q2 (s2) are inputs, so a caller computes them
+# vectorized (numpy, or Cephes' polynomials under numba) and only once.
+#: (name, Python expression in the parameters), evaluated once per call.
+INVERSE_CONSTANTS = (
+    ("kM11", "I1x + I2z + I3z + L1**2*(m1 + 4*(m2 + m3))"),
+    ("kP", "I2x - I2z + I3x - I3z + m2*L2**2"),
+    ("kM22", "I2y + I3y + m2*L2**2"),
+    ("kS", "m2*L2"),
+    ("L1x2", "2*L1"),
+    ("m3L1x2", "2*L1*m3"),
+    ("gm3", "g*m3"),
+)
+#: (name, Python expression): the first lines of ``inverse_terms`` and ``forward_terms``.
+SHARED_LINES = (
+    ("r", "L2 + q3"),  # B→C3 [m]
+    ("mr", "m3*r"),
+    ("mrr", "mr*r"),
+    ("S", "kS + mr"),  # first moment of links 2 and 3 about B along k2 [kg·m]
+    ("u", "L1x2*S"),
+    ("H", "c2*(kP + mrr) + u"),
+    ("x19", "s2*H"),
+    ("x15", "c2*(m3L1x2 + c2*mr)"),
+    ("w1", "qd1*qd1"),
+)
+#: (name, Python expression), the lines of ``inverse_terms`` after SHARED_LINES.
+INVERSE_LINES = (
+    ("tau1", "(kM11 + c2*(H + u))*qdd1 + 2*qd1*(qd3*x15 - qd2*x19)"),
+    ("tau2", "(kM22 + mrr)*qdd2 + w1*x19 + (2*qd2*qd3*mr + g*c2*S)"),
+    ("tau3", "m3*qdd3 - (qd2*qd2*mr + w1*x15) + gm3*s2"),
+)
+#: (name, Python expression), the lines of ``forward_terms`` after SHARED_LINES: the
+#: diagonal of M (M12 = M13 = M23 = 0, M33 = m3, proved), c and the non-zero G.
+FORWARD_LINES = (
+    ("M11", "kM11 + c2*(H + u)"),
+    ("M22", "kM22 + mrr"),
+    ("n1", "2*qd1*(qd3*x15 - qd2*x19)"),
+    ("n2", "w1*x19 + 2*qd2*qd3*mr"),
+    ("n3", "-(qd2*qd2*mr + w1*x15)"),
+    ("G2", "g*c2*S"),
+    ("G3", "gm3*s2"),
+)
+_INVERSE_INPUTS = ("c2", "s2", "q3", "qd1", "qd2", "qd3", "qdd1", "qdd2", "qdd3")
+
+
+def flop_count(source: str) -> int:
+    """Floating-point operations of one Python expression: +, −, ·, /, and x**2 as one product."""
+    import ast
+
+    count = 0
+    for node in ast.walk(ast.parse(source, mode="eval")):
+        if isinstance(node, ast.BinOp):
+            if isinstance(node.op, ast.Pow):
+                if not (isinstance(node.right, ast.Constant) and node.right.value == 2):
+                    raise ValueError(f"only squares are counted, not {ast.unparse(node)}")
+            count += 1
+        elif isinstance(node, ast.UnaryOp) and isinstance(node.op, ast.USub):
+            count += 1
+    return count
+
+
+def check_inverse_plan() -> None:
+    """Prove the plans of ``inverse_terms`` and ``forward_terms`` equal to Kane's equations.
+
+    τ_i = Σ_j M_ij q̈_j + c_i + G_i with M, c, G of :func:`kernel_expressions`;
+    forward_terms' M11, M22, c and G2, G3 those of Kane, and M12 = M13 = M23 =
+    G1 = 0, M33 = m3. Each difference, a polynomial in c2 = cos q2 and
+    s2 = sin q2, must vanish modulo c2² + s2² − 1.
+
+    Raises:
+        AssertionError: a line of the plan is wrong.
+    """
+    args, exprs = kernel_expressions()
+    by_name = {str(a): a for a in args}
+    c2, s2 = sp.symbols("c2 s2", real=True)
+    qdd = sp.symbols("qdd1 qdd2 qdd3", real=True)
+    scope: dict[str, sp.Expr] = {**by_name, "c2": c2, "s2": s2}
+    scope.update({str(a): a for a in qdd})
+    for name, source in (*INVERSE_CONSTANTS, *SHARED_LINES, *INVERSE_LINES, *FORWARD_LINES):
+        scope[name] = sp.sympify(source, locals=scope)
+    M11, M12, M13, M22, M23, M33, cv1, cv2, cv3, G1, G2, G3 = exprs
+    M = sp.Matrix([[M11, M12, M13], [M12, M22, M23], [M13, M23, M33]])
+    tau = M * sp.Matrix(qdd) + sp.Matrix([cv1, cv2, cv3]) + sp.Matrix([G1, G2, G3])
+    q2 = by_name["q2"]
+    claims = {f"tau{i + 1}": tau[i] for i in range(3)}
+    # forward_terms: the structural zeros it leaves out, then its outputs.
+    claims.update({"0 (M12)": M12, "0 (M13)": M13, "0 (M23)": M23, "0 (G1)": G1})
+    claims.update({"M11": M11, "M22": M22, "m3": M33, "G2": G2, "G3": G3})
+    claims.update({"n1": cv1, "n2": cv2, "n3": cv3})
+    for name, kane in claims.items():
+        mine = scope[name] if name in scope else sp.Integer(0)
+        difference = sp.expand(mine - kane.subs({sp.cos(q2): c2, sp.sin(q2): s2}))
+        remainder = sp.rem(sp.Poly(difference, s2), sp.Poly(s2**2 + c2**2 - 1, s2))
+        assert sp.expand(remainder.as_expr()) == 0, f"{name} of the plan differs: {remainder}"
+
+
+def _inverse_source() -> str:
+    check_inverse_plan()
+    params = ", ".join(PARAM_NAMES)
+    consts = "\n".join(f"    {n} = {src}" for n, src in INVERSE_CONSTANTS)
+    names = ", ".join(n for n, _ in INVERSE_CONSTANTS)
+    lines = "\n".join(f"    {n} = {src}" for n, src in (*SHARED_LINES, *INVERSE_LINES))
+    flops = sum(flop_count(src) for _, src in (*SHARED_LINES, *INVERSE_LINES))
+    fwd_lines = "\n".join(f"    {n} = {src}" for n, src in (*SHARED_LINES, *FORWARD_LINES))
+    fwd_flops = sum(flop_count(src) for _, src in (*SHARED_LINES, *FORWARD_LINES))
+    trailing = ("m3", "L2", "g", *(n for n, _ in INVERSE_CONSTANTS))
+    signature = ", ".join((*_INVERSE_INPUTS, *trailing))
+    fwd_signature = ", ".join((*_INVERSE_INPUTS[:6], *trailing))
+    fwd_names = ", ".join(n for n, _ in FORWARD_LINES)
+    return (
+        "\n\n#: Floating-point operations of ``inverse_terms`` per sample (sin and cos excluded).\n"
+        f"INVERSE_FLOPS = {flops}\n"
+        "#: Floating-point operations of ``forward_terms`` per sample (sin and cos excluded).\n"
+        f"FORWARD_FLOPS = {fwd_flops}\n\n\n"
+        f"def inverse_constants({params}):\n"
+        f"{_CONSTANTS_DOC}"
+        "    # fmt: off\n" + consts + "\n    # fmt: on\n"
+        f"    return (m3, L2, g, {names})\n\n\n"
+        f"def inverse_terms(\n    {signature}\n):\n"
+        f"{_INVERSE_DOC}"
+        "    # fmt: off\n" + lines + "\n    # fmt: on\n"
+        "    return (tau1, tau2, tau3)\n\n\n"
+        f"def forward_terms({fwd_signature}):\n"
+        f"{_FORWARD_DOC}"
+        "    # fmt: off\n" + fwd_lines + "\n    # fmt: on\n"
+        f"    return ({fwd_names})\n"
+    )
+
+
+_FORWARD_DOC = '''    """The non-zero terms of M(q)·q̈ + c(q, q̇) + G(q) = τ, for the forward dynamics.
+
+    M is diagonal (M12 = M13 = M23 = 0 and M33 = m3, proved when generated) and
+    G1 = 0, so q̈ = ((τ1 − n1) / M11, (τ2 − n2 − G2) / M22, (τ3 − n3 − G3) / m3).
+    ``FORWARD_FLOPS`` operations a sample, sine and cosine excluded.
+
+    Args:
+        c2: cos q2 [1].
+        s2: sin q2 [1].
+        q3: slider position C2→C3 [m].
+        qd1: q̇1 [rad/s].
+        qd2: q̇2 [rad/s].
+        qd3: q̇3 [m/s].
+        m3: mass of link 3 [kg].
+        L2: distance B→C2 [m].
+        g: gravitational acceleration [m/s²].
+        kM11: see :func:`inverse_terms` (the trailing arguments are the same).
+        kP: see :func:`inverse_terms`.
+        kM22: see :func:`inverse_terms`.
+        kS: see :func:`inverse_terms`.
+        L1x2: see :func:`inverse_terms`.
+        m3L1x2: see :func:`inverse_terms`.
+        gm3: see :func:`inverse_terms`.
+
+    Returns:
+        (M11 [kg·m²], M22 [kg·m²], c1 [N·m], c2 [N·m], c3 [N], G2 [N·m], G3 [N]).
+    """
+'''
+
+
+_CONSTANTS_DOC = '''    """The per-call constants of :func:`inverse_terms`: combinations of the parameters.
+
+    Takes the parameters in ``PARAM_ORDER`` (SI units), as ``terms`` does.
+
+    Returns:
+        (m3 [kg], L2 [m], g [m/s²], kM11 [kg·m²], kP [kg·m²], kM22 [kg·m²],
+        kS [kg·m], L1x2 [m], m3L1x2 [kg·m], gm3 [N]), the trailing arguments of
+        :func:`inverse_terms` in order.
+    """
+'''
+
+_INVERSE_DOC = '''    """τ = M(q)·q̈ + c(q, q̇) + G(q) from cos q2 and sin q2, at one sample or many.
+
+    The hand-factored form of ``rrt_pin.symbolic.codegen.INVERSE_LINES``, proved
+    equal to Kane's equations when generated: no product by a structural zero of
+    M or G, products shared by the joints computed once, ``INVERSE_FLOPS``
+    operations a sample.
+
+    Args:
+        c2: cos q2 [1].
+        s2: sin q2 [1].
+        q3: slider position C2→C3 [m].
+        qd1: q̇1 [rad/s].
+        qd2: q̇2 [rad/s].
+        qd3: q̇3 [m/s].
+        qdd1: q̈1 [rad/s²].
+        qdd2: q̈2 [rad/s²].
+        qdd3: q̈3 [m/s²].
+        m3: mass of link 3 [kg].
+        L2: distance B→C2 [m].
+        g: gravitational acceleration [m/s²].
+        kM11: I1x + I2z + I3z + L1²·(m1 + 4·(m2 + m3)) [kg·m²].
+        kP: I2x − I2z + I3x − I3z + m2·L2² [kg·m²].
+        kM22: I2y + I3y + m2·L2² [kg·m²].
+        kS: m2·L2 [kg·m].
+        L1x2: 2·L1 = LB [m].
+        m3L1x2: 2·L1·m3 [kg·m].
+        gm3: g·m3 [N].
+
+    Returns:
+        (T01x [N·m], T12y [N·m], F23z [N]).
+    """
+'''
 
 
 class _Printer(PythonCodePrinter):
@@ -128,7 +353,10 @@ when this file drifts from the derivation. It imports numpy only (no sympy).
 
 ``terms`` is straight-line code (common subexpressions eliminated) using only
 ``sin``, ``cos`` and arithmetic, so it runs on floats, on numpy arrays
-(vectorized over samples) and unchanged under ``numba.njit``. The wrappers
+(vectorized over samples) and unchanged under ``numba.njit``. ``inverse_terms``
+is the inverse dynamics alone, hand-factored in the generator and proved equal
+to Kane's equations there: no product by a structural zero, shared products
+computed once, cos q2 and sin q2 taken as inputs. The wrappers
 below take arrays of states of shape (N, 3) (or one state of shape (3,)) and
 a :class:`rrt_pin.params.Params`. Units: q [rad, rad, m], q̇ [rad/s, rad/s, m/s],
 q̈ [rad/s², rad/s², m/s²], τ = (T01x [N·m], T12y [N·m], F23z [N]).
@@ -150,7 +378,12 @@ __all__ = [
     "PARAM_ORDER",
     "forward_dynamics",
     "gravity",
+    "FORWARD_FLOPS",
+    "INVERSE_FLOPS",
+    "forward_terms",
+    "inverse_constants",
     "inverse_dynamics",
+    "inverse_terms",
     "mass_matrix",
     "nonlinear_effects",
     "param_vector",
@@ -216,18 +449,16 @@ def gravity(q: np.ndarray, params: Params) -> np.ndarray:
 
 
 def inverse_dynamics(q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, params: Params) -> np.ndarray:
-    """τ = M(q)·q̈ + c(q, q̇) + G(q), shape (N, 3) (or (3,)) [N·m, N·m, N]."""
+    """τ = M(q)·q̈ + c(q, q̇) + G(q), shape (N, 3) (or (3,)) [N·m, N·m, N] (``inverse_terms``)."""
     q, qd, qdd = _states("q", q), _states("qd", qd), _states("qdd", qdd)
-    M11, M12, M13, M22, M23, M33, c1, c2, c3, G1, G2, G3 = _terms(q, qd, params)
-    a1, a2, a3 = qdd[..., 0], qdd[..., 1], qdd[..., 2]
-    return _stack(
-        np.broadcast_shapes(q.shape, qd.shape, qdd.shape)[:-1],
-        (
-            M11 * a1 + M12 * a2 + M13 * a3 + c1 + G1,
-            M12 * a1 + M22 * a2 + M23 * a3 + c2 + G2,
-            M13 * a1 + M23 * a2 + M33 * a3 + c3 + G3,
-        ),
-    )
+    shape = np.broadcast_shapes(q.shape, qd.shape, qdd.shape)[:-1]
+    q2 = q[..., 1]
+    with np.errstate(over="ignore", invalid="ignore"):  # callers check the result's finiteness
+        tau = inverse_terms(
+            np.cos(q2), np.sin(q2), q[..., 2], qd[..., 0], qd[..., 1], qd[..., 2],
+            qdd[..., 0], qdd[..., 1], qdd[..., 2], *inverse_constants(*param_vector(params)),
+        )  # fmt: skip
+    return _stack(shape, tau)
 
 
 def forward_dynamics(q: np.ndarray, qd: np.ndarray, tau: np.ndarray, params: Params) -> np.ndarray:
@@ -262,7 +493,7 @@ def forward_dynamics(q: np.ndarray, qd: np.ndarray, tau: np.ndarray, params: Par
 def kernel_source() -> str:
     """The full text of ``rrt_pin/kernel.py`` (deterministic)."""
     order = "(\n" + "".join(f'    "{n}",\n' for n in PARAM_NAMES) + ")"
-    return _HEADER.replace("{param_order}", order) + _body() + _WRAPPERS
+    return _HEADER.replace("{param_order}", order) + _body() + _inverse_source() + _WRAPPERS
 
 
 def main(argv: list[str] | None = None) -> int:
