@@ -49,17 +49,21 @@ class UrdfError(RrtPinError, ValueError):
 
 
 class DivergenceError(RrtPinError, ArithmeticError):
-    """A simulation produced a non-finite state or its step size underflowed.
+    """A simulation produced a non-finite state, or its integrator stopped.
+
+    The message says "diverged" for a non-finite state and "stopped" for an
+    integrator that gave up (step size underflow, work budget spent, tolerances
+    float64 cannot meet).
 
     Attributes:
         t: the time at which it happened [s].
         coordinate: the name of the offending coordinate (e.g. ``q2`` or ``qd3``).
     """
 
-    def __init__(self, t: float, coordinate: str, problem: str) -> None:
+    def __init__(self, t: float, coordinate: str, problem: str, verb: str = "diverged") -> None:
         self.t = t
         self.coordinate = coordinate
-        super().__init__(f"simulation diverged at t={t:.9g} s in {coordinate}: {problem}")
+        super().__init__(f"simulation {verb} at t={t:.9g} s in {coordinate}: {problem}")
 
 
 class ViewerError(RrtPinError, RuntimeError):

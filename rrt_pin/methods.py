@@ -26,6 +26,7 @@ __all__ = [
     "DEFAULT_ATOL",
     "DEFAULT_RTOL",
     "METHODS",
+    "RTOL_FLOOR",
     "Method",
     "get",
     "names",
@@ -53,6 +54,10 @@ DEFAULT_ATOL = 1e-12
 ODEPACK_RTOL = 1e-12
 #: ``odepack``'s default absolute tolerance [rad, m, rad/s, m/s].
 ODEPACK_ATOL = 1e-14
+#: The smallest relative tolerance float64 lets an adaptive method honour: 100 machine
+#: epsilons (scipy's solve_ivp clips below it; ODEPACK refuses to start below ~1e-14;
+#: the compiled integrators share scipy's error control).
+RTOL_FLOOR = 100 * 2.220446049250313e-16
 
 
 @dataclass(frozen=True)
@@ -73,6 +78,8 @@ class Method:
         atol: default absolute tolerance [rad, m, rad/s, m/s] (adaptive methods), else None.
         order: order of a fixed-step method (its error shrinks as stepᵒʳᵈᵉʳ; the
             error estimate halves the step and applies Richardson's formula), else None.
+        min_rtol: the smallest relative tolerance it can honour (adaptive methods,
+            :data:`RTOL_FLOOR` unless given), else None. A tighter one is refused.
     """
 
     name: str
@@ -87,11 +94,14 @@ class Method:
     rtol: float | None = None
     atol: float | None = None
     order: int | None = None
+    min_rtol: float | None = None
 
     def __post_init__(self) -> None:
         if self.adaptive and self.rtol is None:
             object.__setattr__(self, "rtol", DEFAULT_RTOL)
             object.__setattr__(self, "atol", DEFAULT_ATOL)
+        if self.adaptive and self.min_rtol is None:
+            object.__setattr__(self, "min_rtol", RTOL_FLOOR)
 
     def runs_on(self, backend: str, batch: bool = False) -> bool:
         """Whether ``backend`` runs this method (in a batch when ``batch``)."""

@@ -538,4 +538,55 @@ CASES = (
         ("simulate", "--csv", "-", "--json", "-"),
         "--csv and --json name the same file '-'",
     ),
+    # tolerances an integrator cannot honour, and runs that cannot go on
+    Case(
+        "rtol below the integrator's floor",
+        ("simulate", "--rtol", "1e-15", "--csv", OUT),
+        "rtol=1e-15 is below odepack's floor of 2.22e-14",
+    ),
+    Case(
+        "rtol and atol of 1e-300",
+        ("simulate", "--method", "DOP853", "--rtol", "1e-300", "--atol", "1e-300", "--csv", OUT),
+        "rtol=1e-300 is below DOP853's floor of 2.22e-14",
+    ),
+    Case(
+        "derivatives too large to take a first step",
+        ("simulate", "--tf", "2", "--set", "gamma01=1e300", "--csv", OUT),
+        "the first step would be shorter than float64 can resolve",
+    ),
+    Case(
+        "an explicit method on a stiff scene",
+        (
+            "simulate",
+            "--method",
+            "RK45",
+            "--tf",
+            "2",
+            "--set",
+            "gamma23=1e12",
+            "--set",
+            "beta23=1e9",
+            "--no-error-estimate",
+            "--csv",
+            OUT,
+        ),
+        "RK45 gave up after 120,000 evaluations",
+    ),  # fmt: skip
+    Case(
+        "a fixed step too long for a stiff scene (compiled)",
+        (
+            "simulate",
+            "-q",
+            "--backend",
+            "compiled",
+            "--method",
+            "rk4",
+            "--set",
+            "gamma23=1e9",
+            "--no-error-estimate",
+            "--csv",
+            OUT,
+        ),
+        "the step 0.01 s is too long for this scene",
+    ),  # fmt: skip
 )

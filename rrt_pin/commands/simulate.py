@@ -116,7 +116,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=None,
         metavar="X",
         help="relative tolerance of the adaptive methods (default "
-        f"{methods.DEFAULT_RTOL:g}; odepack {methods.ODEPACK_RTOL:g})",
+        f"{methods.DEFAULT_RTOL:g}; odepack {methods.ODEPACK_RTOL:g}); given alone it sets "
+        "--atol to rtol/100 too (the defaults' ratio), so that it tightens the whole run; "
+        f"below {methods.RTOL_FLOOR:.3g} (100 float64 epsilons) it is refused",
     )
     parser.add_argument(
         "--atol",

@@ -38,7 +38,6 @@ from __future__ import annotations
 import functools
 import math
 import time
-import warnings
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
@@ -67,8 +66,8 @@ __all__ = [
 DEFAULT_METHOD = "DOP853"
 #: Step budget of one run (accepted plus rejected steps); machine code cannot be interrupted.
 MAX_STEPS = 10_000_000
-#: SciPy's floor on the relative tolerance (100 machine epsilons).
-RTOL_FLOOR = 100 * np.finfo(float).eps
+#: SciPy's floor on the relative tolerance (100 machine epsilons): tighter is refused.
+RTOL_FLOOR = methods.RTOL_FLOOR
 _NAMES = ("q1", "q2", "q3", "qd1", "qd2", "qd3")
 _EFFORTS = ("T01x", "T12y", "F23z")
 
@@ -92,14 +91,7 @@ def _options(
     from rrt_pin.simulate.options import resolve
 
     options = resolve(t, backend="compiled", method=method, rtol=rtol, atol=atol, step=step)
-    rtol = options.rtol
-    if rtol is not None and rtol < RTOL_FLOOR:
-        warnings.warn(
-            f"rtol={rtol!r} is below 100 machine epsilons; using {RTOL_FLOOR!r} (as SciPy)",
-            stacklevel=4,
-        )
-        rtol = float(RTOL_FLOOR)
-    return options.method.name, rtol, options.atol, options.step
+    return options.method.name, options.rtol, options.atol, options.step
 
 
 @functools.lru_cache(maxsize=16)
@@ -174,24 +166,32 @@ def _raise_status(
     name = _NAMES[coordinate] if 0 <= coordinate < 6 else "q1"
     if variant is not None:
         name = f"{name} (variant {variant})"
+    stiff = (
+        f"{method} is explicit, so a stiff scene (large gains or damping against small "
+        "masses) forces steps too short for it; use --backend pinocchio with --method "
+        "odepack, Radau or BDF (implicit)"
+    )
+    if step is not None:
+        stiff = (
+            f"the step {step:g} s is too long for this scene: a fixed explicit step must "
+            "resolve its fastest mode (large gains or damping against small masses); use a "
+            "shorter --step, or --backend pinocchio with --method odepack, Radau or BDF"
+        )
+    verb = "stopped"
     if status == codes.STATUS_NONFINITE:
         problem = "the state or its derivative became non-finite"
+        verb = "diverged"
     elif status == codes.STATUS_STEP_UNDERFLOW:
-        problem = (
-            f"the integrator {method} failed: step size underflow (below 10 ulp of t); "
-            "the dynamics diverge or are too stiff for an explicit method"
-        )
+        problem = f"the step size fell below 10 ulp of t in {method}: {stiff}"
     elif status == codes.STATUS_SINGULAR_MASS:
         name = f"q{coordinate + 1}" + (f" (variant {variant})" if variant is not None else "")
         problem = (
-            "the mass matrix is singular or ill-conditioned (an LDLᵀ pivot <= 1e-13·trace): "
-            "the state left any sensible range, or the parameters are degenerate"
+            f"the state grew beyond any sensible range (the mass matrix lost its "
+            f"significant digits in {name}): the motion blew up numerically; {stiff}"
         )
+        verb = "diverged"
     elif status == codes.STATUS_MAX_STEPS:
-        problem = (
-            f"the integrator {method} took max_steps={max_steps} steps without finishing; "
-            "the step size is limited by this coordinate"
-        )
+        problem = f"{method} spent its budget of {max_steps:,} steps (this coordinate limits the step): {stiff}"
     elif status == codes.STATUS_NO_CONVERGENCE:
         problem = (
             "the implicit half kick of 'verlet' did not converge in 50 iterations; "
@@ -199,7 +199,7 @@ def _raise_status(
         )
     else:  # pragma: no cover - a status the loop does not produce
         problem = f"the compiled integrator returned status {status}"
-    raise DivergenceError(float(t_fail), name, problem)
+    raise DivergenceError(float(t_fail), name, problem, verb=verb)
 
 
 def _check_efforts(t: np.ndarray, tau: np.ndarray) -> None:

@@ -51,10 +51,16 @@ def resolve(
 ) -> Options:
     """Check and complete a run's options: the backend's default method, the method's tolerances.
 
+    ``rtol`` alone tightens the whole run: ``atol`` then keeps the method's default
+    ratio to it (``atol = rtol · default atol / default rtol``, i.e. rtol/100 [rad, m,
+    rad/s, m/s]), so that it does not stay at its default and dominate once the
+    motion settles.
+
     Raises:
         InputError: an unknown backend or method, a method the backend does not
-            run (in a batch), or a tolerance or step that is not a finite
-            number in range (a tolerance must lie in (0, 1)).
+            run (in a batch), a tolerance or step that is not a finite number in
+            range (a tolerance must lie in (0, 1)), or an rtol below the method's
+            floor (:attr:`~rrt_pin.methods.Method.min_rtol`, named).
     """
     b = backends.get(backend, "simulate")
     m = methods.get(method if method is not None else b.default_method, b.name, batch=batch)
@@ -63,8 +69,15 @@ def resolve(
     a = validate.tolerance("atol", atol, "rad, m, rad/s, m/s") if atol is not None else None
     s = validate.real("step", step, "s", positive=True) if step is not None else None
     if m.adaptive:
-        return Options(b.name, m, r if r is not None else m.rtol, a if a is not None else m.atol,
-                       None, jacobian)  # fmt: skip
+        if r is not None and m.min_rtol is not None and r < m.min_rtol:
+            raise InputError(
+                f"rtol={r!r} is below {m.name}'s floor of {m.min_rtol:.3g} (100 float64 "
+                "epsilons: no tighter relative error can be honoured); use rtol >= "
+                f"{m.min_rtol:.3g} (its default is {m.rtol:g})"
+            )
+        if a is None:
+            a = m.atol if r is None else r * (m.atol / m.rtol)
+        return Options(b.name, m, r if r is not None else m.rtol, a, None, jacobian)
     if s is None:
         s = float(np.diff(t).min())
     if s <= 0.0:  # pragma: no cover - validate.times refuses such grids

@@ -16,10 +16,12 @@ from rrt_pin.simulate.results import BatchResult, SimulationResult
 from rrt_pin.simulate.scipy_runs import (
     Counted,
     diagnose,
+    eval_budget,
     first_order,
     lsoda_batch,
     run_odeint,
     run_solve_ivp,
+    too_much_work,
 )
 
 if TYPE_CHECKING:
@@ -96,11 +98,13 @@ def run_one(
             Y, info, ok = run_odeint(f, y0, t, rtol, atol, lean=loop.odeint_rhs())
             message, n_evals = str(info["message"]), int(info["nfe"][-1])
         else:
-            counted = Counted(f)
+            counted = Counted(f, eval_budget(float(t[-1] - t[0])))
             Y, message, ok, njev = run_solve_ivp(counted, y0, t, method.name, rtol, atol, jac)
             n_evals, n_jac = counted.calls, njev
+            if counted.too_much_work():  # said at once: not run again
+                raise too_much_work(method.name, counted, float(t[-1] - t[0]), names, rtol, atol)
         if not ok:
-            raise diagnose(method.name, f, y0, t, rtol, atol, names, message, jac=jac)
+            raise diagnose(method.name, f, y0, t, rtol, atol, names, message, jac=jac, states=Y)
         Q, V = Y[:, :n], Y[:, n:]
     tau = controller.efforts_many(t, Q, V)
     _check_efforts(t, tau, robot.effort_names)
@@ -175,11 +179,20 @@ def run_batch(
                 f, y0, t, rtol, atol, width - 1, label, on_rows if efforts else None
             )
         else:
-            counted = Counted(f)
+            counted = Counted(f, eval_budget(float(t[-1] - t[0])))
             Y, message, ok, _ = run_solve_ivp(counted, y0, t, method.name, rtol, atol, None)
             n_evals = counted.calls
+            if counted.too_much_work():
+
+                def label(index: int) -> str:
+                    return f"{names[index % width]} (variant {index // width})"
+
+                span = float(t[-1] - t[0])
+                raise too_much_work(method.name, counted, span, names, rtol, atol, label)
             if not ok:
-                raise diagnose(method.name, f, y0, t, rtol, atol, names, message, width=width)
+                raise diagnose(
+                    method.name, f, y0, t, rtol, atol, names, message, width=width, states=Y
+                )
             if efforts:
                 for i in range(0, t.size, _ROW_BLOCK):  # blocks of rows that stay cached
                     on_rows(Y, slice(i, i + _ROW_BLOCK))

@@ -16,12 +16,32 @@ from rrt_pin import methods
 from rrt_pin.errors import DivergenceError
 from rrt_pin.integrators import blame
 
-__all__ = ["Counted", "diagnose", "first_order", "lsoda_batch", "run_odeint", "run_solve_ivp"]
+__all__ = [
+    "Counted",
+    "diagnose",
+    "eval_budget",
+    "first_order",
+    "lsoda_batch",
+    "run_odeint",
+    "run_solve_ivp",
+    "too_much_work",
+]
 
 #: Internal steps odeint may take between two output times.
 ODEINT_MXSTEP = 50_000
-#: Right-hand-side evaluations a solve_ivp method may spend before it is stopped.
+#: Right-hand-side evaluations a solve_ivp method may spend: EVALS_BASE plus
+#: EVALS_PER_SECOND per simulated second, at most MAX_EVALS. A non-stiff run of the
+#: catalogue needs under 1,000 a simulated second; an explicit method on a stiff
+#: scene would need millions (minutes), so it is stopped early and told to use an
+#: implicit method.
+EVALS_BASE = 100_000
+EVALS_PER_SECOND = 10_000
 MAX_EVALS = 2_000_000
+
+
+def eval_budget(span: float) -> int:
+    """The evaluations a run over ``span`` [s] of simulated time may spend."""
+    return int(min(MAX_EVALS, EVALS_BASE + EVALS_PER_SECOND * abs(span)))
 
 
 class _TooMuchWork(Exception):
@@ -41,15 +61,18 @@ class _Watch:
     state or derivative.
     """
 
-    def __init__(self, f: Callable[[float, np.ndarray], np.ndarray]) -> None:
+    def __init__(
+        self, f: Callable[[float, np.ndarray], np.ndarray], budget: int = MAX_EVALS
+    ) -> None:
         self.f = f
         self.calls = 0
+        self.budget = budget
         self.last: tuple[float, np.ndarray, np.ndarray] | None = None
 
     def __call__(self, t: float, y: np.ndarray) -> np.ndarray:
         """f(t, y), counted."""
         self.calls += 1
-        if self.calls > MAX_EVALS:
+        if self.calls > self.budget:
             raise _TooMuchWork(t)
         size = np.abs(np.nan_to_num(y))
         if not np.isfinite(y).all():
@@ -66,7 +89,8 @@ def _fastest(watch: _Watch, rtol: float, atol: float) -> int:
     if watch.last is None:
         return 0
     _, y, dy = watch.last
-    return int(np.argmax(np.abs(dy) / (atol + rtol * np.abs(y))))
+    with np.errstate(all="ignore"):  # overflowing ratios still rank
+        return int(np.nanargmax(np.nan_to_num(np.abs(dy) / (atol + rtol * np.abs(y)), nan=0.0)))
 
 
 def first_order(acc: Callable[[float, np.ndarray, np.ndarray], np.ndarray], n: int):
@@ -121,9 +145,67 @@ def run_solve_ivp(
             # e.g. an implicit method's LU of a non-finite Jacobian
             return np.empty((0, y0.size)), f"{type(e).__name__}: {e}", False, 0
         except _TooMuchWork:
-            return np.empty((0, y0.size)), f"more than {MAX_EVALS} evaluations", False, 0
+            return np.empty((0, y0.size)), "evaluation budget spent", False, 0
     ok = sol.status == 0 and sol.y.shape[1] == t.size and bool(np.isfinite(sol.y).all())
     return sol.y.T, sol.message, ok, int(sol.njev)
+
+
+#: What LSODA's failures mean for a user, by the words of its status message.
+_LSODA_CAUSES = {
+    "Excess work done": "more than {mxstep:,} internal steps between two output times: the "
+    "scene is stiff or the tolerances too tight for it (try looser --rtol, or --method "
+    "Radau or BDF)",
+    "Excess accuracy requested": "the tolerances are tighter than float64 can meet there "
+    "(loosen --rtol/--atol)",
+    "Illegal input": "the first step would be shorter than float64 can resolve: the "
+    "derivatives at the start are too large (|d{where}/dt| = {size:.2g}) or the tolerances "
+    "too tight",
+    "Repeated error test failures": "the step size collapsed: the motion is not smooth there "
+    "(a discontinuous controller?) or the tolerances are too tight",
+    "Repeated convergence failures": "the step size collapsed: the corrector does not "
+    "converge (a discontinuous or very stiff right-hand side)",
+    "Error weight became zero": "a coordinate reached exactly zero with --atol 0: give --atol > 0",
+}
+
+
+def _cause(
+    method: str, message: str, watch: _Watch, rtol: float, atol: float, names: Sequence[str]
+) -> str:
+    """A user's reading of an integrator's failure message (the message itself last)."""
+    index = _fastest(watch, rtol, atol)
+    size = float(np.abs(watch.last[2][index])) if watch.last is not None else float("nan")
+    for words, cause in _LSODA_CAUSES.items():
+        if words in message:
+            where = names[index % len(names)]
+            what = cause.format(mxstep=ODEINT_MXSTEP, size=size, where=where)
+            return f"{what} [{method}: {message.rstrip('.')}]"
+    return f"the integrator {method} stopped: {message}"
+
+
+def too_much_work(
+    method: str,
+    counted: Counted,
+    span: float,
+    names: Sequence[str],
+    rtol: float,
+    atol: float,
+    label: Callable[[int], str] | None = None,
+) -> DivergenceError:
+    """The error of a run stopped after its evaluation budget (without running it again)."""
+    t_stop = float(counted.last[0]) if counted.last is not None else float("nan")
+    watch = _Watch(counted.f)
+    watch.last = counted.last
+    index = _fastest(watch, rtol, atol)
+    where = label(index) if label is not None else names[index]
+    implicit = "odepack, Radau or BDF" if not methods.get(method).implicit else "odepack"
+    return DivergenceError(
+        t_stop, where,
+        f"{method} gave up after {counted.budget:,} evaluations ({EVALS_PER_SECOND:,} per "
+        f"simulated second of {span:g} s, plus {EVALS_BASE:,}), fastest-changing "
+        f"coordinate {where}: the scene is stiff for an explicit method; use --method "
+        f"{implicit} (implicit), or looser tolerances",
+        verb="stopped",
+    )  # fmt: skip
 
 
 def diagnose(
@@ -138,44 +220,80 @@ def diagnose(
     band: int | None = None,
     jac: Callable[[float, np.ndarray], np.ndarray] | None = None,
     width: int | None = None,
+    states: np.ndarray | None = None,
 ) -> DivergenceError:
-    """Rerun a failed integration with checks, to say when and where it failed."""
-    watch = _Watch(f)
+    """Rerun a failed integration with checks, to say when, where and why it failed.
+
+    ``states`` (the failed run's output, if any) names the first non-finite
+    output when the checked rerun itself goes through.
+    """
+    watch = _Watch(f, eval_budget(float(t[-1] - t[0])))
 
     def label(index: int) -> str:
         if width is None:
             return names[index]
         return f"{names[index % width]} (variant {index // width})"
 
-    try:
-        if method == "odepack":
-            _, info, _ = run_odeint(watch, y0, t, rtol, atol, band)
-            message = str(info["message"])
-            imxer = int(info.get("imxer", -1))
-            index = imxer - 1 if imxer > 0 else _fastest(watch, rtol, atol)
-        else:
-            _, message, _, _ = run_solve_ivp(watch, y0, t, method, rtol, atol, jac)
-            index = _fastest(watch, rtol, atol)
-    except _NonFinite as e:
-        return DivergenceError(e.t, label(e.index), "the state or its derivative became non-finite")
-    except _TooMuchWork:
-        index, message = _fastest(watch, rtol, atol), f"more than {MAX_EVALS} evaluations"
+    with warnings.catch_warnings(), np.errstate(all="ignore"):
+        warnings.simplefilter("ignore", RuntimeWarning)
+        try:
+            if method == "odepack":
+                _, info, ok = run_odeint(watch, y0, t, rtol, atol, band)
+                message = str(info["message"])
+                imxer = int(info.get("imxer", -1))
+                index = imxer - 1 if imxer > 0 and not ok else _fastest(watch, rtol, atol)
+            else:
+                _, message, ok, _ = run_solve_ivp(watch, y0, t, method, rtol, atol, jac)
+                index = _fastest(watch, rtol, atol)
+        except _NonFinite as e:
+            return DivergenceError(
+                e.t, label(e.index), "the state or its derivative became non-finite"
+            )
+        except _TooMuchWork:
+            counted = Counted(f, watch.budget)
+            counted.calls, counted.last = watch.calls, watch.last
+            return too_much_work(method, counted, float(t[-1] - t[0]), names, rtol, atol, label)
+    if ok and states is not None:  # the checked rerun went through: the first run's output
+        bad = np.argwhere(~np.isfinite(states))
+        if bad.size:
+            row, col = (int(x) for x in bad[0])
+            return DivergenceError(
+                float(t[row]), label(col), "the interpolated output became non-finite"
+            )
     t_fail = watch.last[0] if watch.last is not None else float(t[0])
-    return DivergenceError(t_fail, label(index), f"the integrator {method} stopped: {message}")
+    if ok:  # pragma: no cover - a failure that does not repeat
+        return DivergenceError(
+            t_fail, label(index), f"{method} failed once and not when rerun", verb="stopped"
+        )
+    cause = _cause(method, message, watch, rtol, atol, names)
+    return DivergenceError(t_fail, label(index), cause, verb="stopped")
 
 
 class Counted:
-    """Counts the calls of f(t, y) and stops the run after MAX_EVALS of them."""
+    """Counts the calls of f(t, y) and stops the run after ``budget`` of them.
 
-    def __init__(self, f: Callable[[float, np.ndarray], np.ndarray]) -> None:
-        self.f, self.calls = f, 0
+    Keeps the last (t, y, f) (references, no copies), so that a run stopped for
+    too much work is reported without running it again.
+    """
+
+    def __init__(
+        self, f: Callable[[float, np.ndarray], np.ndarray], budget: int = MAX_EVALS
+    ) -> None:
+        self.f, self.calls, self.budget = f, 0, budget
+        self.last: tuple[float, np.ndarray, np.ndarray] | None = None
 
     def __call__(self, t: float, y: np.ndarray) -> np.ndarray:
         """f(t, y), counted."""
         self.calls += 1
-        if self.calls > MAX_EVALS:
+        if self.calls > self.budget:
             raise _TooMuchWork(t)
-        return self.f(t, y)
+        dy = self.f(t, y)
+        self.last = (t, y, dy)
+        return dy
+
+    def too_much_work(self) -> bool:
+        """Whether the run was stopped for spending its whole budget."""
+        return self.calls > self.budget
 
 
 #: Columns per matrix product of the batch interpolation: small products stay on one
@@ -222,11 +340,16 @@ def lsoda_batch(
         if bad.size:
             raise DivergenceError(solver.t, label(int(bad[0])), "the state became non-finite")
         if solver.status == "failed":
-            raise DivergenceError(
-                solver.t,
-                label(int(np.argmax(np.abs(solver.y) / (atol + rtol * np.abs(solver.y))))),
-                f"the integrator odepack stopped: {message}",
-            )
+            explained = next((c for w, c in _LSODA_CAUSES.items() if w in str(message)), None)
+            with np.errstate(all="ignore"):
+                index = int(np.argmax(np.abs(solver.y) / (atol + rtol * np.abs(solver.y))))
+            if explained:
+                size = float(np.abs(solver.y[index]))
+                what = explained.format(mxstep=ODEINT_MXSTEP, size=size, where=label(index))
+                problem = f"{what} [odepack: {str(message).rstrip('.')}]"
+            else:
+                problem = f"odepack stopped: {message}"
+            raise DivergenceError(solver.t, label(index), problem, verb="stopped")
         j = int(np.searchsorted(t, solver.t, side="right"))
         if j > k:
             dense = solver.dense_output()
