@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from rrt_pin import text
 from rrt_pin.errors import InputError
 
 if TYPE_CHECKING:
@@ -67,7 +68,7 @@ def csv_columns(robot: Robot, header: list[str], path: str = "CSV") -> list[str]
             return cols
     missing = next(c for c in names if c not in header)
     raise InputError(
-        f"CSV {path!r} lacks column {missing!r}; it needs t and {','.join(names)}; "
+        f"CSV {path!r} lacks column {missing!r}; it needs t and {text.names(names, sep=',')}; "
         f"it has {','.join(header)}"
     )
 

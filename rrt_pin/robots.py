@@ -13,6 +13,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from rrt_pin import text
 from rrt_pin.errors import InputError
 from rrt_pin.robot import CHAPTER_COLUMNS, Joint, Robot, RobotDefaults
 
@@ -165,7 +166,7 @@ def _per_joint(name: str, value: Any, robot: Robot, gain: bool) -> list[float]:
         value = value * n
     if len(value) != n:
         extra = " (or one for all)" if gain else ""
-        names = ", ".join(robot.q_names)
+        names = text.names(robot.q_names)
         raise InputError(
             f"--{name} has {len(value)} values but the arm has {n} joints ({names}){extra}"
         )
@@ -224,6 +225,6 @@ def for_task(
     if missing:
         flags = ", ".join(missing[:-1]) + " and " + missing[-1] if len(missing) > 1 else missing[0]
         raise InputError(
-            f"{flag} needs {flags} ({robot.nv} values each: {', '.join(robot.q_names)})"
+            f"{flag} needs {flags} ({robot.nv} values each: {text.names(robot.q_names)})"
         )
     return robot

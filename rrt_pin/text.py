@@ -1,10 +1,11 @@
-"""How numbers read in messages and summaries: durations in sensible units."""
+"""How numbers and lists read in messages and summaries: durations, long name lists."""
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
-__all__ = ["duration"]
+__all__ = ["duration", "names"]
 
 
 def _number(x: float) -> str:
@@ -28,3 +29,11 @@ def duration(seconds: float) -> str:
     if s < 172800:
         return f"{_number(seconds / 3600)} h"
     return f"{_number(seconds / 86400)} d"
+
+
+def names(items: Sequence[str], limit: int = 8, sep: str = ", ") -> str:
+    """``items`` joined, or its first ``limit`` and how many there are: "a, b, … (3,000 names)"."""
+    items = [str(x) for x in items]
+    if len(items) <= limit:
+        return sep.join(items)
+    return f"{sep.join(items[:limit])}{sep}… ({len(items):,} names)"

@@ -61,6 +61,7 @@ def make_files(tmp: Path) -> None:
     (tmp / "entity.urdf").write_text(good.replace("<robot ", _LAUGHS + "<robot ", 1))
     (tmp / "triangle.urdf").write_text(good.replace('izz="1.0"', 'izz="10.0"'))
     (tmp / "chain10000.urdf").write_text(chain_urdf(10_000))
+    (tmp / "chain300.urdf").write_text(chain_urdf(300))
     (tmp / "latin1.urdf").write_bytes(
         good.replace("RRT arm", "RRT arm (caf\xe9)").encode("latin-1")
     )
@@ -589,4 +590,14 @@ CASES = (
         ),
         "the step 0.01 s is too long for this scene",
     ),  # fmt: skip
+    Case(
+        "keyframes beyond counting",
+        ("view", "--set", "Tp=1e300", "--serve-for", "0"),
+        "would be 3e+301 keyframes; at most 100,000",
+    ),
+    Case(
+        "a long joint list in a message",
+        ("inverse", "--urdf", "{tmp}/chain300.urdf", "--csv", OUT),
+        "(300 names))",
+    ),
 )

@@ -27,3 +27,13 @@ def test_no_exponent_for_any_run_length():
     for exponent in range(-9, 9):
         for mantissa in (1.0, 2.5, 9.99):
             assert "e" not in duration(mantissa * 10.0**exponent)
+
+
+def test_long_name_lists_are_cut_with_their_count():
+    from rrt_pin.text import names
+
+    assert names(["a", "b"]) == "a, b"
+    assert (
+        names([f"q{i}" for i in range(3000)]) == "q0, q1, q2, q3, q4, q5, q6, q7, … (3,000 names)"
+    )
+    assert names(list("abcd"), limit=2, sep=",") == "a,b,… (4 names)"

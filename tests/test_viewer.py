@@ -71,7 +71,7 @@ def test_keyframe_times_keep_both_ends(duration, fps, expected):
         (math.nan, 30.0, "duration=nan"),
         (1.0, 0.0, "fps=0.0"),
         (1.0, math.inf, "fps=inf"),
-        (15.0, 1e6, "15000001 keyframes; at most 100000"),
+        (15.0, 1e6, "15,000,001 keyframes; at most 100,000"),
     ],
 )
 def test_keyframe_times_refuse_bad_values(duration, fps, words):

@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from rrt_pin import text
 from rrt_pin.errors import DivergenceError, RrtPinError, SceneError
 from rrt_pin.sweeps.spec import Spec, spec_from_dict
 
@@ -60,7 +61,7 @@ def _arm_base(spec: Spec) -> tuple[Any, dict[str, float]]:
     names = [f.name for f in fields(Params)]
     for name in spec.base:
         if name not in names:
-            raise SceneError(f"[base] {name}: unknown parameter; valid: {', '.join(names)}")
+            raise SceneError(f"[base] {name}: unknown parameter; valid: {text.names(names, 20)}")
     try:
         params = Params(**spec.base)
     except RrtPinError as e:
@@ -106,7 +107,7 @@ def _plan(digest: str, source_json: str) -> Plan:
         backend = "pinocchio"
     for axis in spec.axes:
         if axis.name not in names:
-            raise SceneError(f"[vary] {axis.name}: unknown name; valid: {', '.join(names)}")
+            raise SceneError(f"[vary] {axis.name}: unknown name; valid: {text.names(names, 20)}")
     needed = ("q0", "qf", "kp", "kd") if spec.task == "simulate" else ("q0", "qf")
     varied = {a.name for a in spec.axes}
     missing = [

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
+from rrt_pin import text
 from rrt_pin.errors import InputError
 
 __all__ = ["plot_metric"]
@@ -46,7 +47,7 @@ def plot_metric(out: str | Path, metric: str, path: str | Path | None = None) ->
     table = store.read()
     if metric not in table.column_names:
         names = [n for n in table.column_names if n != "variant"]
-        raise InputError(f"--plot {metric!r} is not a column; valid: {', '.join(names)}")
+        raise InputError(f"--plot {metric!r} is not a column; valid: {text.names(names, 20)}")
     units = json.loads((table.schema.metadata or {}).get(b"rrt_pin.units", b"{}"))
     varied = list(manifest["spec"].get("vary", {}))
     if not varied:

@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from rrt_pin import text
 from rrt_pin.errors import InputError
 
 if TYPE_CHECKING:
@@ -58,6 +59,11 @@ class Keyframes:
         return float(self.t[-1])
 
 
+def _count(n: float) -> str:
+    """A count as a person reads it: "1,501", or "3e+301" when it is astronomical."""
+    return f"{math.ceil(n):,}" if n < 1e15 else f"{n:.3g}"
+
+
 def _check_fps(fps: float) -> float:
     if isinstance(fps, bool) or not isinstance(fps, (int, float)) or not math.isfinite(fps):
         raise InputError(f"fps={fps!r} must be a finite number [1/s]")
@@ -84,8 +90,8 @@ def keyframe_times(duration: float, fps: float) -> np.ndarray:
     steps = duration * fps
     if steps + 1 > MAX_KEYFRAMES:
         raise InputError(
-            f"{duration:g} s at fps={fps:g} would be {math.ceil(steps) + 1} keyframes; "
-            f"at most {MAX_KEYFRAMES}: lower --fps"
+            f"{duration:g} s at fps={fps:g} would be {_count(steps + 1)} keyframes; "
+            f"at most {MAX_KEYFRAMES:,}: lower --fps or shorten the motion"
         )
     n = round(steps)
     if abs(steps - n) <= 1e-9 * max(1.0, steps):
@@ -189,7 +195,7 @@ def keyframes(
     names = [f.name for f in model.frames]
     missing = [f for f in frames if f not in names]
     if missing:
-        raise InputError(f"no frame {missing[0]!r} in the model; frames: {', '.join(names)}")
+        raise InputError(f"no frame {missing[0]!r} in the model; frames: {text.names(names)}")
     ids = [model.getFrameId(f) for f in frames]
     fps = _check_fps(fps)
     q = np.array(q, dtype=float)
