@@ -8,6 +8,7 @@ direct dynamics, and max relative effort error for the inverse dynamics.
 
 from __future__ import annotations
 
+import contextlib
 import statistics
 import sys
 import time
@@ -228,16 +229,21 @@ def inverse_backends(
     return rows
 
 
-def write_rows(path: str | Path, rows: Iterable[BenchRow]) -> Path:
-    """Write rows as CSV (``backend,method,setting,time_s,n_evals,max_error``) atomically."""
-    from rrt_pin.io import atomic_write_text
-
+def rows_csv(rows: Iterable[BenchRow]) -> str:
+    """Rows as CSV text (``backend,method,setting,time_s,n_evals,max_error``)."""
     lines = [",".join(BenchRow.header())]
     for r in rows:
         lines.append(
             f"{r.backend},{r.method},{r.setting},{r.time_s:.6g},{r.n_evals},{r.max_error:.6g}"
         )
-    return atomic_write_text(path, "\n".join(lines) + "\n")
+    return "\n".join(lines) + "\n"
+
+
+def write_rows(path: str | Path, rows: Iterable[BenchRow]) -> Path:
+    """Write rows as CSV (:func:`rows_csv`) atomically."""
+    from rrt_pin.io import atomic_write_text
+
+    return atomic_write_text(path, rows_csv(rows))
 
 
 #: Tolerances of the adaptive methods (atol = rtol / 100) and steps of the fixed-step ones.
@@ -442,13 +448,20 @@ def energy_drift(
 def plot_work_precision(
     path: str | Path, rows: Sequence[BenchRow], defaults: Sequence[BenchRow] = ()
 ) -> Path:
-    """Log-log plot of max |q error| [rad, m] against median time [s], Pareto front drawn."""
+    """Write :func:`work_precision_png` to ``path`` atomically."""
+    from rrt_pin.io import atomic_write_bytes
+
+    return atomic_write_bytes(path, work_precision_png(rows, defaults))
+
+
+def work_precision_png(rows: Sequence[BenchRow], defaults: Sequence[BenchRow] = ()) -> bytes:
+    """Log-log plot of max |q error| [rad, m] against median time [s], Pareto front drawn (PNG)."""
+    import io
+
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-
-    from rrt_pin.io import atomic_write
 
     ok = [r for r in rows if np.isfinite(r.time_s) and np.isfinite(r.max_error) and r.max_error > 0]
     fig, ax = plt.subplots(figsize=(12, 6.5))
@@ -505,9 +518,17 @@ def plot_work_precision(
     ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     fig.tight_layout()
     try:
-        return atomic_write(path, lambda fh: fig.savefig(fh, format="png", dpi=110))
+        buffer = io.BytesIO()
+        fig.savefig(buffer, format="png", dpi=110)
+        return buffer.getvalue()
     finally:
         plt.close(fig)
+
+
+def _remove_empty(folder: Path) -> None:
+    """Remove ``folder`` (which this run created) when nothing was written into it."""
+    with contextlib.suppress(OSError):
+        folder.rmdir()
 
 
 @dataclass(frozen=True)
@@ -542,10 +563,28 @@ def run_bench(
     """Run every benchmark and write its CSV files and plot into ``out``.
 
     Writes ``work_precision.csv``, ``work_precision.png``, ``inverse.csv`` and
-    ``energy_drift.csv``; ``out`` is created if missing.
+    ``energy_drift.csv``, all four or none (one transaction of :mod:`rrt_pin.io`);
+    ``out`` is created if missing, and checked before any benchmark runs.
+
+    Raises:
+        OutputError: ``out`` cannot be created or written (read-only, a file, a
+            name too long), or the disk fills up while writing; nothing is left.
     """
+    from rrt_pin.io import OutputError, check_outputs, write_outputs
+
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    names = ("work_precision.csv", "work_precision.png", "inverse.csv", "energy_drift.csv")
+    created = not out.exists()
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise OutputError(f"cannot create --out folder {str(out)!r}: {e.strerror or e}") from None
+    try:
+        check_outputs([(out / name, "--out") for name in names])
+    except OutputError:
+        if created:
+            _remove_empty(out)
+        raise
     progress = progress if progress is not None else Progress(0, enabled=False)
     repeats = 1 if quick else 5
     direct, defaults, disagreement = direct_work_precision(
@@ -558,12 +597,25 @@ def run_bench(
         repeats=3 if quick else 7, reference_stride=10 if quick else 1, progress=progress
     )
     energy = energy_drift(tf=30.0 if quick else 100.0, quick=quick, progress=progress)
-    files = (
-        write_rows(out / "work_precision.csv", every),
-        plot_work_precision(out / "work_precision.png", direct, defaults),
-        write_rows(out / "inverse.csv", inverse),
-        write_rows(out / "energy_drift.csv", energy),
+    contents = (
+        rows_csv(every).encode(),
+        work_precision_png(direct, defaults),
+        rows_csv(inverse).encode(),
+        rows_csv(energy).encode(),
     )
+    try:
+        files = tuple(
+            write_outputs(
+                [
+                    (out / name, "--out", lambda fh, data=data: fh.write(data))
+                    for name, data in zip(names, contents, strict=True)
+                ]
+            )  # fmt: skip
+        )
+    except OutputError:
+        if created:
+            _remove_empty(out)
+        raise
     return BenchReport(
         tuple(direct),
         tuple(defaults),

@@ -94,3 +94,49 @@ def test_bench_quick_end_to_end(tmp_path, capsys):
     assert len(rows) >= 5 * 2
     for name in ("work_precision.png", "inverse.csv", "energy_drift.csv"):
         assert (tmp_path / name).stat().st_size > 0
+
+
+def _fake_measurements(monkeypatch):
+    """run_bench with its measurements replaced by three rows (the outputs are what is tested)."""
+    from rrt_pin import bench
+
+    row = BenchRow("pinocchio", "odepack", "rtol=1e-09", 0.002, 500, 6e-11)
+    monkeypatch.setattr(bench, "direct_work_precision", lambda **k: ([row], [row], 0.0))
+    monkeypatch.setattr(bench, "inverse_backends", lambda **k: [row])
+    monkeypatch.setattr(bench, "energy_drift", lambda **k: [row])
+
+
+def test_bench_out_on_a_read_only_disk_is_refused_before_any_work(tiny_fs, monkeypatch, capsys):
+    import subprocess
+
+    from rrt_pin import bench
+    from rrt_pin.cli import main
+
+    if subprocess.run(["mount", "-o", "remount,ro", str(tiny_fs)], capture_output=True).returncode:
+        pytest.skip("cannot remount read-only")
+    ran = []
+    monkeypatch.setattr(bench, "direct_work_precision", lambda **k: ran.append(1))
+    for out in (tiny_fs / "b", tiny_fs):
+        assert main(["bench", "--quick", "--out", str(out)]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and "read-only file system" in err.lower(), err
+    assert ran == [] and list(tiny_fs.iterdir()) == []
+
+
+def test_bench_out_on_a_full_disk_leaves_nothing(tiny_fs, monkeypatch, capsys):
+    from rrt_pin import bench
+    from rrt_pin.cli import main
+
+    _fake_measurements(monkeypatch)
+    (tiny_fs / "filler").write_bytes(b"x" * (64 * 1024 - 8192))  # leave too little for a PNG
+    assert main(["bench", "--quick", "--out", str(tiny_fs / "b")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "no space left" in err.lower(), err
+    assert sorted(p.name for p in tiny_fs.iterdir()) == ["filler"]  # no folder, no partial file
+    # With room, all four files are written together.
+    (tiny_fs / "filler").unlink()
+    report = bench.run_bench(tiny_fs / "b", quick=True)
+    assert sorted(p.name for p in (tiny_fs / "b").iterdir()) == sorted(
+        ["work_precision.csv", "work_precision.png", "inverse.csv", "energy_drift.csv"]
+    )
+    assert len(report.files) == 4

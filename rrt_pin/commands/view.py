@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import os
 import signal
 import sys
 import threading
@@ -21,7 +20,7 @@ from rrt_pin.commands._common import (
     positive_float,
     robot_from_args,
 )
-from rrt_pin.errors import InputError, UrdfError
+from rrt_pin.errors import UrdfError
 
 if TYPE_CHECKING:
     from rrt_pin.robot import Robot
@@ -210,21 +209,12 @@ def _termination_as_interrupt() -> Iterator[None]:
             signal.signal(s, h)
 
 
-def _check_output(path: str) -> None:
-    directory = os.path.dirname(os.path.abspath(path))
-    if not os.path.isdir(directory):
-        raise InputError(f"--screenshot {path!r}: folder {directory!r} does not exist")
-    if not os.access(directory, os.W_OK):
-        raise InputError(f"--screenshot {path!r}: folder {directory!r} is not writable")
-    if os.path.isdir(path):
-        raise InputError(f"--screenshot {path!r} is a folder")
-
-
 def run(args: argparse.Namespace) -> int:
     """Build the scene, serve it, screenshot it."""
     if args.screenshot:
-        _check_output(args.screenshot)
-    if args.screenshot:
+        from rrt_pin.io import check_outputs
+
+        check_outputs([(args.screenshot, "--screenshot")])  # the one rule for output paths
         from rrt_pin.viewer.browser import find_chromium
 
         if find_chromium() is None:
