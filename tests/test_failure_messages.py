@@ -120,3 +120,21 @@ def test_a_non_finite_output_of_a_successful_rerun_is_named():
     assert error.t == t[3] and error.coordinate == "qd1"
     assert "interpolated output became non-finite" in str(error)
     assert "successful" not in str(error)
+
+
+def test_ctrl_c_exits_130_and_leaves_no_output(tmp_path):
+    import signal
+    import time
+
+    out = tmp_path / "long.csv"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "rrt_pin", "simulate", "--method", "rk4", "--step", "1e-6",
+         "--tf", "100", "--no-error-estimate", "--csv", str(out)],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    time.sleep(2.0)  # well into the integration (it would take minutes)
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130, err
+    assert err.strip().splitlines()[-1] == "rrt-pin: interrupted" and "Traceback" not in err
+    assert list(tmp_path.iterdir()) == []
