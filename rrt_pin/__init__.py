@@ -51,6 +51,7 @@ _LAZY = {
     "equations_of_motion": "rrt_pin.symbolic",
     "sweep": "rrt_pin.sweeps.run",
     "load_spec": "rrt_pin.sweeps.spec",
+    "show": "rrt_pin.viewer.show",
 }
 #: Subpackages and modules reachable as attributes (``rrt_pin.simulate`` is callable).
 _MODULES = ("simulate", "robots", "methods", "backends", "control", "compiled")

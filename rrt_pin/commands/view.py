@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import signal
 import sys
 import threading
@@ -11,6 +12,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import TYPE_CHECKING, Any
 
+from rrt_pin._logging import note
 from rrt_pin.commands._common import (
     add_robot_arguments,
     add_scene_arguments,
@@ -20,10 +22,9 @@ from rrt_pin.commands._common import (
     positive_float,
     robot_from_args,
 )
-from rrt_pin.errors import UrdfError
 
 if TYPE_CHECKING:
-    from rrt_pin.robot import Robot
+    pass
 
 __all__ = ["HELP", "add_arguments", "run"]
 
@@ -146,6 +147,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--paused", action="store_true", help="load the animation paused at t = 0")
     parser.add_argument("--no-ghost", action="store_true", help="do not draw the target pose")
+    parser.add_argument(
+        "--zmq-url",
+        type=nonempty,
+        metavar="URL",
+        help="send the animation to a meshcat server you already run (meshcat-server, "
+        "Pinocchio's MeshcatVisualizer), e.g. tcp://127.0.0.1:6000, instead of serving it; "
+        "prints that server's page URL",
+    )
     add_robot_arguments(parser, "view")
     add_scene_arguments(parser)
 
@@ -153,36 +162,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 # ---------------------------------------------------------------------------
 # Building the data
 # ---------------------------------------------------------------------------
-def _geometry(robot: Robot) -> Any:
-    """The visual geometry; for a URDF whose meshes cannot be found, the rest of it."""
-    from rrt_pin.model import build_geometry
-
-    xml = robot.xml()
-    if robot.source is None:
-        return build_geometry(robot.model, xml)
-    path = robot.source.resolve()
-    dirs = [str(p) for p in [path.parent, *path.parents]]
-    try:
-        return build_geometry(robot.model, xml, package_dirs=dirs)
-    except UrdfError as e:
-        problem = str(e).removeprefix("URDF geometry does not load: ").rstrip(".")
-        print(f"rrt-pin: warning: {problem}; drawing the URDF without its meshes", file=sys.stderr)
-        return build_geometry(robot.model, _without_meshes(xml))
-
-
-def _without_meshes(xml: str) -> str:
-    """The URDF text without its <visual> and <collision> elements that use meshes."""
-    import xml.etree.ElementTree as ET
-
-    root = ET.fromstring(xml)
-    for link in root.iter("link"):
-        for tag in ("visual", "collision"):
-            for el in list(link.findall(tag)):
-                if el.find("geometry/mesh") is not None:
-                    link.remove(el)
-    return ET.tostring(root, encoding="unicode")
-
-
 # ---------------------------------------------------------------------------
 # Serving
 # ---------------------------------------------------------------------------
@@ -228,19 +207,29 @@ def run(args: argparse.Namespace) -> int:
 
     robot = robot_from_args(args, params_from_args(args), "view")
     frames = motion_keyframes(robot, args.trajectory, args.fps, args.tf)
-    t, q, ghost = frames.t, frames.q, frames.ghost
-    model = robot.model
-    geometry = _geometry(robot)
 
-    from rrt_pin.viewer.meshcat_scene import scene_commands
-    from rrt_pin.viewer.scene import build_scene
     from rrt_pin.viewer.server import DEFAULT_PORT, ViewerServer
+    from rrt_pin.viewer.show import prepare, send_to_meshcat_server
 
-    scene = build_scene(model, geometry, t, q, args.fps, ghost_q=ghost)
-    commands = scene_commands(scene, play=not args.paused, loop=args.loop, ghost=not args.no_ghost)
+    what = {"inverse": robot.motion, "simulate": f"under {robot.regulator}"}.get(
+        args.trajectory, f"playing {os.path.basename(args.trajectory)}"
+    )
+    prepared = prepare(
+        robot, frames.t, frames.q, args.fps, ghost_q=frames.ghost,
+        play=not args.paused, loop=args.loop, ghost=not args.no_ghost, what=what,
+    )  # fmt: skip
+    scene = prepared.scene
+    if args.zmq_url:
+        url = send_to_meshcat_server(args.zmq_url, prepared.commands)
+        print(url, flush=True)
+        note(f"sent to the meshcat server at {args.zmq_url}; Controls → Animations plays it")
+        return 0
     start = time.monotonic()
-    with _termination_as_interrupt(), ViewerServer(args.host, args.port) as server:
-        for command in commands:
+    with (
+        _termination_as_interrupt(),
+        ViewerServer(args.host, args.port, page=prepared.page) as server,
+    ):
+        for command in prepared.commands:
             server.send(command)
         if server.moved:
             print(
@@ -269,10 +258,24 @@ def run(args: argparse.Namespace) -> int:
             if args.serve_for is None:
                 return 0
         try:
+            _hints(server)
             _serve(args.serve_for, start)
         except KeyboardInterrupt:
             print("rrt-pin: viewer stopped", file=sys.stderr)
     return 0
+
+
+def _hints(server: Any) -> None:
+    """How to use the page, on stderr (hidden by -q)."""
+    import getpass
+    import socket
+
+    note(f"open {server.url} in a browser; Controls → Animations plays, pauses and scrubs "
+         "the motion; Ctrl-C stops the server")  # fmt: skip
+    if server.host in ("127.0.0.1", "localhost", "::1"):
+        who = f"{getpass.getuser()}@{socket.gethostname()}"
+        note(f"from another machine: ssh -L {server.port}:127.0.0.1:{server.port} {who}, "
+             f"then open http://127.0.0.1:{server.port}/static/ there")  # fmt: skip
 
 
 def _serve(seconds: float | None, start: float) -> None:

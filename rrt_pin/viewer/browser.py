@@ -30,7 +30,14 @@ from typing import Any
 
 from rrt_pin.errors import ViewerError
 
-__all__ = ["CHROMIUM_FLAGS", "Chromium", "find_chromium", "screenshot"]
+__all__ = [
+    "BROWSER_NAMES",
+    "CHROMIUM_FLAGS",
+    "DRIVER_NAMES",
+    "Chromium",
+    "find_chromium",
+    "screenshot",
+]
 
 #: Flags for a headless, offline, throw-away Chromium (plus ``--user-data-dir``).
 CHROMIUM_FLAGS = (
@@ -139,18 +146,27 @@ class ChromiumPaths:
     driver: str
 
 
+#: Executable names of Chromium or Chrome, and of their driver, in order of preference.
+BROWSER_NAMES = ("chromium", "chromium-browser", "google-chrome", "google-chrome-stable", "chrome")
+DRIVER_NAMES = ("chromedriver", "chromium-driver")
+
+
 def find_chromium() -> ChromiumPaths | None:
-    """Chromium and chromedriver, or None when either is missing."""
+    """Chromium (or Chrome) and chromedriver, or None when either is missing.
+
+    Looks at ``RRT_PIN_CHROMIUM`` / ``RRT_PIN_CHROMEDRIVER`` first, then Debian's
+    ``/usr/bin`` paths, then :data:`BROWSER_NAMES` and :data:`DRIVER_NAMES` on PATH.
+    """
     candidates = {
         "browser": [
             os.environ.get("RRT_PIN_CHROMIUM"),
             "/usr/bin/chromium",
-            shutil.which("chromium"),
+            *(shutil.which(name) for name in BROWSER_NAMES),
         ],
         "driver": [
             os.environ.get("RRT_PIN_CHROMEDRIVER"),
             "/usr/bin/chromedriver",
-            shutil.which("chromedriver"),
+            *(shutil.which(name) for name in DRIVER_NAMES),
         ],
     }
     found = {}

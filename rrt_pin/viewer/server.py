@@ -119,9 +119,14 @@ class ViewerServer:
             is free, or the host cannot be bound.
     """
 
-    def __init__(self, host: str = "127.0.0.1", port: int | None = None) -> None:
+    def __init__(
+        self, host: str = "127.0.0.1", port: int | None = None, page: str | None = None
+    ) -> None:
         import_meshcat()
         self.host = host
+        #: The page served at ``/static/`` (:func:`rrt_pin.viewer.page.page_html`), or
+        #: None for meshcat's own ``index.html``.
+        self.page = page
         self.requested_port = port
         self._sockets = self._bind_sockets(host, port)
         self.port: int = self._sockets[0].getsockname()[1]
@@ -199,6 +204,14 @@ class ViewerServer:
             def log_exception(self, typ, value, tb) -> None:  # noqa: ANN001
                 logger.debug("viewer: %s %s: %s", self.request.method, self.request.uri, value)
 
+        class Page(Guarded, tornado.web.RequestHandler):
+            """The page: ours (title, legend, time) when set, else meshcat's index.html."""
+
+            async def get(self) -> None:
+                self.set_header("Content-Type", "text/html; charset=UTF-8")
+                self.set_header("Cache-Control", "no-store")
+                self.write(server.page)
+
         class Static(Guarded, StaticFileHandlerNoCache):
             def validate_absolute_path(self, root: str, absolute_path: str) -> str | None:
                 if "\x00" in absolute_path:
@@ -245,6 +258,7 @@ class ViewerServer:
         root = os.path.join(meshcat.viewer_assets_path(), "dist")
         return tornado.web.Application(
             [
+                *([(r"/static/", Page), (r"/static/index.html", Page)] if self.page else []),
                 (
                     r"/static/(.*)",
                     Static,
