@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import logging
 from typing import IO, TYPE_CHECKING
 
 from rrt_pin import backends
@@ -153,6 +154,10 @@ def run(args: argparse.Namespace) -> int:
 
     if not args.csv:
         job.run(None, progress)
+    logging.getLogger("rrt_pin").info(
+        "inverse: backend %s, %s samples of %d columns%s", args.backend, f"{grid.size:,}",
+        len(job.header), f", streamed to {args.csv}" if args.csv else "",
+    )  # fmt: skip
     facts: dict = {}
 
     def summary_json() -> str:

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import logging
 import sys
 from typing import IO, TYPE_CHECKING
 
@@ -211,6 +212,16 @@ def run(args: argparse.Namespace) -> int:
             step=(args.step or args.dt) if fixed else None,
             estimate_error=getattr(args, "error_estimate", True),
         )
+    from rrt_pin.text import duration
+
+    est = result.estimate
+    logging.getLogger("rrt_pin").info(
+        "simulate: backend %s, method %s (%s), %d evaluations in %s%s",
+        result.backend, result.method,
+        f"rtol {result.rtol:g}, atol {result.atol:g}" if result.rtol else f"step {result.step:g} s",
+        result.n_evals, duration(result.wall_time),
+        f"; error estimate: {est.how}, {duration(est.wall_time)}" if est is not None else "",
+    )  # fmt: skip
     if result.estimate is not None and result.estimate.exceeded:
         print(
             f"rrt-pin simulate: warning: {_accuracy_warning(result, result.estimate)}",
