@@ -67,8 +67,8 @@ BACKENDS: dict[str, Backend] = {
             tasks=("inverse", "simulate"),
             default_method="odepack",
             requires="pinocchio",
-            inverse_cost=480e-9,
-            simulate_cost=0.15e-3,
+            inverse_cost=300e-9,
+            simulate_cost=0.21e-3,
         ),
         Backend(
             "symbolic",
@@ -86,9 +86,9 @@ BACKENDS: dict[str, Backend] = {
             default_method="DOP853",
             requires="numba",
             extra="fast",
-            startup=1.0,
-            inverse_cost=31e-9,
-            simulate_cost=0.021e-3,
+            startup=0.8,
+            inverse_cost=14e-9,
+            simulate_cost=0.0086e-3,
         ),
     )
 }

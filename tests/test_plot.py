@@ -144,3 +144,10 @@ def test_stdout_and_pipes_get_png(tmp_path):
     (tmp_path / "plain").write_text("")
     with pytest.raises(InputError, match="no suffix names an image format"):
         plot_format(tmp_path / "plain")  # a regular file still needs its suffix
+
+
+@pytest.mark.parametrize("command", ["inverse", "simulate"])
+def test_unknown_suffix_is_refused_before_any_work(command, tmp_path, capsys):
+    assert main([command, "--plot", str(tmp_path / "x.jpg")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"rrt-pin {command}: error: argument --plot: suffix '.jpg'"), err

@@ -257,7 +257,7 @@ def add_output_arguments(parser: argparse.ArgumentParser, plot_help: str) -> Non
         "or .pq path writes Parquet (pyarrow) with units and the run's metadata, any other "
         "path CSV; - is stdout",
     )
-    parser.add_argument("--plot", type=nonempty, metavar="PATH.png", help=plot_help)
+    parser.add_argument("--plot", type=plot_path, metavar="PATH.png", help=plot_help)
     parser.add_argument(
         "--json",
         type=nonempty,

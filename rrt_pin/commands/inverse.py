@@ -108,9 +108,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="; ".join(
             f"{b.name}: {b.summary}" for b in backends.BACKENDS.values() if b.runs("inverse")
         )
-        + " (loading compiled costs ~1 s per process, more than it saves here; reported on "
-        "stderr); auto: compiled only when its code is already built, else pinocchio "
-        "(default: pinocchio)",
+        + " (loading compiled costs ~1 s per process, reported on stderr); auto: compiled "
+        "only when its code is already built and the job is large enough for it to be at "
+        "least twice as fast, start-up included (about 6 million samples), else pinocchio; "
+        "-v says why (default: pinocchio)",
     )
     add_robot_arguments(parser, "inverse")
     add_scene_arguments(parser)

@@ -150,8 +150,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         )
         + " (loading compiled costs ~1 s per process, compiling it ~15 s once, both reported "
         "on stderr; a run then takes ~0.2 ms instead of ~3 ms); auto: compiled only when its "
-        "code is already built and it runs the method asked for, else pinocchio "
-        "(default: pinocchio)",
+        "code is already built, it runs the method asked for (auto never changes the "
+        "method or tolerances) and the job is long enough for it to be at least twice as "
+        "fast, start-up included, else pinocchio; -v says why (default: pinocchio)",
     )
     add_robot_arguments(parser, "simulate")
     add_scene_arguments(parser)
