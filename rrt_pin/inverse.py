@@ -33,6 +33,51 @@ __all__ = ["batch_arrays", "default_num_threads", "inverse_dynamics"]
 _MIN_SAMPLES_PER_THREAD = 256
 
 
+#: ModelPools kept between calls, by the id of their model (the model is held too, so
+#: its id is not reused); at most _POOL_CACHE of them.
+_POOLS: dict[int, tuple[Any, Any]] = {}
+_POOL_CACHE = 8
+
+
+def _pool(model: Any, threads: int) -> Any:
+    """A ``pin.ModelPool`` of ``model`` with at least ``threads`` copies, reused across calls.
+
+    Reused only while the pool's copy still equals ``model`` (a changed mass, gravity
+    or joint makes a new one).
+    """
+    import pinocchio as pin
+
+    entry = _POOLS.get(id(model))
+    if entry is not None and entry[0] is model:
+        pool = entry[1]
+        if pool.size() >= threads and pool.getModel(0) == model:
+            return pool
+    pool = pin.ModelPool(model, threads)
+    _POOLS.pop(id(model), None)
+    _POOLS[id(model)] = (model, pool)
+    while len(_POOLS) > _POOL_CACHE:
+        _POOLS.pop(next(iter(_POOLS)))
+    return pool
+
+
+def _busy_cpus() -> int:
+    """Tasks of other processes running right now (Linux's /proc), 0 when unknown.
+
+    ``/proc/loadavg`` counts every running task; this process's own (this thread,
+    OpenMP workers still spinning after a parallel call) are taken off.
+    """
+    try:
+        with open("/proc/loadavg", encoding="ascii") as fh:
+            running = int(fh.read().split()[3].split("/")[0])
+        own = 0
+        for task in os.listdir("/proc/self/task"):
+            with open(f"/proc/self/task/{task}/stat", encoding="ascii", errors="replace") as fh:
+                own += fh.read().rsplit(")", 1)[1].split()[0] == "R"
+    except (OSError, ValueError, IndexError):
+        return 0
+    return max(0, running - max(own, 1))
+
+
 def default_num_threads() -> int:
     """The CPUs this process may run on (at least 1), capped by ``OMP_NUM_THREADS`` if set."""
     try:
@@ -199,6 +244,7 @@ def _rnea_batch(
     n = q.shape[0]
     if n == 0:
         return np.empty((0, model.nv))
+    adaptive = num_threads is None
     if num_threads is None:
         num_threads = default_num_threads()
     if isinstance(num_threads, bool) or not isinstance(num_threads, (int, np.integer)):
@@ -206,7 +252,11 @@ def _rnea_batch(
     if num_threads < 1:
         raise InputError(f"num_threads={num_threads!r} must be >= 1")
     threads = int(max(1, min(num_threads, n // _MIN_SAMPLES_PER_THREAD)))
-    pool = pin.ModelPool(model, threads)
+    if adaptive and threads > 1:
+        # A thread on a core another job holds makes the whole (statically split) call
+        # wait for it: use only the CPUs that are free now.
+        threads = max(1, min(threads, default_num_threads() - _busy_cpus()))
+    pool = _pool(model, threads)
     tau = np.empty((model.nv, n), order="F")
     pin.rneaInParallel(
         threads,
