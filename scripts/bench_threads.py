@@ -48,6 +48,17 @@ def _loop(model, m) -> None:
         pin.rnea(model, data, m.q[i], m.qd[i], m.qdd[i])
 
 
+def _sides(robot, m) -> dict:  # noqa: ANN001
+    """The four ways to compute the efforts of motion ``m``, by name."""
+    model = robot.model
+    return {
+        "loop": lambda: _loop(model, m),
+        "1": lambda: inverse_dynamics(robot, m.q, m.qd, m.qdd, num_threads=1),
+        "2": lambda: inverse_dynamics(robot, m.q, m.qd, m.qdd, num_threads=2),
+        "default": lambda: inverse_dynamics(robot, m.q, m.qd, m.qdd),
+    }
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=15)
@@ -61,15 +72,7 @@ def main() -> None:
             time.sleep(1.0)
         try:
             for name, robot, m in _cases():
-                model = robot.model
-                q = robot.configuration(m.q)
-                sides = {
-                    "loop": lambda: _loop(model, m),
-                    "1": lambda: inverse_dynamics(robot, m.q, m.qd, m.qdd, num_threads=1),
-                    "2": lambda: inverse_dynamics(robot, m.q, m.qd, m.qdd, num_threads=2),
-                    "default": lambda: inverse_dynamics(robot, m.q, m.qd, m.qdd),
-                }
-                del q
+                sides = _sides(robot, m)
                 times: dict[str, list[float]] = {k: [] for k in sides}
                 for _ in range(repeat):
                     for k, f in sides.items():
