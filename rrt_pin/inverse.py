@@ -14,12 +14,11 @@ or m/s²; efforts in N·m (revolute) or N (prismatic).
 
 from __future__ import annotations
 
-import os
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from rrt_pin import validate
+from rrt_pin import cpus, validate
 from rrt_pin.errors import InputError
 
 if TYPE_CHECKING:
@@ -60,35 +59,9 @@ def _pool(model: Any, threads: int) -> Any:
     return pool
 
 
-def _busy_cpus() -> int:
-    """Tasks of other processes running right now (Linux's /proc), 0 when unknown.
-
-    ``/proc/loadavg`` counts every running task; this process's own (this thread,
-    OpenMP workers still spinning after a parallel call) are taken off.
-    """
-    try:
-        with open("/proc/loadavg", encoding="ascii") as fh:
-            running = int(fh.read().split()[3].split("/")[0])
-        own = 0
-        for task in os.listdir("/proc/self/task"):
-            with open(f"/proc/self/task/{task}/stat", encoding="ascii", errors="replace") as fh:
-                own += fh.read().rsplit(")", 1)[1].split()[0] == "R"
-    except (OSError, ValueError, IndexError):
-        return 0
-    return max(0, running - max(own, 1))
-
-
 def default_num_threads() -> int:
-    """The CPUs this process may run on (at least 1), capped by ``OMP_NUM_THREADS`` if set."""
-    try:
-        cpus = len(os.sched_getaffinity(0))
-    except AttributeError:  # pragma: no cover - not on Linux
-        cpus = os.cpu_count() or 1
-    try:
-        cap = int(os.environ.get("OMP_NUM_THREADS", "").split(",")[0])
-    except ValueError:
-        cap = cpus
-    return max(1, min(cpus, cap if cap > 0 else cpus))
+    """The CPUs this process may run on (see :func:`rrt_pin.cpus.available`)."""
+    return cpus.available()
 
 
 def batch_arrays(
@@ -255,7 +228,7 @@ def _rnea_batch(
     if adaptive and threads > 1:
         # A thread on a core another job holds makes the whole (statically split) call
         # wait for it: use only the CPUs that are free now.
-        threads = max(1, min(threads, default_num_threads() - _busy_cpus()))
+        threads = min(threads, cpus.threads_for(n, _MIN_SAMPLES_PER_THREAD))
     pool = _pool(model, threads)
     tau = np.empty((model.nv, n), order="F")
     pin.rneaInParallel(

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from rrt_pin import cpus
 from rrt_pin import inverse as inv
 from rrt_pin.inverse import inverse_dynamics
 from rrt_pin.robots import chapter_arm
@@ -44,13 +45,13 @@ def test_the_pool_is_kept_between_calls_and_rebuilt_when_the_model_changes():
 
 
 def test_busy_cpus_reads_other_processes_only(monkeypatch):
-    busy = inv._busy_cpus()
+    busy = cpus.busy()
     assert isinstance(busy, int) and busy >= 0
     # Unknown (no /proc): nothing assumed busy.
     monkeypatch.setattr(
-        inv, "open", lambda *a, **k: (_ for _ in ()).throw(OSError()), raising=False
+        cpus, "open", lambda *a, **k: (_ for _ in ()).throw(OSError()), raising=False
     )
-    assert inv._busy_cpus() == 0
+    assert cpus.busy() == 0
 
 
 def test_default_threads_follow_the_free_cpus(monkeypatch):
@@ -63,10 +64,10 @@ def test_default_threads_follow_the_free_cpus(monkeypatch):
         return real(model, threads)
 
     monkeypatch.setattr(inv, "_pool", spy)
-    monkeypatch.setattr(inv, "default_num_threads", lambda: 2)
-    monkeypatch.setattr(inv, "_busy_cpus", lambda: 0)
+    monkeypatch.setattr(cpus, "available", lambda: 2)
+    monkeypatch.setattr(cpus, "busy", lambda: 0)
     inverse_dynamics(arm, m.q, m.qd, m.qdd)
-    monkeypatch.setattr(inv, "_busy_cpus", lambda: 1)  # another job holds a core
+    monkeypatch.setattr(cpus, "busy", lambda: 1)  # another job holds a core
     inverse_dynamics(arm, m.q, m.qd, m.qdd)
     inverse_dynamics(arm, m.q, m.qd, m.qdd, num_threads=2)  # asked for: kept
     assert used == [2, 1, 2]

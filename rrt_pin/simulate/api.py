@@ -63,9 +63,9 @@ def _as_robot(model: Any, params: Params | None) -> Robot:
 
 def default_threads() -> int:
     """The CPUs this process may run on (at least 1), capped by ``OMP_NUM_THREADS`` if set."""
-    from rrt_pin.inverse import default_num_threads
+    from rrt_pin import cpus
 
-    return default_num_threads()
+    return cpus.available()
 
 
 def _params_for(robot: Robot, params: Any, controllers: Sequence[Any]) -> Params:

@@ -299,9 +299,9 @@ def sweep(
     if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int)
                                 or workers < 1):  # fmt: skip
         raise InputError(f"workers={workers!r} must be an integer >= 1")
-    from rrt_pin.inverse import default_num_threads
+    from rrt_pin import cpus
 
-    n_workers = workers or default_num_threads()
+    n_workers = workers or cpus.available()
     robot = p.robot
     manifest = {
         "spec": spec.source,

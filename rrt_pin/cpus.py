@@ -1,0 +1,63 @@
+"""How many CPUs a run may use, and how many of them other jobs hold right now.
+
+Machines are shared: a statically split parallel call (OpenMP's default
+schedule, one chunk a thread) waits for its slowest thread, and a thread on a
+core another process is using gets half of it. So the default thread count of
+every parallel path is :func:`free`: the CPUs this process may run on, less
+those other processes are running on at the call. An explicit thread count is
+always kept.
+"""
+
+from __future__ import annotations
+
+import os
+
+__all__ = ["available", "busy", "free", "threads_for"]
+
+
+def available() -> int:
+    """The CPUs this process may run on (at least 1), capped by ``OMP_NUM_THREADS`` if set."""
+    try:
+        cpus = len(os.sched_getaffinity(0))
+    except AttributeError:  # pragma: no cover - not on Linux
+        cpus = os.cpu_count() or 1
+    try:
+        cap = int(os.environ.get("OMP_NUM_THREADS", "").split(",")[0])
+    except ValueError:
+        cap = cpus
+    return max(1, min(cpus, cap if cap > 0 else cpus))
+
+
+def busy() -> int:
+    """Tasks of other processes running right now (Linux's /proc), 0 when unknown.
+
+    ``/proc/loadavg`` counts every running task; this process's own (this thread,
+    OpenMP workers still spinning after a parallel call) are taken off.
+    """
+    try:
+        with open("/proc/loadavg", encoding="ascii") as fh:
+            running = int(fh.read().split()[3].split("/")[0])
+        own = 0
+        for task in os.listdir("/proc/self/task"):
+            with open(f"/proc/self/task/{task}/stat", encoding="ascii", errors="replace") as fh:
+                own += fh.read().rsplit(")", 1)[1].split()[0] == "R"
+    except (OSError, ValueError, IndexError):
+        return 0
+    return max(0, running - max(own, 1))
+
+
+def free() -> int:
+    """The CPUs available to this process that no other process is running on now (≥ 1)."""
+    cpus = available()
+    return cpus if cpus == 1 else max(1, cpus - busy())
+
+
+def threads_for(items: int, min_per_thread: int) -> int:
+    """The default thread count for ``items`` units of work (at least 1).
+
+    The free CPUs, but no thread with fewer than ``min_per_thread`` items.
+    """
+    most = max(1, items // max(1, min_per_thread))
+    if most == 1:
+        return 1
+    return max(1, min(most, free()))
