@@ -7,9 +7,17 @@ baseline), ``inverse_dynamics`` with ``num_threads=1``, ``=2`` and the default
 (pools kept between calls, threads chosen by problem size and by the CPUs free now),
 for the chapter's 15,001 samples and for UR5 and Panda along a rest-to-rest motion.
 Prints each one's ratio to the loop and, under contention, the default's time over
-the one-thread time (target ≤ 1.3).
+the one-thread time (target ≤ 1.3). "raw 2" is ``pin.rneaInParallel`` itself on two
+threads (pool and output made once, outside the timing): the ceiling of the wrapper.
+Targets on 2 cores: ≥ 5.5× the loop for the chapter, ≥ 2.5× for UR5 and Panda.
+The "batch" rows time ``simulate_batch`` (Pinocchio backend, --batch chapter variants,
+no error estimate) on 1 thread, 2 and the default; its ratios are to the 1-thread run.
 
-    .venv/bin/python scripts/bench_threads.py [--repeat 15]
+A second table times the default against one thread on the chapter's arm for small
+batches (--sizes): the thread count follows the problem size, so the default should
+never be slower than one thread (default/1 ≤ 1, within noise).
+
+    .venv/bin/python scripts/bench_threads.py [--repeat 15] [--sizes 64,256,512,1024,4096]
 """
 
 from __future__ import annotations
@@ -49,22 +57,78 @@ def _loop(model, m) -> None:
 
 
 def _sides(robot, m) -> dict:  # noqa: ANN001
-    """The four ways to compute the efforts of motion ``m``, by name."""
+    """The ways to compute the efforts of motion ``m``, by name."""
     model = robot.model
+    pool = pin.ModelPool(model, 2)
+    out = np.empty((model.nv, m.q.shape[0]), order="F")
+    qT, qdT, qddT = (np.asfortranarray(robot.configuration(m.q).T), m.qd.T, m.qdd.T)
     return {
         "loop": lambda: _loop(model, m),
+        "raw 2": lambda: pin.rneaInParallel(2, pool, qT, qdT, qddT, out),
         "1": lambda: inverse_dynamics(robot, m.q, m.qd, m.qdd, num_threads=1),
         "2": lambda: inverse_dynamics(robot, m.q, m.qd, m.qdd, num_threads=2),
         "default": lambda: inverse_dynamics(robot, m.q, m.qd, m.qdd),
     }
 
 
+def _median_times(sides: dict, repeat: int, inner: int = 1) -> dict[str, float]:
+    """Median [s] of each side over ``repeat`` interleaved rounds of ``inner`` calls."""
+    times: dict[str, list[float]] = {k: [] for k in sides}
+    for _ in range(repeat):
+        for k, f in sides.items():
+            f()  # not counted: warms this side's caches after the others ran
+            start = time.perf_counter()
+            for _ in range(inner):
+                f()
+            times[k].append((time.perf_counter() - start) / inner)
+    return {k: statistics.median(v) for k, v in times.items()}
+
+
+def _sizes(sizes: list[int], repeat: int) -> None:
+    arm = chapter_arm()
+    d = arm.defaults
+    print(f"\n{'samples':>8} {'1 thread [us]':>14} {'default [us]':>13} {'default/1':>10}")
+    for n in sizes:
+        m = rest_to_rest(d.q0, d.qf, 15.0, np.linspace(0, 15, n))
+        sides = {
+            "1": lambda m=m: inverse_dynamics(arm, m.q, m.qd, m.qdd, num_threads=1),
+            "default": lambda m=m: inverse_dynamics(arm, m.q, m.qd, m.qdd),
+        }
+        med = _median_times(sides, repeat, inner=max(1, 20_000 // n))
+        print(f"{n:>8} {med['1'] * 1e6:>14.1f} {med['default'] * 1e6:>13.1f} "
+              f"{med['default'] / med['1']:>10.2f}")  # fmt: skip
+
+
+def _batch_sides(variants: int) -> dict:
+    """``simulate_batch`` (Pinocchio backend) of ``variants`` chapter variants: 1 thread, default."""
+    from rrt_pin.control import ChapterController, chapter_controller
+    from rrt_pin.simulate import simulate_batch
+
+    arm = chapter_arm()
+    law = chapter_controller(arm.params)
+    rng = np.random.default_rng(7)
+    laws = [
+        ChapterController(kp=np.asarray(law.kp) * g, kd=law.kd, qf=law.qf, params=law.params)
+        for g in rng.uniform(0.8, 1.25, variants)
+    ]
+    q0s = arm.defaults.q0 + rng.uniform(-0.1, 0.1, (variants, 3))
+    t = np.linspace(0.0, 15.0, 1501)
+
+    def run(threads: int | None) -> None:
+        simulate_batch(arm, laws, q0s, None, t, threads=threads, estimate_error=False)
+
+    return {"1": lambda: run(1), "2": lambda: run(2), "default": lambda: run(None)}
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=15)
-    repeat = parser.parse_args().repeat
-    print(f"{'robot':<8} {'load':<8} {'loop [ms]':>10} {'1 thread':>9} {'2 threads':>10} "
-          f"{'default':>8} {'default/1':>10}")  # fmt: skip
+    parser.add_argument("--sizes", default="64,256,512,1024,2048,4096")
+    parser.add_argument("--batch", type=int, default=200, help="variants of simulate_batch")
+    args = parser.parse_args()
+    repeat = args.repeat
+    print(f"{'robot':<8} {'load':<8} {'loop [ms]':>10} {'raw 2':>7} {'1 thread':>9} "
+          f"{'2 threads':>10} {'default':>8} {'default/1':>10}")  # fmt: skip
     for load in ("quiet", "1 busy"):
         burner = None
         if load != "quiet":
@@ -72,22 +136,23 @@ def main() -> None:
             time.sleep(1.0)
         try:
             for name, robot, m in _cases():
-                sides = _sides(robot, m)
-                times: dict[str, list[float]] = {k: [] for k in sides}
-                for _ in range(repeat):
-                    for k, f in sides.items():
-                        start = time.perf_counter()
-                        f()
-                        times[k].append(time.perf_counter() - start)
-                med = {k: statistics.median(v) for k, v in times.items()}
+                med = _median_times(_sides(robot, m), repeat)
                 base = med["loop"]
-                print(f"{name:<8} {load:<8} {base * 1e3:>10.2f} {base / med['1']:>8.2f}x "
+                print(f"{name:<8} {load:<8} {base * 1e3:>10.2f} {base / med['raw 2']:>6.2f}x "
+                      f"{base / med['1']:>8.2f}x "
                       f"{base / med['2']:>9.2f}x {base / med['default']:>7.2f}x "
+                      f"{med['default'] / med['1']:>10.2f}")  # fmt: skip
+            if args.batch:
+                med = _median_times(_batch_sides(args.batch), max(3, repeat // 3))
+                print(f"{'batch':<8} {load:<8} {med['1'] * 1e3:>10.2f} {'':>7} {'(1 t ms)':>9} "
+                      f"{med['1'] / med['2']:>9.2f}x {med['1'] / med['default']:>7.2f}x "
                       f"{med['default'] / med['1']:>10.2f}")  # fmt: skip
         finally:
             if burner is not None:
                 burner.kill()
                 burner.wait()
+    if args.sizes:
+        _sizes([int(x) for x in args.sizes.split(",")], repeat)
 
 
 if __name__ == "__main__":

@@ -5,11 +5,18 @@ import pinocchio as pin
 import pytest
 from scipy.integrate import solve_ivp
 
-from rrt_pin.control import SeedController, pd_gravity_controller, seed_controller
+from rrt_pin.control import (
+    ChapterController,
+    SeedController,
+    chapter_controller,
+    pd_gravity_controller,
+    seed_controller,
+)
 from rrt_pin.errors import DivergenceError, InputError
 from rrt_pin.inverse import default_num_threads
 from rrt_pin.model import rrt_model
 from rrt_pin.params import Params
+from rrt_pin.robots import chapter_arm
 from rrt_pin.simulate import BatchResult, simulate, simulate_batch
 
 T = np.linspace(0.0, 15.0, 301)  # [s]
@@ -62,7 +69,7 @@ def test_batch_result_contract(batch, variants):
     assert batch.method == "odepack" and (batch.rtol, batch.atol) == (1e-12, 1e-14)
     np.testing.assert_array_equal(batch.q[:, 0], q0s)
     np.testing.assert_array_equal(batch.qd[:, 0], qd0s)
-    assert batch.n_evals > 0 and batch.wall_time > 0 and batch.threads == default_num_threads()
+    assert batch.n_evals > 0 and batch.wall_time > 0 and 1 <= batch.threads <= default_num_threads()
     one = batch.variant(2)
     assert one.header[:4] == ("t", "q1", "q2", "q3")
     np.testing.assert_array_equal(one.q, batch.q[2])
@@ -197,3 +204,40 @@ def test_a_diverging_variant_is_named():
         )
     assert info.value.coordinate == "qd3 (variant 2)"
     assert 0.0 < info.value.t <= 1.0
+
+
+def test_default_threads_follow_the_free_cpus_during_the_run(monkeypatch):
+    from rrt_pin import cpus
+    from rrt_pin.simulate.closed_loop import Threads
+
+    monkeypatch.setattr(cpus, "available", lambda: 2)
+    busy = [0]
+    monkeypatch.setattr(cpus, "busy", lambda: busy[0])
+    clock = [0.0]
+    monkeypatch.setattr("rrt_pin.simulate.closed_loop.time.monotonic", lambda: clock[0])
+    adaptive = Threads(None, 1000)
+    assert adaptive() == 2
+    busy[0] = 1  # a job starts beside the run: seen at the next look, not before
+    assert adaptive() == 2
+    clock[0] += Threads.RECHECK
+    assert adaptive() == 1 and adaptive.most == 2
+    assert Threads(None, 40)() == 1  # 40 variants: not worth a second thread
+    assert Threads(2, 1000)() == 2  # asked for: kept whatever the load
+
+
+def test_a_batch_under_contention_runs_on_the_free_cpu_and_gives_the_same_states(monkeypatch):
+    from rrt_pin import cpus
+
+    arm = chapter_arm()
+    d = arm.defaults
+    law = chapter_controller(arm.params)
+    laws = [ChapterController(kp=np.asarray(law.kp) * s, kd=law.kd, qf=law.qf, params=law.params)
+            for s in np.linspace(0.8, 1.25, 64)]  # fmt: skip
+    q0s, t = np.tile(d.q0, (64, 1)), np.linspace(0, 1, 11)
+    monkeypatch.setattr(cpus, "available", lambda: 2)
+    monkeypatch.setattr(cpus, "busy", lambda: 1)
+    busy = simulate_batch(arm, laws, q0s, None, t, estimate_error=False)
+    monkeypatch.setattr(cpus, "busy", lambda: 0)
+    quiet = simulate_batch(arm, laws, q0s, None, t, estimate_error=False)
+    assert (busy.threads, quiet.threads) == (1, 2)
+    np.testing.assert_array_equal(busy.q, quiet.q)

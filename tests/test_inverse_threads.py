@@ -2,10 +2,15 @@
 
 from __future__ import annotations
 
-import numpy as np
+from concurrent.futures import ThreadPoolExecutor
 
-from rrt_pin import cpus
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from rrt_pin import cpus, robots
 from rrt_pin import inverse as inv
+from rrt_pin.errors import InputError
 from rrt_pin.inverse import inverse_dynamics
 from rrt_pin.robots import chapter_arm
 from rrt_pin.trajectory import rest_to_rest
@@ -71,3 +76,55 @@ def test_default_threads_follow_the_free_cpus(monkeypatch):
     inverse_dynamics(arm, m.q, m.qd, m.qdd)
     inverse_dynamics(arm, m.q, m.qd, m.qdd, num_threads=2)  # asked for: kept
     assert used == [2, 1, 2]
+
+
+def test_chunks_give_the_same_efforts_bit_for_bit_as_one_call(monkeypatch):
+    arm, m = _motion(5003)
+    whole = inverse_dynamics(arm, m.q, m.qd, m.qdd, num_threads=1)
+    inv._POOLS.clear()
+    monkeypatch.setattr(inv, "CHUNK", 1000)  # 6 chunks, the last one short
+    chunked = inverse_dynamics(arm, m.q, m.qd, m.qdd, num_threads=2)
+    np.testing.assert_array_equal(chunked, whole)
+    # ...and they are Pinocchio's own, sample by sample
+    model, data = arm.model, arm.model.createData()
+    for i in (0, 999, 1000, 4321, 5002):
+        np.testing.assert_array_equal(whole[i], pin.rnea(model, data, m.q[i], m.qd[i], m.qdd[i]))
+    inv._POOLS.clear()
+
+
+def test_results_are_fresh_arrays_not_the_kept_scratch():
+    arm, m = _motion(501)
+    first = inverse_dynamics(arm, m.q, m.qd, m.qdd)
+    kept = first.copy()
+    second = inverse_dynamics(arm, 2 * m.q, m.qd, m.qdd)
+    np.testing.assert_array_equal(first, kept)  # the second call did not write into the first
+    assert not np.array_equal(first, second)
+    assert first.flags.c_contiguous and first.flags.writeable and first.shape == (501, 3)
+
+
+def test_a_non_finite_input_anywhere_is_named_even_without_a_pass_over_the_inputs():
+    # The Pinocchio path searches the inputs only when the efforts are not finite:
+    # every position of every input must still be caught and named.
+    for robot in (chapter_arm(), robots.get("ur5"), robots.get("kinova")):
+        n, nv = 7, robot.nv
+        rng = np.random.default_rng(3)
+        base = {k: rng.uniform(-1, 1, (n, nv)) for k in ("q", "qd", "qdd")}
+        for name in base:
+            for i in range(n):
+                for k in range(nv):
+                    for bad in (np.nan, np.inf, -np.inf):
+                        args = {key: v.copy() for key, v in base.items()}
+                        args[name][i, k] = bad
+                        with pytest.raises(InputError) as info:
+                            inverse_dynamics(robot, **args)
+                        assert f"{name}[{i}, {k}]={bad!r} must be finite" in str(info.value)
+
+
+def test_concurrent_calls_from_python_threads_are_each_correct():
+    arm, m = _motion(3001)
+    expected = [inverse_dynamics(arm, s * m.q, m.qd, m.qdd, num_threads=1) for s in (1, 2, 3, 4)]
+    with ThreadPoolExecutor(4) as ex:
+        for _ in range(5):
+            got = list(ex.map(lambda s: inverse_dynamics(arm, s * m.q, m.qd, m.qdd), (1, 2, 3, 4)))
+            for g, e in zip(got, expected, strict=True):
+                np.testing.assert_array_equal(g, e)

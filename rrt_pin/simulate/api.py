@@ -301,8 +301,9 @@ def simulate_batch(
         atol: absolute tolerance [rad, m, rad/s, m/s], in (0, 1) (default the method's).
         backend: ``pinocchio`` or ``compiled``.
         step: longest step of the fixed-step methods [s].
-        threads: OpenMP threads of ``pin.abaInParallel`` (default: the CPUs
-            available, capped by ``OMP_NUM_THREADS``); the compiled batch uses one.
+        threads: OpenMP threads of ``pin.abaInParallel`` (default: the CPUs free
+            during the run, looked up every 50 ms, capped by ``OMP_NUM_THREADS``, none
+            with fewer than 32 variants); the compiled batch uses one.
         efforts: also return the applied efforts at every output time.
         params: the arm's Params for the compiled backend: one, or one per variant.
         estimate_error: also estimate the global error of q, per variant and over
@@ -337,7 +338,7 @@ def simulate_batch(
     options = resolve(
         t, backend=backend, method=method, rtol=rtol, atol=atol, step=step, batch=True
     )
-    threads = default_threads() if threads is None else validate.positive_int("threads", threads)
+    threads = None if threads is None else validate.positive_int("threads", threads)
     laws = []
     for i, c in enumerate(controllers):
         try:

@@ -13,6 +13,7 @@ is the identity when every joint has one configuration entry.
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING
 
@@ -119,21 +120,62 @@ class ClosedLoop:
         return J
 
 
+class Threads:
+    """The thread count of a batch's parallel calls: fixed, or following the free CPUs.
+
+    Adaptive (``fixed=None``): at most one thread per :data:`MIN_VARIANTS_PER_THREAD`
+    variants, and only the CPUs no other process is running on, looked up again
+    every :data:`RECHECK` seconds of the run, so that a job starting beside a long
+    batch does not stall every statically split call on its busy core.
+    """
+
+    #: Fewer variants than this per thread are not worth another thread.
+    MIN_VARIANTS_PER_THREAD = 32
+    #: Seconds between two looks at the free CPUs [s].
+    RECHECK = 0.05
+
+    def __init__(self, fixed: int | None, variants: int) -> None:
+        from rrt_pin import cpus
+
+        self.fixed = fixed
+        self.variants = variants
+        self._cpus = cpus
+        self.most = 1
+        self._count = 1
+        self._next = -1.0
+        if fixed is not None:
+            self._count = self.most = fixed
+
+    def __call__(self) -> int:
+        """The thread count for the next call."""
+        if self.fixed is not None:
+            return self.fixed
+        now = time.monotonic()
+        if now >= self._next:
+            self._count = self._cpus.threads_for(self.variants, self.MIN_VARIANTS_PER_THREAD)
+            self.most = max(self.most, self._count)
+            self._next = now + self.RECHECK
+        return self._count
+
+
 class BatchLoop:
     """Accelerations of B variants of one robot at once with ``pin.abaInParallel``.
 
     Laws whose :meth:`~rrt_pin.control.Controller.feedback` share one gravity
     term are evaluated as arrays (gains and targets stacked; folded into the
     dynamics when that term is the model's G); other controllers are evaluated
-    variant by variant through ``efforts(t, q, qd)``.
+    variant by variant through ``efforts(t, q, qd)``. ``threads`` None: as many
+    as the CPUs free during the run (:class:`Threads`).
     """
 
-    def __init__(self, robot: Robot, controllers: Sequence[Controller], threads: int) -> None:
+    def __init__(
+        self, robot: Robot, controllers: Sequence[Controller], threads: int | None
+    ) -> None:
         import pinocchio as pin
 
         self.robot = robot
         self.controllers = list(controllers)
-        self.threads = threads
+        self.threads = Threads(threads, len(self.controllers))
         feedbacks = [c.feedback() for c in self.controllers]
         first = feedbacks[0]
         self.stacked = all(f is not None and f.key == first.key for f in feedbacks)
@@ -145,7 +187,9 @@ class BatchLoop:
             self.gravity = first.gravity
             self.folded = first.exact_for(robot)
         plant = _without_gravity(robot.model) if self.folded else robot.model
-        self.pool = pin.ModelPool(plant, threads)
+        from rrt_pin import cpus
+
+        self.pool = pin.ModelPool(plant, threads if threads is not None else cpus.available())
 
     def acceleration(self) -> Callable[[float, np.ndarray, np.ndarray], np.ndarray]:
         """a(t, q, q̇) for states of shape (B, n)."""
@@ -161,10 +205,10 @@ class BatchLoop:
             kp, kd, qf, gravity = self.kp, self.kd, self.qf, self.gravity
             if self.folded:
                 return lambda t, q, v: (
-                    aba(threads, pool, to_q(q).T, v.T, (-kd * v - kp * (q - qf)).T).T
+                    aba(threads(), pool, to_q(q).T, v.T, (-kd * v - kp * (q - qf)).T).T
                 )
             return lambda t, q, v: (
-                aba(threads, pool, to_q(q).T, v.T, (-kd * v - kp * (q - qf) + gravity(q)).T).T
+                aba(threads(), pool, to_q(q).T, v.T, (-kd * v - kp * (q - qf) + gravity(q)).T).T
             )
         laws = [c.efforts for c in self.controllers]
 
@@ -172,7 +216,7 @@ class BatchLoop:
             tau = np.empty(q.shape)
             for b, law in enumerate(laws):
                 tau[b] = law(t, q[b], v[b])
-            return aba(threads, pool, to_q(q).T, v.T, tau.T).T
+            return aba(threads(), pool, to_q(q).T, v.T, tau.T).T
 
         return acc
 

@@ -135,7 +135,7 @@ def run_batch(
     qd0s: np.ndarray,
     t: np.ndarray,
     options: Options,
-    threads: int,
+    threads: int | None,
     efforts: bool,
     start: float,
 ) -> BatchResult:
@@ -212,7 +212,7 @@ def run_batch(
         rtol=rtol,
         atol=atol,
         step=step,
-        threads=threads,
+        threads=loop.threads.most,
         q_names=robot.q_names,
         qd_names=robot.qd_names,
         tau_names=robot.effort_names,
