@@ -22,7 +22,7 @@ from typing import IO, Any
 
 import numpy as np
 
-from rrt_pin.csvio import csv_block, csv_engine
+from rrt_pin.csvio import csv_bytes, csv_engine
 from rrt_pin.errors import InputError
 
 __all__ = [
@@ -87,7 +87,7 @@ class TableWriter:
 
     Example::
 
-        with TableWriter(fh, "csv", ["t", "q1"], {"t": "s", "q1": "rad"}, rows=n) as w:
+        with TableWriter(fh, "csv", ["t", "q1"], {"t": "s", "q1": "rad"}) as w:
             for block in blocks:
                 w.write(block)
 
@@ -98,7 +98,6 @@ class TableWriter:
         units: unit of each column (SI), stored in Parquet's metadata.
         metadata: the run's description (JSON-serialisable), stored in Parquet's
             schema metadata as ``rrt_pin.run``.
-        rows: the expected row count (picks the fastest CSV formatter).
     """
 
     def __init__(
@@ -108,7 +107,6 @@ class TableWriter:
         header: Sequence[str],
         units: Mapping[str, str] | None = None,
         metadata: Mapping[str, Any] | None = None,
-        rows: int = 0,
     ) -> None:
         self.fh, self.fmt, self.header = fh, fmt, list(header)
         self.rows = 0
@@ -129,7 +127,7 @@ class TableWriter:
             self._schema = pa.schema(fields, metadata=meta)
             self._parquet = pq.ParquetWriter(fh, self._schema)
         else:
-            self._engine = csv_engine(rows)
+            self._engine = csv_engine()
             fh.write((",".join(self.header) + "\n").encode("utf-8"))
 
     def write(self, block: np.ndarray) -> None:
@@ -143,7 +141,7 @@ class TableWriter:
             columns = [pa.array(np.ascontiguousarray(block[:, k])) for k in range(block.shape[1])]
             self._parquet.write_table(pa.Table.from_arrays(columns, schema=self._schema))
         else:
-            self.fh.write(csv_block(block, self._engine).encode("ascii"))
+            self.fh.write(csv_bytes(block, self._engine))
         self.rows += block.shape[0]
 
     def close(self) -> None:

@@ -1,5 +1,3 @@
-import importlib.util
-
 import numpy as np
 import pytest
 
@@ -21,8 +19,7 @@ def test_text_has_one_header_line():
     assert text == "t,q1\n0.0,0.1\n1.0,0.3333333333333333\n"
 
 
-ENGINES = ["repr", pytest.param("arrow", marks=pytest.mark.skipif(
-    importlib.util.find_spec("pyarrow") is None, reason="pyarrow not installed"))]  # fmt: skip
+ENGINES = ["repr", "orjson"]
 
 
 @pytest.mark.parametrize("engine", ENGINES)

@@ -110,7 +110,6 @@ def traced_peak(argv):
 def test_memory_stays_flat_while_writing(tmp_path, capsys, monkeypatch):
     """Four times the rows, about the same peak of the Python heap (blocks of 5,000 rows)."""
     monkeypatch.setattr(rrt_pin.tables, "BLOCK_ROWS", 5_000)
-    monkeypatch.setattr(rrt_pin.csvio, "ARROW_MIN_ROWS", 10**9)  # Python's formatter: traced
     main(["inverse", "--tf", "1", "--dt", "0.5"])  # imports and builds the model first
     peaks, sizes = [], []
     for tf in ("20", "80"):  # 20,001 and 80,001 rows

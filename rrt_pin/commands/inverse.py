@@ -150,7 +150,7 @@ def run(args: argparse.Namespace) -> int:
     progress = Progress(grid.size, what, force=args.progress)
 
     def table(fh: IO[bytes]) -> None:
-        with TableWriter(fh, fmt, job.header, job.units, meta, rows=grid.size) as sink:
+        with TableWriter(fh, fmt, job.header, job.units, meta) as sink:
             job.run(sink, progress)
 
     if not args.csv:

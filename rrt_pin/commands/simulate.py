@@ -324,7 +324,7 @@ def write_result(
     from rrt_pin.tables import BLOCK_ROWS, TableWriter
 
     n = result.t.size
-    with TableWriter(fh, fmt, result.header, units, metadata, rows=n) as sink:
+    with TableWriter(fh, fmt, result.header, units, metadata) as sink:
         for start in range(0, n, BLOCK_ROWS):
             stop = min(start + BLOCK_ROWS, n)
             sink.write(
