@@ -28,6 +28,8 @@ class Backend:
         extra: the pip extra that installs it.
         startup: what a process pays once before the first use [s] (numba's import and
             the machine code's load from the disk cache), beyond what every run pays.
+        aot_startup: the same for inverse dynamics when the kernel is built ahead of
+            time (:func:`rrt_pin.compiled.aot_built`: the module's load, no numba) [s].
         inverse_cost: inverse dynamics of the chapter's arm [s per sample].
         simulate_cost: the chapter's direct run with the backend's default method
             [s per simulated second].
@@ -44,6 +46,7 @@ class Backend:
     requires: str
     extra: str | None = None
     startup: float = 0.0
+    aot_startup: float = 0.0
     inverse_cost: float | None = None
     simulate_cost: float | None = None
 
@@ -87,6 +90,7 @@ BACKENDS: dict[str, Backend] = {
             requires="numba",
             extra="fast",
             startup=0.8,
+            aot_startup=0.02,
             inverse_cost=14e-9,
             simulate_cost=0.0086e-3,
         ),
@@ -107,7 +111,9 @@ def get(name: object, task: str | None = None) -> Backend:
     return backend
 
 
-def estimated_seconds(backend: Backend, task: str, work: float, started: bool) -> float | None:
+def estimated_seconds(
+    backend: Backend, task: str, work: float, started: bool, aot: bool = False
+) -> float | None:
     """What ``task`` would take on ``backend`` [s]; None when its costs are not known.
 
     Args:
@@ -115,11 +121,13 @@ def estimated_seconds(backend: Backend, task: str, work: float, started: bool) -
         task: ``inverse`` or ``simulate``.
         work: samples (``inverse``) or simulated seconds (``simulate``).
         started: the process already paid the backend's start-up.
+        aot: the kernel is built ahead of time (inverse dynamics: a cheaper start-up).
     """
     rate = backend.inverse_cost if task == "inverse" else backend.simulate_cost
     if rate is None:
         return None
-    return (0.0 if started else backend.startup) + rate * work
+    startup = backend.aot_startup if aot and task == "inverse" else backend.startup
+    return (0.0 if started else startup) + rate * work
 
 
 def names(task: str | None = None) -> tuple[str, ...]:

@@ -351,6 +351,10 @@ def test_compiled_backend_is_wired(capsys, monkeypatch):
             return True
 
         @staticmethod
+        def aot_built():
+            return False
+
+        @staticmethod
         def ensure_compiled():
             class Report:
                 def describe(self):

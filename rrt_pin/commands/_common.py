@@ -363,7 +363,9 @@ def resolve_backend(
     ``pinocchio``. ``-v`` says which and why. A backend the robot does not
     support is refused. With ``compiled``, importing numba and loading (or
     compiling) the code happens here, and one line on stderr says how long it
-    took, so that the run's own time excludes it.
+    took, so that the run's own time excludes it; inverse dynamics with the
+    kernel built ahead of time (:func:`rrt_pin.compiled.aot_built`) skips that
+    (its start-up is a few milliseconds).
 
     Raises:
         InputError: ``compiled`` was asked for but numba is missing.
@@ -377,19 +379,21 @@ def resolve_backend(
         default = backends.get("pinocchio").default_method if task == "simulate" else None
         wanted = method or default
         runs = wanted is None or methods.get(wanted).runs_on("compiled")
-        built = started = False
+        built = started = aot = False
         if robot.supports("compiled") and runs:
             try:
                 from rrt_pin import compiled
 
+                # The inverse kernel built ahead of time loads in milliseconds, no numba.
+                aot = task == "inverse" and compiled.aot_built()
                 started = compiled.is_loaded()
-                built = started or compiled.is_compiled()
+                built = started or aot or compiled.is_compiled()
             except ImportError:
                 built = False
         fast, engine = backends.get("compiled"), backends.get("pinocchio")
         saves = False
         if built:
-            mine = backends.estimated_seconds(fast, task, work, started)
+            mine = backends.estimated_seconds(fast, task, work, started, aot)
             theirs = backends.estimated_seconds(engine, task, work, True)
             saves = mine is not None and theirs is not None and 2.0 * mine <= theirs
             from rrt_pin.text import duration
@@ -397,7 +401,11 @@ def resolve_backend(
             logging.getLogger("rrt_pin").info(
                 "--backend auto: compiled would take ~%s (start-up %s), pinocchio ~%s",
                 "?" if mine is None else duration(mine),
-                "paid" if started else duration(fast.startup),
+                "paid"
+                if started
+                else f"{duration(fast.aot_startup)}, built ahead of time"
+                if aot
+                else duration(fast.startup),
                 "?" if theirs is None else duration(theirs),
             )
         requested = "compiled" if saves else "pinocchio"
@@ -421,6 +429,8 @@ def resolve_backend(
         try:
             from rrt_pin import compiled
 
+            if task == "inverse" and compiled.aot_built():
+                return requested  # loaded on first use, in milliseconds (no numba import)
             report = compiled.ensure_compiled()
         except MissingExtra:
             raise

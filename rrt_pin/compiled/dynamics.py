@@ -7,8 +7,10 @@ shape (N, 3) (or (3,) for one state); results keep that leading shape. Units:
 q [rad, rad, m], q̇ [rad/s, rad/s, m/s], q̈ [rad/s², rad/s², m/s²],
 τ = (T01x [N·m], T12y [N·m], F23z [N]), M [kg·m², kg·m, kg].
 
-The first call in a process imports numba and compiles or loads the machine
-code (see :func:`rrt_pin.compiled.ensure_compiled`).
+The first call in a process loads the ahead-of-time module of these functions
+when it is built (:mod:`rrt_pin.compiled._aot`: no numba import), else imports
+numba and compiles or loads the machine code (see
+:func:`rrt_pin.compiled.ensure_compiled`, which also builds that module once).
 """
 
 from __future__ import annotations
@@ -123,6 +125,12 @@ def _refuse_overflow(check: float, out: np.ndarray) -> None:
 
 
 def _jit():
+    """The dynamics' machine code: the ahead-of-time module when built, else numba's JIT."""
+    from rrt_pin.compiled import _aot
+
+    module = _aot.load()
+    if module is not None:
+        return module
     ensure_compiled()
     from rrt_pin.compiled import _jit_dynamics
 
