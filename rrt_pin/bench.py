@@ -19,6 +19,7 @@ from typing import TextIO
 
 import numpy as np
 
+from rrt_pin.flops import KernelRow
 from rrt_pin.text import duration
 
 __all__ = [
@@ -229,13 +230,11 @@ def inverse_backends(
     return rows
 
 
-def rows_csv(rows: Iterable[BenchRow]) -> str:
-    """Rows as CSV text (``backend,method,setting,time_s,n_evals,max_error``)."""
-    lines = [",".join(BenchRow.header())]
+def rows_csv(rows: Iterable[BenchRow | KernelRow], kind: type = BenchRow) -> str:
+    """Rows of one ``kind`` as CSV text under its header (numbers to 6 digits)."""
+    lines = [",".join(kind.header())]
     for r in rows:
-        lines.append(
-            f"{r.backend},{r.method},{r.setting},{r.time_s:.6g},{r.n_evals},{r.max_error:.6g}"
-        )
+        lines.append(",".join(f"{v:.6g}" if isinstance(v, float) else str(v) for v in r.values()))
     return "\n".join(lines) + "\n"
 
 
@@ -545,6 +544,7 @@ class BenchReport:
         inverse: rows of the inverse-dynamics backends.
         energy: energy-drift rows of passive motion.
         files: the files written.
+        kernels: each kernel's ns/sample against the machine's FMA limit.
     """
 
     direct: tuple[BenchRow, ...]
@@ -555,6 +555,7 @@ class BenchReport:
     inverse: tuple[BenchRow, ...]
     energy: tuple[BenchRow, ...]
     files: tuple[Path, ...]
+    kernels: tuple[KernelRow, ...] = ()
 
 
 def run_bench(
@@ -562,8 +563,10 @@ def run_bench(
 ) -> BenchReport:
     """Run every benchmark and write its CSV files and plot into ``out``.
 
-    Writes ``work_precision.csv``, ``work_precision.png``, ``inverse.csv`` and
-    ``energy_drift.csv``, all four or none (one transaction of :mod:`rrt_pin.io`);
+    Writes ``work_precision.csv``, ``work_precision.png``, ``inverse.csv``,
+    ``energy_drift.csv`` and ``kernels.csv`` (each closed-form kernel's ns/sample,
+    flops and fraction of the machine's FMA limit, :mod:`rrt_pin.flops`), all or
+    none (one transaction of :mod:`rrt_pin.io`);
     ``out`` is created if missing, and checked before any benchmark runs.
 
     Raises:
@@ -573,7 +576,13 @@ def run_bench(
     from rrt_pin.io import OutputError, check_outputs, write_outputs
 
     out = Path(out)
-    names = ("work_precision.csv", "work_precision.png", "inverse.csv", "energy_drift.csv")
+    names = (
+        "work_precision.csv",
+        "work_precision.png",
+        "inverse.csv",
+        "energy_drift.csv",
+        "kernels.csv",
+    )
     created = not out.exists()
     try:
         out.mkdir(parents=True, exist_ok=True)
@@ -597,11 +606,13 @@ def run_bench(
         repeats=3 if quick else 7, reference_stride=10 if quick else 1, progress=progress
     )
     energy = energy_drift(tf=30.0 if quick else 100.0, quick=quick, progress=progress)
+    kernels = kernel_table(inverse, quick)
     contents = (
         rows_csv(every).encode(),
         work_precision_png(direct, defaults),
         rows_csv(inverse).encode(),
         rows_csv(energy).encode(),
+        rows_csv(kernels, KernelRow).encode(),
     )
     try:
         files = tuple(
@@ -625,7 +636,33 @@ def run_bench(
         tuple(inverse),
         tuple(energy),
         files,
+        tuple(kernels),
     )
+
+
+def kernel_table(inverse: Sequence[BenchRow], quick: bool = False) -> list[KernelRow]:
+    """ns/sample of each inverse backend and of the compiled closed loop, against the FMA limit.
+
+    The inverse rows' times are divided by their sample counts; the closed loop
+    (the direct run's right-hand side) is timed here, per state.
+    """
+    from rrt_pin import flops
+
+    names = {
+        ("pinocchio", "rnea-loop"): "pinocchio rnea loop",
+        ("pinocchio", "rnea-batch"): "pinocchio rnea batched",
+        ("symbolic", "numpy-kernel"): "symbolic inverse",
+        ("compiled", "numba-kernel"): "compiled inverse",
+    }
+    ns = {
+        names.get((r.backend, r.method), f"{r.backend} {r.method}"): 1e9 * r.time_s / r.n_evals
+        for r in inverse
+        if r.n_evals
+    }
+    loop = flops.closed_loop_ns(repeats=3 if quick else 7)
+    if loop is not None:
+        ns["compiled closed loop (per state)"] = loop
+    return flops.kernel_rows(ns, flops.fma_rate(0.1 if quick else 0.3))
 
 
 def _on_front(row: BenchRow, rows: Sequence[BenchRow]) -> bool:
@@ -680,5 +717,12 @@ def summary(report: BenchReport) -> str:
         )
     for r in report.energy:
         lines.append(f"energy drift {r.method} ({r.setting}): {r.max_error:.2g} of max T")
+    for k in report.kernels:
+        if k.flops:
+            lines.append(
+                f"kernel {k.kernel}: {k.ns_per_sample:.1f} ns/sample, {k.flops} flops = "
+                f"{k.gflops:.1f} Gflop/s, {k.fraction:.0%} of the FMA limit "
+                f"({k.fma_gflops:.0f} Gflop/s on one core)"
+            )
     lines.append("wrote " + ", ".join(str(f) for f in report.files))
     return "\n".join(lines)

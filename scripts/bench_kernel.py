@@ -45,38 +45,6 @@ TARGET_SPEEDUP = 120.0
 TARGET_AGREEMENT = 1e-15
 
 
-def fma_rate(seconds: float = 0.3) -> float:
-    """Fused multiply-adds a second on one core (best of a few runs) [FMA/s]."""
-    import numba
-
-    @numba.njit(fastmath={"contract"})
-    def chains(y, a, b, reps):
-        for _ in range(reps):
-            for i in range(y.shape[0]):
-                v = y[i]
-                v = v * a + b
-                v = v * a + b
-                v = v * a + b
-                v = v * a + b
-                v = v * a + b
-                v = v * a + b
-                v = v * a + b
-                v = v * a + b
-                y[i] = v
-        return y[0]
-
-    y = np.full(1024, 0.5)
-    a, b = 0.999999, 1e-7
-    chains(y, a, b, 1)
-    best = 0.0
-    end = time.perf_counter() + seconds
-    while time.perf_counter() < end:
-        start = time.perf_counter()
-        chains(y, a, b, 2000)
-        best = max(best, 8 * 1024 * 2000 / (time.perf_counter() - start))
-    return best
-
-
 def interleaved(
     funcs: dict[str, Callable[[], object]], repeat: int, inner: int = 3
 ) -> dict[str, float]:
@@ -166,6 +134,8 @@ def main() -> int:
 
     kind, cvec = _controller_arrays(chapter_controller(p), p, pa)
     forward = forward_loop()
+    from rrt_pin.flops import fma_rate
+
     rate = fma_rate()
     peak = 2.0 * rate  # flops/s, every operation an FMA
     print(

@@ -94,6 +94,12 @@ def test_bench_quick_end_to_end(tmp_path, capsys):
     assert len(rows) >= 5 * 2
     for name in ("work_precision.png", "inverse.csv", "energy_drift.csv"):
         assert (tmp_path / name).stat().st_size > 0
+    kernels = (tmp_path / "kernels.csv").read_text().splitlines()
+    assert kernels[0] == "kernel,ns_per_sample,flops,gflops,fma_gflops,fraction"
+    by_name = {line.split(",")[0]: line.split(",") for line in kernels[1:]}
+    compiled = by_name["compiled inverse"]
+    assert 0 < float(compiled[5]) <= 1  # a fraction of the machine's limit
+    assert "of the FMA limit" in out
 
 
 def _fake_measurements(monkeypatch):
@@ -104,6 +110,7 @@ def _fake_measurements(monkeypatch):
     monkeypatch.setattr(bench, "direct_work_precision", lambda **k: ([row], [row], 0.0))
     monkeypatch.setattr(bench, "inverse_backends", lambda **k: [row])
     monkeypatch.setattr(bench, "energy_drift", lambda **k: [row])
+    monkeypatch.setattr(bench, "kernel_table", lambda *a, **k: [])
 
 
 def test_bench_out_on_a_read_only_disk_is_refused_before_any_work(tiny_fs, monkeypatch, capsys):
@@ -133,10 +140,44 @@ def test_bench_out_on_a_full_disk_leaves_nothing(tiny_fs, monkeypatch, capsys):
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "no space left" in err.lower(), err
     assert sorted(p.name for p in tiny_fs.iterdir()) == ["filler"]  # no folder, no partial file
-    # With room, all four files are written together.
+    # With room, all five files are written together.
     (tiny_fs / "filler").unlink()
     report = bench.run_bench(tiny_fs / "b", quick=True)
     assert sorted(p.name for p in (tiny_fs / "b").iterdir()) == sorted(
-        ["work_precision.csv", "work_precision.png", "inverse.csv", "energy_drift.csv"]
-    )
-    assert len(report.files) == 4
+        ["work_precision.csv", "work_precision.png", "inverse.csv", "energy_drift.csv",
+         "kernels.csv"]
+    )  # fmt: skip
+    assert len(report.files) == 5
+
+
+def test_kernel_rows_put_each_kernel_against_the_fma_limit():
+    from rrt_pin import flops, kernel
+
+    counts = flops.kernel_flops()
+    rows = flops.kernel_rows({"symbolic inverse": 50.0, "pinocchio rnea loop": 1000.0}, 2.5e9)
+    sym, loop = rows
+    assert sym.flops == counts["symbolic inverse"] == kernel.INVERSE_FLOPS
+    assert sym.gflops == pytest.approx(kernel.INVERSE_FLOPS / 50.0)
+    assert sym.fma_gflops == pytest.approx(5.0) and sym.fraction == pytest.approx(sym.gflops / 5)
+    assert loop.flops == 0 and np.isnan(loop.gflops) and np.isnan(loop.fraction)
+
+
+def test_flop_counts_are_those_of_the_generated_source():
+    pytest.importorskip("numba")
+    from rrt_pin import flops
+    from rrt_pin.symbolic import codegen
+
+    shared = sum(codegen.flop_count(src) for _, src in codegen.SHARED_LINES)
+    inverse = sum(codegen.flop_count(src) for _, src in codegen.INVERSE_LINES)
+    counts = flops.kernel_flops()
+    from rrt_pin.compiled import _jit_dynamics as jd
+
+    assert counts["compiled inverse"] == shared + inverse + jd.SINCOS_FLOPS
+
+
+def test_the_fma_rate_is_a_plausible_core_rate():
+    pytest.importorskip("numba")
+    from rrt_pin.flops import fma_rate
+
+    rate = fma_rate(0.05)
+    assert 1e8 < rate < 2e11  # between a slow core and 4x today's widest vector unit

@@ -4,7 +4,10 @@ from __future__ import annotations
 
 import argparse
 
-HELP = "benchmark run time against error (direct dynamics), inverse-dynamics backends, energy drift"
+HELP = (
+    "benchmark run time against error (direct dynamics), inverse-dynamics backends, energy "
+    "drift, kernels against the machine's FMA limit"
+)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -16,7 +19,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--out",
         default="bench-out",
         metavar="DIR",
-        help="folder for work_precision.csv/.png, inverse.csv, energy_drift.csv (default bench-out/)",
+        help="folder for work_precision.csv/.png, inverse.csv, energy_drift.csv, kernels.csv "
+        "(default bench-out/)",
     )
 
 
