@@ -267,8 +267,9 @@ def _rnea_batch(
         entry.lock.acquire()
     try:
         pool, scratch = entry.pool, entry.scratch
-        for start in range(0, n, CHUNK):
-            stop = min(n, start + CHUNK)
+        chunk = scratch.shape[1]
+        for start in range(0, n, chunk):
+            stop = min(n, start + chunk)
             qc = q[start:stop] if configuration is None else configuration(q[start:stop])
             out = scratch[:, : stop - start]
             pin.rneaInParallel(
