@@ -270,6 +270,28 @@ def drake_diagram(p, kp, kd, qf):
     return b.Build(), plant
 
 
+def drake_python_diagram(p, law):
+    """Plant + eq. (31) as a Python ``LeafSystem`` calling ``law.efforts`` (Python per evaluation)."""
+    from pydrake.systems.framework import DiagramBuilder, LeafSystem
+
+    class Eq31(LeafSystem):
+        def __init__(self):
+            super().__init__()
+            self.state = self.DeclareVectorInputPort("state", 6)
+            self.DeclareVectorOutputPort("tau", 3, self.calc)
+
+        def calc(self, context, output):
+            x = self.state.Eval(context)
+            output.SetFromVector(law.efforts(context.get_time(), x[:3], x[3:]))
+
+    b = DiagramBuilder()
+    plant = drake_plant(p, b)
+    eq31 = b.AddSystem(Eq31())
+    b.Connect(plant.get_state_output_port(), eq31.get_input_port(0))
+    b.Connect(eq31.get_output_port(0), plant.get_applied_generalized_force_input_port())
+    return b.Build(), plant
+
+
 def drake_run(diagram, plant, q0, qd0, t: np.ndarray, scheme: str, accuracy: float) -> Run:
     """A Simulator with an error-controlled integrator, stopped at every output time."""
     from pydrake.systems.analysis import ResetIntegratorFromFlags, Simulator
@@ -513,11 +535,16 @@ def direct_sides(p, robot, law, t, quick: bool) -> list[Side]:
             ],
         )
     )
-    diagram, plant = drake_diagram(p, d.kp, d.kd, d.qf)
-    for scheme, label in (("runge_kutta3", "RK3 (default)"), ("runge_kutta5", "RK5")):
+    cxx = drake_diagram(p, d.kp, d.kd, d.qf)
+    python = drake_python_diagram(p, law)
+    for scheme, label, (diagram, plant), how in (
+        ("runge_kutta3", "RK3 (default)", cxx, "as C++ systems"),
+        ("runge_kutta5", "RK5", cxx, "as C++ systems"),
+        ("runge_kutta3", "RK3 (default)", python, "as a Python LeafSystem"),
+    ):
         sides.append(
             Side(
-                f"Drake Simulator {label}, eq. 31 as C++ systems",
+                f"Drake Simulator {label}, eq. 31 {how}",
                 [
                     (f"accuracy {a:g}", drake_run(diagram, plant, q0, qd0, t, scheme, a))
                     for a in (1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10)
