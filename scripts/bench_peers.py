@@ -50,15 +50,24 @@ Run = Callable[[], tuple[np.ndarray, int]]
 
 def require_peers() -> None:
     """Exit 2 with one line naming the extra when a peer (or numba) is not installed."""
+    from rrt_pin.extras import install_hint
+
+    wanted = (
+        ("mujoco", "mujoco", "bench"),
+        ("pydrake", "drake", "bench"),
+        ("numba", "numba", "fast"),
+    )
     missing = [
-        name
-        for module, name in (("mujoco", "mujoco"), ("pydrake", "drake"), ("numba", "numba"))
-        if importlib.util.find_spec(module) is None
+        (name, extra) for module, name, extra in wanted if importlib.util.find_spec(module) is None
     ]
     if missing:
+        extras = list(dict.fromkeys(extra for _, extra in missing))
+        which = " and ".join(f"'{e}'" for e in extras) + (
+            " extras" if len(extras) > 1 else " extra"
+        )
         print(
-            f"bench_peers.py: {', '.join(missing)} not installed; the peers come with the "
-            "'bench' extra (numba with 'fast'): pip install -e '.[bench,fast]'",
+            f"bench_peers.py: {', '.join(name for name, _ in missing)} not installed, "
+            f"install the {which}: {install_hint(','.join(extras))}",
             file=sys.stderr,
         )
         sys.exit(2)
