@@ -31,6 +31,7 @@ import argparse
 import csv
 import importlib.util
 import math
+import os
 import platform
 import sys
 import time
@@ -848,7 +849,7 @@ def main() -> int:
     start = time.perf_counter()
     v = versions()
     print("versions: " + ", ".join(f"{k} {x}" for k, x in v.items()))
-    print(f"machine: {platform.machine()}, {len(__import__('os').sched_getaffinity(0))} CPUs")
+    print(f"machine: {platform.machine()}, {len(os.sched_getaffinity(0))} CPUs available")
     rows, notes = section_inverse(repeat)
     r2, n2, chosen = section_direct(repeat, args.quick)
     rows += r2
