@@ -156,8 +156,10 @@ def inverse_verdict(medians: dict[str, float], results: dict[str, np.ndarray]) -
 # --------------------------------------------------------------------------------------------
 # The standalone benchmark
 # --------------------------------------------------------------------------------------------
-def baseline_direct(model, controller, q0, qd0, t) -> tuple[np.ndarray, int]:
-    """solve_ivp DOP853 at rtol 1e-10, atol 1e-12 on a Python rhs calling pin.aba."""
+def baseline_direct(
+    model, controller, q0, qd0, t, rtol: float = 1e-10, atol: float = 1e-12
+) -> tuple[np.ndarray, int]:
+    """solve_ivp DOP853 (rtol 1e-10, atol 1e-12 by default) on a Python rhs calling pin.aba."""
     import pinocchio as pin
     from scipy.integrate import solve_ivp
 
@@ -168,8 +170,8 @@ def baseline_direct(model, controller, q0, qd0, t) -> tuple[np.ndarray, int]:
         return np.concatenate((v, pin.aba(model, data, q, v, controller(q, v))))
 
     sol = solve_ivp(
-        rhs, (t[0], t[-1]), np.concatenate((q0, qd0)), method="DOP853", t_eval=t, rtol=1e-10,
-        atol=1e-12,
+        rhs, (t[0], t[-1]), np.concatenate((q0, qd0)), method="DOP853", t_eval=t, rtol=rtol,
+        atol=atol,
     )  # fmt: skip
     return sol.y[:3].T, sol.nfev
 
