@@ -85,11 +85,6 @@ def _params_for(robot: Robot, params: Any, controllers: Sequence[Any]) -> Params
 
 
 def _compiled() -> Any:
-    import sys
-
-    loaded = sys.modules.get("rrt_pin.compiled.integrate")
-    if loaded is not None and "rrt_pin.compiled._jit_integrators" in sys.modules:
-        return loaded  # numba imported and the machine code loaded already
     from rrt_pin import backends
 
     if not backends.get("compiled").available():
