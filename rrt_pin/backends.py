@@ -14,6 +14,10 @@ from rrt_pin.errors import InputError
 __all__ = ["BACKENDS", "Backend", "estimated_seconds", "get", "names"]
 
 
+#: The packages :meth:`Backend.available` has found.
+_FOUND: set[str] = set()
+
+
 @dataclass(frozen=True)
 class Backend:
     """One dynamics engine.
@@ -48,8 +52,17 @@ class Backend:
     simulate_cost: float | None = None
 
     def available(self) -> bool:
-        """Whether its package is installed (cheap: looks, does not import)."""
-        return importlib.util.find_spec(self.requires) is not None
+        """Whether its package is installed (cheap: looks, does not import).
+
+        A package found once is taken as installed for the rest of the process
+        (runs ask at every call); one not found is looked for again.
+        """
+        if self.requires in _FOUND:
+            return True
+        if importlib.util.find_spec(self.requires) is None:
+            return False
+        _FOUND.add(self.requires)
+        return True
 
     def runs(self, task: str) -> bool:
         """Whether it computes ``task`` (``inverse`` or ``simulate``)."""
