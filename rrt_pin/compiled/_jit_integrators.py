@@ -467,7 +467,7 @@ def adaptive(method, y0, t_eval, atol, rtol, max_step, max_steps, p_arr, kind, c
             if dop853:
                 for s in range(n_stages + 1, 16):
                     combine(y, K, D8_A, s, h, ytmp)
-                    bad = rhs(ytmp, p, c, kind, K[s])
+                    bad = rhs_inline(ytmp, p, c, kind, K[s])
                     if bad != 0:
                         return (
                             STATUS_SINGULAR_MASS, bad - 1, n_evals, n_steps, n_rejected, i_out,

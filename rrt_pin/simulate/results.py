@@ -123,6 +123,10 @@ class _Run:
             value = getattr(self, name)
             if value is None:
                 continue
+            if type(value) is np.ndarray and value.dtype == np.float64:
+                if value.flags.writeable:
+                    value.setflags(write=False)
+                continue  # already what is kept: no conversion
             arr = np.asarray(value, dtype=float)
             arr.setflags(write=False)
             object.__setattr__(self, name, arr)
