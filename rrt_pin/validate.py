@@ -148,6 +148,8 @@ def vector(name: str, value: Any, n: int, unit: str = "") -> np.ndarray:
     arr = _array(name, value, unit)
     if arr.shape != (n,):
         raise InputError(f"{name} has shape {arr.shape} but needs ({n},){_unit(unit)}")
+    if isinstance(value, (list, tuple)):  # _array made a fresh array of it already
+        return _finite(name, arr, unit)
     return _finite(name, np.array(arr, dtype=float), unit)
 
 

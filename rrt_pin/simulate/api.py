@@ -73,6 +73,8 @@ def _params_for(robot: Robot, params: Any, controllers: Sequence[Any]) -> Params
     """The chapter arm's Params for the compiled backend."""
     from rrt_pin.params import Params
 
+    if isinstance(params, Params):
+        return params
     for candidate in (params, robot.params, *(getattr(c, "params", None) for c in controllers)):
         if isinstance(candidate, Params):
             return candidate
