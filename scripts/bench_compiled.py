@@ -37,6 +37,7 @@ their compiled rows.
 from __future__ import annotations
 
 import argparse
+import os
 import statistics
 import subprocess
 import sys
@@ -329,7 +330,17 @@ def section_batch(count: int, repeat: int, lean_rtol: float) -> dict[str, bool]:
                 keep, threads, rtol
             )
     results = {k: f() for k, f in funcs.items()}
+    from rrt_pin import cpus
+
+    busy_before, load_before = cpus.busy(), os.getloadavg()[0]
+    cpu_start, wall_start = time.process_time(), time.perf_counter()
     medians = interleaved(funcs, max(3, repeat // 5), inner=1)
+    cores = (time.process_time() - cpu_start) / (time.perf_counter() - wall_start)
+    two = {k: f for k, f in funcs.items() if k[1] == 2}
+    cpu_start, wall_start = time.process_time(), time.perf_counter()
+    for f in two.values():
+        f()
+    cores2 = (time.process_time() - cpu_start) / (time.perf_counter() - wall_start)
     checked = sorted({0, count // 2, count - 1})
     refs = {i: reference_run(rrt_model(plants[i]), controllers[i], q0s[i], qd0s[i], t)
             for i in checked}  # fmt: skip
@@ -358,6 +369,12 @@ def section_batch(count: int, repeat: int, lean_rtol: float) -> dict[str, bool]:
             f"{label:<40} {one:>12.3f} {count / one:>8,.0f} {two:>13.3f} "
             f"{count / two / 2:>11,.0f} {efficiency[label]:>9.0%} {err:>8.1e}"
         )
+    print(
+        f"   machine: {cpus.available()} CPUs; other processes' running tasks at the start "
+        f"{busy_before}, load average {load_before:.2f}; this process used {cores:.2f} "
+        f"CPUs on average over the timed rounds, {cores2:.2f} during 2-thread runs alone "
+        f"(below 2: the threads waited for CPUs other work held)"
+    )
     metrics_label = f"metrics, rtol {lean_rtol:g}"
     got = results[(metrics_label, 1)].metrics
     ref_q = np.array([refs[i].q for i in checked])
@@ -419,7 +436,11 @@ def section_busy(count: int, repeat: int, lean_rtol: float) -> dict[str, bool]:
         free = cpus.free()
         used = batch(None).threads
         medians = interleaved(
-            {"default": lambda: batch(None), "1 thread": lambda: batch(1)},
+            {
+                "default": lambda: batch(None),
+                "1 thread": lambda: batch(1),
+                "2 threads": lambda: batch(2),
+            },
             max(3, repeat // 5),
             inner=1,
         )
@@ -430,7 +451,8 @@ def section_busy(count: int, repeat: int, lean_rtol: float) -> dict[str, bool]:
     print(
         f"\n4b. 1 busy: a CPU-bound process on one of {cpus.available()} CPUs; cpus.free() = "
         f"{free}, default threads used: {used}; keep='final', {count} variants: default "
-        f"{medians['default']:.3f} s, 1 thread {medians['1 thread']:.3f} s, ratio {ratio:.2f}"
+        f"{medians['default']:.3f} s, 1 thread {medians['1 thread']:.3f} s, ratio {ratio:.2f} "
+        f"(2 threads forced: {medians['2 threads']:.3f} s)"
     )
     return {
         f"1 busy: default threads <= {TARGET_BUSY_RATIO:g}x one thread ({ratio:.2f}x)": ratio
