@@ -7,6 +7,7 @@ plan and the library's dispatch all read :data:`BACKENDS`.
 from __future__ import annotations
 
 import importlib.util
+import sys
 from dataclasses import dataclass
 
 from rrt_pin.errors import InputError
@@ -55,9 +56,10 @@ class Backend:
         """Whether its package is installed (cheap: looks, does not import).
 
         A package found once is taken as installed for the rest of the process
-        (runs ask at every call); one not found is looked for again.
+        (runs ask at every call), unless ``sys.modules`` blocks it (None there: the
+        way to make an import fail); one not found is looked for again.
         """
-        if self.requires in _FOUND:
+        if self.requires in _FOUND and sys.modules.get(self.requires, True) is not None:
             return True
         if importlib.util.find_spec(self.requires) is None:
             return False
