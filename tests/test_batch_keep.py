@@ -227,3 +227,27 @@ def test_integrate_arrays_lean_rows(compiled):
     want = batch_metrics(GROUPS, t, y[..., :3], y[..., 3:], tau, C[:, 6:9], *NAMES)
     np.testing.assert_allclose(m[:, codes.METRIC_ENERGY], want["control_energy"], rtol=1e-12)
     np.testing.assert_array_equal(m[:, codes.METRIC_SETTLE + 2], want["settling_time_q3"])
+
+
+def test_batch_laws_of_another_arm_equal_single_runs(compiled):
+    """The batch's column-wise preparation: folded and unfolded eq. (31) as in single runs."""
+    plants, laws, q0s, qd0s = _variants(4)
+    other = Params(g=9.7, m2=40.0)  # eq. (31) built for another arm: its own gravity terms
+    laws[1] = ChapterController(kp=laws[1].kp, kd=laws[1].kd, qf=laws[1].qf, params=other)
+    laws[2] = ChapterController(  # equal values, another object: still folded
+        kp=laws[2].kp, kd=laws[2].kd, qf=laws[2].qf, params=Params(**vars(plants[2]))
+    )
+    t = GRID[:301]
+    batch = compiled.simulate_batch_compiled(plants, laws, q0s, qd0s, t, threads=2)
+    for i in range(4):
+        one = compiled.simulate_compiled(plants[i], laws[i], q0s[i], qd0s[i], t)
+        np.testing.assert_array_equal(batch.q[i], one.q)
+        np.testing.assert_array_equal(batch.tau[i], one.tau)
+    from rrt_pin.compiled import codes
+    from rrt_pin.compiled.integrate import _batch_arrays
+
+    _, kinds, _ = _batch_arrays(plants, laws)
+    assert (
+        list(kinds)
+        == [codes.KIND_CHAPTER_FOLDED, codes.KIND_CHAPTER] + [codes.KIND_CHAPTER_FOLDED] * 2
+    )

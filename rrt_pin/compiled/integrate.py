@@ -499,14 +499,7 @@ def run_batch(
     max_steps = _max_steps(max_steps)
     plants = [_params(v) for v in _per_variant("params", params, count)]
     laws = _per_variant("controllers", controllers, count)
-    P = np.empty((count, 15))
-    C = np.empty((count, 24))
-    kinds = np.empty(count, dtype=np.int64)
-    for b, (plant, law) in enumerate(zip(plants, laws, strict=True)):
-        try:
-            kinds[b], C[b], P[b] = _law(law, plant)
-        except InputError as e:
-            raise InputError(f"controllers[{b}]: {e}") from e
+    P, kinds, C = _batch_arrays(plants, laws)
     qf = None
     if keep == "metrics":
         if any(law is None for law in laws):
@@ -546,6 +539,52 @@ def run_batch(
         keep=keep,
         metrics=columns,
     )
+
+
+def _batch_arrays(plants: list[Params], laws: list[Any]) -> tuple[np.ndarray, ...]:
+    """(P (B, 15), kinds (B,), C (B, 24)) of the variants, as :func:`_law` makes them one by one.
+
+    Chapter laws are laid out column by column (the batch's preparation is serial
+    work beside the threads); other laws go through :func:`_law` one by one.
+    """
+    from rrt_pin.control import ChapterController
+    from rrt_pin.kernel import PARAM_ORDER
+
+    count = len(laws)
+    if not all(type(law) is ChapterController for law in laws):
+        P = np.empty((count, 15))
+        C = np.empty((count, 24))
+        kinds = np.empty(count, dtype=np.int64)
+        for b, (plant, law) in enumerate(zip(plants, laws, strict=True)):
+            try:
+                kinds[b], C[b], P[b] = _law(law, plant)
+            except InputError as e:
+                raise InputError(f"controllers[{b}]: {e}") from e
+        return P, kinds, C
+    rows: dict[int, int] = {}
+    unique: list[Params] = []
+    which = np.empty(count, dtype=np.int64)
+    for b, plant in enumerate(plants):
+        k = rows.get(id(plant))
+        if k is None:
+            k = rows[id(plant)] = len(unique)
+            unique.append(plant)
+        which[b] = k
+    P = np.array([[getattr(u, name) for name in PARAM_ORDER] for u in unique], dtype=float)[which]
+    C = np.empty((count, 24))
+    C[:, 0:3] = [law.kp for law in laws]
+    C[:, 3:6] = [law.kd for law in laws]
+    C[:, 6:9] = [law.qf for law in laws]
+    C[:, 9:] = P
+    kinds = np.full(count, codes.KIND_CHAPTER_FOLDED, dtype=np.int64)
+    for b, (plant, law) in enumerate(zip(plants, laws, strict=True)):
+        own = law.params
+        if own is not plant and (own.g, own.m2, own.m3, own.L2) != (
+            plant.g, plant.m2, plant.m3, plant.L2,
+        ):  # fmt: skip
+            kinds[b] = codes.KIND_CHAPTER  # eq. (31) with another arm's terms (see _law)
+            C[b, 9:] = param_array(own)
+    return P, kinds, C
 
 
 def integrate_arrays(
