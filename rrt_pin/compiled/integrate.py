@@ -110,8 +110,8 @@ def _law(controller: Any, plant: Params) -> tuple[int, np.ndarray, np.ndarray]:
 
     A :class:`~rrt_pin.control.ChapterController` is immutable (frozen, compared by
     identity) and so is :class:`~rrt_pin.params.Params`, so their arrays are kept
-    (read-only) in :func:`_law_kept`; a pd_gravity controller's model is a mutable
-    Pinocchio object and is checked at every call.
+    (read-only) in :data:`_LAWS`, by identity (no hashing of parameters); a pd_gravity
+    controller's model is a mutable Pinocchio object and is checked at every call.
     """
     from rrt_pin.control import ChapterController
 
