@@ -564,13 +564,19 @@ def _batch_arrays(plants: list[Params], laws: list[Any]) -> tuple[np.ndarray, ..
         return P, kinds, C
     rows: dict[int, int] = {}
     unique: list[Params] = []
-    which = np.empty(count, dtype=np.int64)
-    for b, plant in enumerate(plants):
+    which: list[int] = []
+    unfolded: list[int] = []  # eq. (31) with another arm's gravity terms (see _law)
+    for b, (plant, law) in enumerate(zip(plants, laws, strict=True)):
         k = rows.get(id(plant))
         if k is None:
             k = rows[id(plant)] = len(unique)
             unique.append(plant)
-        which[b] = k
+        which.append(k)
+        own = law.params
+        if own is not plant and (own.g, own.m2, own.m3, own.L2) != (
+            plant.g, plant.m2, plant.m3, plant.L2,
+        ):  # fmt: skip
+            unfolded.append(b)
     row = operator.attrgetter(*PARAM_ORDER)  # one C call a plant
     P = np.array([row(u) for u in unique], dtype=float)[which]
     C = np.empty((count, 24))
@@ -579,13 +585,9 @@ def _batch_arrays(plants: list[Params], laws: list[Any]) -> tuple[np.ndarray, ..
     C[:, 6:9] = [law.qf for law in laws]
     C[:, 9:] = P
     kinds = np.full(count, codes.KIND_CHAPTER_FOLDED, dtype=np.int64)
-    for b, (plant, law) in enumerate(zip(plants, laws, strict=True)):
-        own = law.params
-        if own is not plant and (own.g, own.m2, own.m3, own.L2) != (
-            plant.g, plant.m2, plant.m3, plant.L2,
-        ):  # fmt: skip
-            kinds[b] = codes.KIND_CHAPTER  # eq. (31) with another arm's terms (see _law)
-            C[b, 9:] = param_array(own)
+    for b in unfolded:
+        kinds[b] = codes.KIND_CHAPTER
+        C[b, 9:] = param_array(laws[b].params)
     return P, kinds, C
 
 
