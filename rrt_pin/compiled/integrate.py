@@ -577,18 +577,23 @@ def _batch_arrays(plants: list[Params], laws: list[Any]) -> tuple[np.ndarray, ..
             plant.g, plant.m2, plant.m3, plant.L2,
         ):  # fmt: skip
             unfolded.append(b)
-    row = operator.attrgetter(*PARAM_ORDER)  # one C call a plant
-    P = np.array([row(u) for u in unique], dtype=float)[which]
+    P = _table(map(operator.attrgetter(*PARAM_ORDER), unique), len(unique), 15)[which]
     C = np.empty((count, 24))
-    C[:, 0:3] = [law.kp for law in laws]
-    C[:, 3:6] = [law.kd for law in laws]
-    C[:, 6:9] = [law.qf for law in laws]
+    C[:, 0:3] = _table((law.kp for law in laws), count, 3)
+    C[:, 3:6] = _table((law.kd for law in laws), count, 3)
+    C[:, 6:9] = _table((law.qf for law in laws), count, 3)
     C[:, 9:] = P
     kinds = np.full(count, codes.KIND_CHAPTER_FOLDED, dtype=np.int64)
     for b in unfolded:
         kinds[b] = codes.KIND_CHAPTER
         C[b, 9:] = param_array(laws[b].params)
     return P, kinds, C
+
+
+def _table(rows: Any, count: int, width: int) -> np.ndarray:
+    """``count`` tuples of ``width`` numbers as a (count, width) float array, in one pass."""
+    flat = itertools.chain.from_iterable(rows)
+    return np.fromiter(flat, dtype=float, count=count * width).reshape(count, width)
 
 
 def integrate_arrays(
