@@ -62,7 +62,7 @@ def resolve(
             range (a tolerance must lie in (0, 1)), or an rtol below the method's
             floor (:attr:`~rrt_pin.methods.Method.min_rtol`, named).
     """
-    key = tuple((type(x), x) for x in (backend, method, rtol, atol, step, jacobian, batch))
+    key = (backend, method, rtol, atol, step, jacobian, batch, type(rtol), type(atol), type(step))
     try:
         known = _RESOLVED.get(key)
     except TypeError:  # an unhashable value: resolved (and refused) below
