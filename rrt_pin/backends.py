@@ -7,11 +7,16 @@ plan and the library's dispatch all read :data:`BACKENDS`.
 from __future__ import annotations
 
 import importlib.util
+import sys
 from dataclasses import dataclass
 
 from rrt_pin.errors import InputError
 
 __all__ = ["BACKENDS", "Backend", "estimated_seconds", "get", "names"]
+
+
+#: The packages :meth:`Backend.available` has found.
+_FOUND: set[str] = set()
 
 
 @dataclass(frozen=True)
@@ -51,8 +56,18 @@ class Backend:
     simulate_cost: float | None = None
 
     def available(self) -> bool:
-        """Whether its package is installed (cheap: looks, does not import)."""
-        return importlib.util.find_spec(self.requires) is not None
+        """Whether its package is installed (cheap: looks, does not import).
+
+        A package found once is taken as installed for the rest of the process
+        (runs ask at every call), unless ``sys.modules`` blocks it (None there: the
+        way to make an import fail); one not found is looked for again.
+        """
+        if self.requires in _FOUND and sys.modules.get(self.requires, True) is not None:
+            return True
+        if importlib.util.find_spec(self.requires) is None:
+            return False
+        _FOUND.add(self.requires)
+        return True
 
     def runs(self, task: str) -> bool:
         """Whether it computes ``task`` (``inverse`` or ``simulate``)."""

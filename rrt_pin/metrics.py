@@ -9,7 +9,10 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["SETTLING_BAND", "batch_metrics", "settling_times"]
+__all__ = ["GROUPS", "SETTLING_BAND", "batch_metrics", "metric_columns", "settling_times"]
+
+#: The metric groups :func:`batch_metrics` computes.
+GROUPS = ("final_error", "settling_time", "peak_effort", "excursion", "control_energy")
 
 #: The share of the initial distance to qf inside which a joint counts as settled.
 SETTLING_BAND = 0.02
@@ -65,7 +68,7 @@ def batch_metrics(
     (∫ Σ|τ·q̇| dt by the trapezoidal rule [J]). Units as the coordinates and efforts.
     ``compiled``: one pass in machine code (numba; the same numbers, a few times faster).
     """
-    if compiled and tau is not None and qf is not None:
+    if compiled and tau is not None and qf is not None and q.shape[2] == 3:
         return _compiled_metrics(groups, t, q, qd, tau, qf, q_names, effort_names, band)
     out: dict[str, np.ndarray] = {}
     n = q.shape[2]
@@ -101,21 +104,35 @@ def batch_metrics(
 
 
 def _compiled_metrics(groups, t, q, qd, tau, qf, q_names, effort_names, band):  # noqa: ANN001, ANN202
-    from rrt_pin.sweeps import _jit_metrics
+    from rrt_pin.compiled import _jit_metrics
 
-    final, settle, peak, peak_t, excursion, energy = _jit_metrics.run(t, q, qd, tau, qf, band)
+    return metric_columns(groups, _jit_metrics.run(t, q, qd, tau, qf, band), q_names, effort_names)
+
+
+def metric_columns(
+    groups: tuple[str, ...],
+    rows: np.ndarray,
+    q_names: tuple[str, ...],
+    effort_names: tuple[str, ...],
+) -> dict[str, np.ndarray]:
+    """The named columns of :func:`batch_metrics` from compiled metrics rows (B, METRIC_WIDTH).
+
+    ``rows`` laid out as the ``METRIC_*`` offsets of :mod:`rrt_pin.compiled.codes` say.
+    """
+    from rrt_pin.compiled import codes
+
     out: dict[str, np.ndarray] = {}
-    n = q.shape[2]
-    for group, arrays, names, prefixes in (
-        ("final_error", (final,), q_names, ("final_error",)),
-        ("settling_time", (settle,), q_names, ("settling_time",)),
-        ("peak_effort", (peak, peak_t), effort_names, ("peak_effort", "peak_effort_time")),
-        ("excursion", (excursion,), q_names, ("excursion",)),
-    ):
+    for group, starts, names, prefixes in (
+        ("final_error", (codes.METRIC_FINAL,), q_names, ("final_error",)),
+        ("settling_time", (codes.METRIC_SETTLE,), q_names, ("settling_time",)),
+        ("peak_effort", (codes.METRIC_PEAK, codes.METRIC_PEAK_TIME), effort_names,
+         ("peak_effort", "peak_effort_time")),
+        ("excursion", (codes.METRIC_EXCURSION,), q_names, ("excursion",)),
+    ):  # fmt: skip
         if group in groups:
-            for k in range(n):
-                for arr, prefix in zip(arrays, prefixes, strict=True):
-                    out[f"{prefix}_{names[k]}"] = arr[:, k]
+            for k in range(3):
+                for start, prefix in zip(starts, prefixes, strict=True):
+                    out[f"{prefix}_{names[k]}"] = rows[:, start + k]
     if "control_energy" in groups:
-        out["control_energy"] = energy
+        out["control_energy"] = rows[:, codes.METRIC_ENERGY]
     return out

@@ -269,12 +269,12 @@ class Robot:
             object.__setattr__(self, "_model", self._build())
         return self._model
 
-    @property
+    @functools.cached_property
     def nv(self) -> int:
         """Number of joint coordinates (degrees of freedom)."""
         return sum(j.nv for j in self.joints)
 
-    @property
+    @functools.cached_property
     def nq(self) -> int:
         """Size of Pinocchio's configuration vector (> nv with continuous joints)."""
         return sum(j.nq for j in self.joints)
@@ -300,7 +300,7 @@ class Robot:
             out[self.effort_names[k]] = self.effort_units[k]
         return out
 
-    @property
+    @functools.cached_property
     def coordinate_units(self) -> tuple[str, ...]:
         """``rad`` or ``m`` per coordinate."""
         return tuple(j.unit for j in self.joints for _ in range(j.nv))
@@ -369,10 +369,12 @@ class Robot:
         """
         from rrt_pin import validate
 
-        arr = np.asarray(value, dtype=object) if not isinstance(value, np.ndarray) else value
-        if self.nq != self.nv and np.shape(arr) == (self.nq,):
-            return self.coordinates(validate.vector(name, value, self.nq, unit))
-        return validate.vector(name, value, self.nv, unit)
+        nv = self.nv
+        if self.nq != nv:
+            arr = np.asarray(value, dtype=object) if not isinstance(value, np.ndarray) else value
+            if np.shape(arr) == (self.nq,):
+                return self.coordinates(validate.vector(name, value, self.nq, unit))
+        return validate.vector(name, value, nv, unit)
 
     # ------------------------------------------------------------------ feedback and motion
     def with_defaults(self, **changes: Any) -> Robot:

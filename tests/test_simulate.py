@@ -368,13 +368,17 @@ def test_compiled_backend_is_dispatched_lazily(monkeypatch, seed_model, seed_par
     import rrt_pin.simulate.api as api
     from rrt_pin import backends
 
-    calls = []
+    calls, checked = [], []
 
-    def simulate_compiled(params, controller, q0, qd0, t_eval, method, rtol, atol, step, **kw):
-        calls.append((params, method, rtol, atol, step, kw.get("model")))
+    def run_one(params, controller, q0, qd0, t, options, max_steps=None, start=None):
+        o = options
+        calls.append((params, o.method.name, o.rtol, o.atol, o.step, checked[-1]))
         return seed_run
 
-    fake = types.SimpleNamespace(simulate_compiled=simulate_compiled)
+    def check_model(model, params):  # the model given is checked against the params used
+        checked.append(model)
+
+    fake = types.SimpleNamespace(run_one=run_one, check_model=check_model)
     monkeypatch.setattr(api, "_compiled", lambda: fake)
     monkeypatch.setattr(api, "_prepare", lambda robot, backend, method=None: None)
     c = seed_controller(seed_params)

@@ -69,6 +69,7 @@ JIT_MODULES: tuple[str, ...] = (
     "rrt_pin.kernel",
     "rrt_pin.compiled.codes",
     "rrt_pin.compiled._jit_dynamics",
+    "rrt_pin.compiled._jit_metrics",
     "rrt_pin.compiled._jit_integrators",
     "rrt_pin.compiled._dop853_coefficients",
 )

@@ -218,6 +218,22 @@ def ldl_solve(m11, m12, m13, m22, m23, m33, b1, b2, b3):
 
 
 @jit(None, inline=True)
+def eq31(c, q1, q2, q3, qd1, qd2, qd3, s2, c2):
+    """Eq. (31) of the chapter (T01x [N·m], T12y [N·m], F23z [N]) given sin q2 and cos q2.
+
+    ``c`` as ``control``'s: the gravity terms read g, m2, m3 and L2 from the law's parameters.
+    """
+    u1 = -c[3] * qd1 - c[0] * (q1 - c[6])
+    u2 = -c[4] * qd2 - c[1] * (q2 - c[7])
+    u3 = -c[5] * qd3 - c[2] * (q3 - c[8])
+    g = c[9 + _G]
+    m2 = c[9 + _M2]
+    m3 = c[9 + _M3]
+    L2 = c[9 + _L2]
+    return u1, u2 + g * m2 * L2 * c2 + g * m3 * c2 * (L2 + q3), u3 + g * m3 * s2
+
+
+@jit(None, inline=True)
 def control(kind, c, q1, q2, q3, qd1, qd2, qd3, G1, G2, G3):
     """Joint efforts (T01x [N·m], T12y [N·m], F23z [N]) of controller ``kind``.
 
@@ -226,17 +242,13 @@ def control(kind, c, q1, q2, q3, qd1, qd2, qd3, G1, G2, G3):
     """
     if kind == KIND_NONE:
         return 0.0, 0.0, 0.0
+    if kind == KIND_CHAPTER:
+        # Eq. (31): the gravity compensation written out with the chapter's symbols.
+        s2, c2 = sincos(q2)
+        return eq31(c, q1, q2, q3, qd1, qd2, qd3, s2, c2)
     u1 = -c[3] * qd1 - c[0] * (q1 - c[6])
     u2 = -c[4] * qd2 - c[1] * (q2 - c[7])
     u3 = -c[5] * qd3 - c[2] * (q3 - c[8])
-    if kind == KIND_CHAPTER:
-        # Eq. (31): the gravity compensation written out with the chapter's symbols.
-        g = c[9 + _G]
-        m2 = c[9 + _M2]
-        m3 = c[9 + _M3]
-        L2 = c[9 + _L2]
-        s2, c2 = sincos(q2)
-        return u1, u2 + g * m2 * L2 * c2 + g * m3 * c2 * (L2 + q3), u3 + g * m3 * s2
     if kind == KIND_PD_PLANT_GRAVITY or kind == KIND_CHAPTER_FOLDED:
         return u1 + G1, u2 + G2, u3 + G3
     return math.nan, math.nan, math.nan  # not a kind of this module: fail loudly

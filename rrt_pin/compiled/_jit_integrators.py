@@ -27,18 +27,28 @@ from numba import float64, int64, types
 
 from rrt_pin.compiled import _dop853_coefficients as dop
 from rrt_pin.compiled._jit_dynamics import (
+    SINCOS_LIMIT,
     as_tuple_c,
     as_tuple_p,
     closed_loop,
     closed_loop_inline,
     effort,
+    eq31,
     jit,
+    vsincos,
 )
+from rrt_pin.compiled._jit_metrics import variant_metrics
 from rrt_pin.compiled.codes import (
     FIXED_STEP_FROM,
+    KEEP_FINAL,
+    KEEP_METRICS,
+    KEEP_TRAJECTORIES,
+    KIND_CHAPTER,
+    KIND_CHAPTER_FOLDED,
     METHOD_DOP853,
     METHOD_RK4,
     METHOD_SYMPLECTIC_EULER,
+    STATUS_EFFORT_NONFINITE,
     STATUS_MAX_STEPS,
     STATUS_NO_CONVERGENCE,
     STATUS_NONFINITE,
@@ -161,17 +171,52 @@ def rms_scaled(v, scale):
     return math.sqrt(s / v.shape[0])
 
 
-@jit(types.void(int64, _rvec, _rvec, _mat, _mat, int64))
+@jit(int64(int64, _rvec, _rvec, _mat, _mat, int64))
 def fill_efforts(kind, cvec, p, out_y, out_tau, n):
-    """The controller's efforts at the first ``n`` output states, into out_tau."""
+    """The controller's efforts at the first ``n`` output states, into out_tau.
+
+    Returns -1, or 3·i + k of the first non-finite effort (row i, effort k). Eq. (31)
+    (kinds 1 and 3), when every |q2| is below SINCOS_LIMIT, runs as one loop over
+    flat views with the branch-free sine and cosine and the law's constants in
+    registers, which vectorizes; finiteness is one flag OR-ed per sample (from
+    |τ1 + τ2 + τ3| < inf, a false alarm when only the sum overflows costs the search).
+    """
+    bad = False
+    chapter = kind == KIND_CHAPTER or kind == KIND_CHAPTER_FOLDED
+    if chapter:
+        for i in range(n):
+            chapter &= abs(out_y[i, 1]) < SINCOS_LIMIT
+    if chapter:
+        c = as_tuple_c(cvec)
+        yf = out_y.reshape(-1)
+        tf = out_tau.reshape(-1)
+        for j in range(n):
+            i = 6 * j
+            s2, c2 = vsincos(yf[i + 1])
+            u1, u2, u3 = eq31(
+                c, yf[i], yf[i + 1], yf[i + 2], yf[i + 3], yf[i + 4], yf[i + 5], s2, c2
+            )
+            tf[3 * j] = u1
+            tf[3 * j + 1] = u2
+            tf[3 * j + 2] = u3
+            bad |= not (abs(u1 + u2 + u3) < math.inf)
+    else:
+        for i in range(n):
+            u1, u2, u3 = effort(
+                kind, cvec, p, out_y[i, 0], out_y[i, 1], out_y[i, 2], out_y[i, 3], out_y[i, 4],
+                out_y[i, 5],
+            )  # fmt: skip
+            out_tau[i, 0] = u1
+            out_tau[i, 1] = u2
+            out_tau[i, 2] = u3
+            bad |= not (abs(u1 + u2 + u3) < math.inf)
+    if not bad:
+        return -1
     for i in range(n):
-        u1, u2, u3 = effort(
-            kind, cvec, p, out_y[i, 0], out_y[i, 1], out_y[i, 2], out_y[i, 3], out_y[i, 4],
-            out_y[i, 5],
-        )  # fmt: skip
-        out_tau[i, 0] = u1
-        out_tau[i, 1] = u2
-        out_tau[i, 2] = u3
+        for k in range(3):
+            if not math.isfinite(out_tau[i, k]):
+                return 3 * i + k
+    return -1  # only the sum overflowed
 
 
 @jit(None, inline=True)
@@ -195,11 +240,57 @@ def combine(y, K, A, s, h, out):
     out[5] = y[5] + a5 * h
 
 
-@jit(_RESULT(int64, _rvec, _rvec, _rvec, float64, float64, int64, _rvec, int64, _rvec, _mat))
-def adaptive(method, y0, t_eval, atol, rtol, max_step, max_steps, p_arr, kind, c_arr, out_y):
+@jit(None, inline=True)
+def dense_dop853(F, y, t_eval, t, h, start, end, out_y):
+    """SciPy's Dop853DenseOutput at t_eval[start:end] into out_y: nested in x and 1 − x.
+
+    The step's coefficients F (7, 6) and y are read into scalars once (the stores to
+    out_y could alias them), and the samples, independent of each other, form a
+    counted loop over views indexed from 0, which LLVM vectorizes (from ``start``,
+    with indices it cannot prove non-negative, it does not).
+    """
+    y0, y1, y2, y3, y4, y5 = y[0], y[1], y[2], y[3], y[4], y[5]
+    a0, a1, a2, a3, a4, a5 = F[0, 0], F[0, 1], F[0, 2], F[0, 3], F[0, 4], F[0, 5]
+    b0, b1, b2, b3, b4, b5 = F[1, 0], F[1, 1], F[1, 2], F[1, 3], F[1, 4], F[1, 5]
+    c0, c1, c2, c3, c4, c5 = F[2, 0], F[2, 1], F[2, 2], F[2, 3], F[2, 4], F[2, 5]
+    d0, d1, d2, d3, d4, d5 = F[3, 0], F[3, 1], F[3, 2], F[3, 3], F[3, 4], F[3, 5]
+    e0, e1, e2, e3, e4, e5 = F[4, 0], F[4, 1], F[4, 2], F[4, 3], F[4, 4], F[4, 5]
+    f0, f1, f2, f3, f4, f5 = F[5, 0], F[5, 1], F[5, 2], F[5, 3], F[5, 4], F[5, 5]
+    g0, g1, g2, g3, g4, g5 = F[6, 0], F[6, 1], F[6, 2], F[6, 3], F[6, 4], F[6, 5]
+    of = out_y[start:end].reshape(-1)  # views indexed from 0: the loop vectorizes
+    te = t_eval[start:end]
+    for m in range(te.shape[0]):
+        x = (te[m] - t) / h
+        w = 1.0 - x
+        j = 6 * m
+        # (((((((0 + F6)·x + F5)·w + F4)·x + F3)·w + F2)·x + F1)·w + F0)·x + y, as SciPy's loop
+        of[j + 0] = ((((((g0 * x + f0) * w + e0) * x + d0) * w + c0) * x + b0) * w + a0) * x + y0
+        of[j + 1] = ((((((g1 * x + f1) * w + e1) * x + d1) * w + c1) * x + b1) * w + a1) * x + y1
+        of[j + 2] = ((((((g2 * x + f2) * w + e2) * x + d2) * w + c2) * x + b2) * w + a2) * x + y2
+        of[j + 3] = ((((((g3 * x + f3) * w + e3) * x + d3) * w + c3) * x + b3) * w + a3) * x + y3
+        of[j + 4] = ((((((g4 * x + f4) * w + e4) * x + d4) * w + c4) * x + b4) * w + a4) * x + y4
+        of[j + 5] = ((((((g5 * x + f5) * w + e5) * x + d5) * w + c5) * x + b5) * w + a5) * x + y5
+
+
+@jit(None, inline=True)
+def dense_rk45(F, y, t_eval, t, h, start, end, out_y):
+    """SciPy's RkDenseOutput at t_eval[start:end] into out_y: y_old + h · Q · (x, x², x³, x⁴)."""
+    for j in range(start, end):
+        x = (t_eval[j] - t) / h
+        x2 = x * x
+        x3 = x2 * x
+        x4 = x3 * x
+        for i in range(N):
+            out_y[j, i] = h * (F[0, i] * x + F[1, i] * x2 + F[2, i] * x3 + F[3, i] * x4) + y[i]
+
+
+@jit(_RESULT(int64, _rvec, _rvec, _rvec, float64, float64, int64, _rvec, int64, _rvec, _mat, int64))
+def adaptive(method, y0, t_eval, atol, rtol, max_step, max_steps, p_arr, kind, c_arr, out_y, dense):
     """RK45 (method 0) or DOP853 (method 1) with SciPy's error control; see ``integrate``.
 
-    Needs len(t_eval) >= 2.
+    Needs len(t_eval) >= 2. ``dense`` 0: no dense output; the state reached at
+    t_eval[-1] (the last step's end, exactly) is written into out_y[0] instead,
+    and n_out is 1. The steps are the same either way.
     """
     p = as_tuple_p(p_arr)
     c = as_tuple_c(c_arr)
@@ -372,11 +463,11 @@ def adaptive(method, y0, t_eval, atol, rtol, max_step, max_steps, p_arr, kind, c
         n_steps += 1
 
         # Dense output at the t_eval points of (t, t_new] (t_eval[0] in the first step).
-        if i_out < n_out and t_eval[i_out] <= t_new:
+        if dense and i_out < n_out and t_eval[i_out] <= t_new:
             if dop853:
                 for s in range(n_stages + 1, 16):
                     combine(y, K, D8_A, s, h, ytmp)
-                    bad = rhs(ytmp, p, c, kind, K[s])
+                    bad = rhs_inline(ytmp, p, c, kind, K[s])
                     if bad != 0:
                         return (
                             STATUS_SINGULAR_MASS, bad - 1, n_evals, n_steps, n_rejected, i_out,
@@ -407,50 +498,24 @@ def adaptive(method, y0, t_eval, atol, rtol, max_step, max_steps, p_arr, kind, c
                         if pjr != 0.0:
                             for i in range(N):
                                 F[r, i] += K[j, i] * pjr
-            while i_out < n_out and t_eval[i_out] <= t_new:
-                x = (t_eval[i_out] - t) / h
-                if dop853:
-                    # SciPy's Dop853DenseOutput: nested in x and (1 - x), alternately.
-                    omx = 1.0 - x
-                    v0 = v1 = v2 = v3 = v4 = v5 = 0.0
-                    for r in range(7):
-                        w = x if r % 2 == 0 else omx
-                        v0 = (v0 + F[6 - r, 0]) * w
-                        v1 = (v1 + F[6 - r, 1]) * w
-                        v2 = (v2 + F[6 - r, 2]) * w
-                        v3 = (v3 + F[6 - r, 3]) * w
-                        v4 = (v4 + F[6 - r, 4]) * w
-                        v5 = (v5 + F[6 - r, 5]) * w
-                    v0 += y[0]
-                    v1 += y[1]
-                    v2 += y[2]
-                    v3 += y[3]
-                    v4 += y[4]
-                    v5 += y[5]
-                else:
-                    # SciPy's RkDenseOutput: y_old + h · Q · (x, x², x³, x⁴).
-                    x2 = x * x
-                    x3 = x2 * x
-                    x4 = x3 * x
-                    v0 = h * (F[0, 0] * x + F[1, 0] * x2 + F[2, 0] * x3 + F[3, 0] * x4) + y[0]
-                    v1 = h * (F[0, 1] * x + F[1, 1] * x2 + F[2, 1] * x3 + F[3, 1] * x4) + y[1]
-                    v2 = h * (F[0, 2] * x + F[1, 2] * x2 + F[2, 2] * x3 + F[3, 2] * x4) + y[2]
-                    v3 = h * (F[0, 3] * x + F[1, 3] * x2 + F[2, 3] * x3 + F[3, 3] * x4) + y[3]
-                    v4 = h * (F[0, 4] * x + F[1, 4] * x2 + F[2, 4] * x3 + F[3, 4] * x4) + y[4]
-                    v5 = h * (F[0, 5] * x + F[1, 5] * x2 + F[2, 5] * x3 + F[3, 5] * x4) + y[5]
-                out_y[i_out, 0] = v0
-                out_y[i_out, 1] = v1
-                out_y[i_out, 2] = v2
-                out_y[i_out, 3] = v3
-                out_y[i_out, 4] = v4
-                out_y[i_out, 5] = v5
-                i_out += 1
+            end = i_out
+            while end < n_out and t_eval[end] <= t_new:
+                end += 1
+            if dop853:
+                dense_dop853(F, y, t_eval, t, h, i_out, end, out_y)
+            else:
+                dense_rk45(F, y, t_eval, t, h, i_out, end, out_y)
+            i_out = end
 
         t = t_new
         for i in range(N):
             y[i] = y_new[i]
             f[i] = K[n_stages, i]
         if t - t_bound >= 0.0:
+            if not dense:
+                for i in range(N):
+                    out_y[0, i] = y[i]
+                i_out = 1
             return STATUS_OK, -1, n_evals, n_steps, n_rejected, i_out, t
 
 
@@ -561,6 +626,17 @@ def fixed(method, y0, t_eval, dt, max_steps, p_arr, kind, c_arr, out_y):
     return STATUS_OK, -1, n_evals, n_steps, 0, n_out, t_eval[n_out - 1]
 
 
+@jit(None, inline=True)
+def _with_efforts(r, t_eval, kind, cvec, p, out_y, out_tau):
+    """``r`` after the efforts at its n_out rows: STATUS_EFFORT_NONFINITE if one is not finite."""
+    bad = fill_efforts(kind, cvec, p, out_y, out_tau, r[5])
+    if bad < 0 or r[0] != STATUS_OK:
+        return r
+    row = bad // 3
+    when = t_eval[row] if out_y.shape[0] == t_eval.shape[0] else t_eval[t_eval.shape[0] - 1]
+    return STATUS_EFFORT_NONFINITE, bad, r[2], r[3], r[4], r[5], when
+
+
 @jit(
     _RESULT(
         int64,
@@ -604,33 +680,67 @@ def integrate(
         of output rows filled.
     """
     if method < FIXED_STEP_FROM:
-        r = adaptive(method, y0, t_eval, atol, rtol, max_step, max_steps, p, kind, cvec, out_y)
+        r = adaptive(method, y0, t_eval, atol, rtol, max_step, max_steps, p, kind, cvec, out_y, 1)
     else:
         r = fixed(method, y0, t_eval, dt, max_steps, p, kind, cvec, out_y)
-    fill_efforts(kind, cvec, p, out_y, out_tau, r[5])
-    return r
+    return _with_efforts(r, t_eval, kind, cvec, p, out_y, out_tau)
 
 
 @jit(
     types.void(
         int64, _rmat, _rvec, float64, _rvec, float64, float64, int64, _rmat, _rivec, _rmat,
-        float64[:, :, ::1], float64[:, :, ::1], int64[:, ::1], _vec,
+        int64, _rmat, float64, float64[:, :, ::1], float64[:, :, ::1], _mat, int64[:, ::1], _vec,
     )
 )  # fmt: skip
 def integrate_batch(
-    method, y0, t_eval, dt, atol, rtol, max_step, max_steps, p, kind, cvec, out_y, out_tau,
-    info, t_reached,
+    method, y0, t_eval, dt, atol, rtol, max_step, max_steps, p, kind, cvec, keep, qf, band,
+    out_y, out_tau, out_m, info, t_reached,
 ):  # fmt: skip
-    """Run ``integrate`` for every variant b (rows of y0, p, kind, cvec), one after the other.
+    """Run every variant b (rows of y0, p, kind, cvec), one after the other.
+
+    ``keep`` (a ``KEEP_*`` code) says what is written for variant b:
+
+    * KEEP_TRAJECTORIES: out_y[b] (T, 6) and out_tau[b] (T, 3) at every output time;
+    * KEEP_FINAL: out_y[b, 0] and out_tau[b, 0] at the last output time only. The
+      adaptive methods then skip the dense output (and its extra stages) and
+      report the last step's end, which the full run's interpolant reproduces to
+      round-off; the fixed-step ones fill a scratch run and keep its last row;
+    * KEEP_METRICS: the same, and out_m[b] (METRIC_WIDTH,): the metrics of the
+      variant's samples at every output time (target qf[b], settling band
+      ``band``), computed from a scratch run reused by every variant.
 
     ``info[b]`` receives (status, coordinate, n_evals, n_steps, n_rejected, n_out)
-    and ``t_reached[b]`` the time reached [s].
+    and ``t_reached[b]`` the time reached [s]. Releases the GIL: threads may run
+    disjoint slices of a batch at once.
     """
+    T = t_eval.shape[0]
+    scratch = 0 if keep == KEEP_TRAJECTORIES else T
+    sy = np.empty((scratch, N))
+    st = np.empty((scratch, 3))
     for b in range(y0.shape[0]):
-        r = integrate(
-            method, y0[b], t_eval, dt, atol, rtol, max_step, max_steps, p[b], kind[b], cvec[b],
-            out_y[b], out_tau[b],
-        )  # fmt: skip
+        if keep == KEEP_TRAJECTORIES:
+            r = integrate(
+                method, y0[b], t_eval, dt, atol, rtol, max_step, max_steps, p[b], kind[b],
+                cvec[b], out_y[b], out_tau[b],
+            )  # fmt: skip
+        elif keep == KEEP_FINAL and method < FIXED_STEP_FROM:
+            r = adaptive(
+                method, y0[b], t_eval, atol, rtol, max_step, max_steps, p[b], kind[b], cvec[b],
+                out_y[b], 0,
+            )  # fmt: skip
+            r = _with_efforts(r, t_eval, kind[b], cvec[b], p[b], out_y[b], out_tau[b])
+        else:
+            r = integrate(
+                method, y0[b], t_eval, dt, atol, rtol, max_step, max_steps, p[b], kind[b],
+                cvec[b], sy, st,
+            )  # fmt: skip
+            if r[0] == STATUS_OK:
+                for i in range(N):
+                    out_y[b, 0, i] = sy[T - 1, i]
+                for k in range(3):
+                    out_tau[b, 0, k] = st[T - 1, k]
+                if keep == KEEP_METRICS:
+                    variant_metrics(t_eval, sy[:, :3], sy[:, 3:], st, qf[b], band, out_m[b])
         info[b, 0] = r[0]
         info[b, 1] = r[1]
         info[b, 2] = r[2]

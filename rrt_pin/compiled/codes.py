@@ -14,14 +14,25 @@ __all__ = [
     "KIND_CHAPTER",
     "KIND_CHAPTER_FOLDED",
     "KIND_NONE",
+    "KEEP_FINAL",
+    "KEEP_METRICS",
+    "KEEP_TRAJECTORIES",
     "KIND_PD_PLANT_GRAVITY",
     "METHOD_DOP853",
+    "METRIC_ENERGY",
+    "METRIC_EXCURSION",
+    "METRIC_FINAL",
+    "METRIC_PEAK",
+    "METRIC_PEAK_TIME",
+    "METRIC_SETTLE",
+    "METRIC_WIDTH",
     "METHOD_RK4",
     "METHOD_RK45",
     "METHOD_SYMPLECTIC_EULER",
     "METHOD_VERLET",
     "NC",
     "NP",
+    "STATUS_EFFORT_NONFINITE",
     "STATUS_MAX_STEPS",
     "STATUS_NO_CONVERGENCE",
     "STATUS_NONFINITE",
@@ -52,6 +63,21 @@ STATUS_STEP_UNDERFLOW = 2  # the step size fell below 10 ulp of t
 STATUS_SINGULAR_MASS = 3  # M(q) not positive definite; coordinate = pivot 0..2
 STATUS_MAX_STEPS = 4  # step budget exhausted; coordinate = component limiting the step
 STATUS_NO_CONVERGENCE = 5  # Verlet's implicit half kick diverged; coordinate = its index 0..5
+STATUS_EFFORT_NONFINITE = 6  # an effort at an output time is not finite; coordinate = 3·row + k
+
+# What a batch keeps of each variant.
+KEEP_TRAJECTORIES = 0  # the states and efforts at every output time
+KEEP_FINAL = 1  # the state and efforts at the last output time only (no dense output)
+KEEP_METRICS = 2  # the final ones and the metrics row below, from samples not kept
+
+# A row of metrics (rrt_pin.compiled._jit_metrics), per coordinate k = 0, 1, 2 at start + k.
+METRIC_FINAL = 0  # |q(tf) - qf| [rad, rad, m]
+METRIC_SETTLE = 3  # settling time [s], NaN when not settled
+METRIC_PEAK = 6  # peak |tau| [N·m, N·m, N]
+METRIC_PEAK_TIME = 9  # its time [s]
+METRIC_EXCURSION = 12  # max |q(t) - q(t0)| [rad, rad, m]
+METRIC_ENERGY = 15  # control energy, integral of sum |tau·qd| dt [J] (one value)
+METRIC_WIDTH = 16
 
 #: Number of physical parameters (``rrt_pin.kernel.PARAM_ORDER``) and of controller parameters.
 NP = 15

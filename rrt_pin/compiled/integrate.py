@@ -36,9 +36,12 @@ coordinate, as reported by the compiled loop.
 from __future__ import annotations
 
 import functools
+import itertools
 import math
+import operator
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -47,17 +50,24 @@ from rrt_pin import methods, validate
 from rrt_pin.compiled import codes, ensure_compiled
 from rrt_pin.compiled.dynamics import param_array
 from rrt_pin.errors import DivergenceError, InputError
+from rrt_pin.metrics import SETTLING_BAND
 from rrt_pin.params import Params
-from rrt_pin.simulate.results import BatchResult, SimulationResult
+from rrt_pin.simulate.results import KEEPS, BatchResult, SimulationResult
 
 if TYPE_CHECKING:
     import pinocchio as pin
 
+    from rrt_pin.simulate.options import Options
+
 __all__ = [
     "DEFAULT_METHOD",
     "MAX_STEPS",
+    "MIN_PER_THREAD",
+    "check_model",
     "failure",
     "integrate_arrays",
+    "run_batch",
+    "run_one",
     "simulate_batch_compiled",
     "simulate_compiled",
 ]
@@ -68,6 +78,13 @@ DEFAULT_METHOD = "DOP853"
 MAX_STEPS = 10_000_000
 #: SciPy's floor on the relative tolerance (100 machine epsilons): tighter is refused.
 RTOL_FLOOR = methods.RTOL_FLOOR
+_KEEP_CODES = {
+    "trajectories": codes.KEEP_TRAJECTORIES,
+    "final": codes.KEEP_FINAL,
+    "metrics": codes.KEEP_METRICS,
+}
+#: A batch's default thread count gives no thread fewer variants than this.
+MIN_PER_THREAD = 16
 _NAMES = ("q1", "q2", "q3", "qd1", "qd2", "qd3")
 _EFFORTS = ("T01x", "T12y", "F23z")
 
@@ -81,24 +98,39 @@ def _rows(name: str, value: Any, unit: str, batch: bool) -> np.ndarray:
     return validate.vector(name, value, 3, unit)
 
 
-def _options(
-    method: str | None,
-    rtol: float | None,
-    atol: float | None,
-    step: float | None,
-    t: np.ndarray,
-) -> tuple[str, float | None, float | None, float | None]:
-    from rrt_pin.simulate.options import resolve
-
-    options = resolve(t, backend="compiled", method=method, rtol=rtol, atol=atol, step=step)
-    return options.method.name, options.rtol, options.atol, options.step
-
-
 @functools.lru_cache(maxsize=16)
 def _rrt_model(params: Params) -> pin.Model:
     from rrt_pin.model import rrt_model
 
     return rrt_model(params)
+
+
+def _law(controller: Any, plant: Params) -> tuple[int, np.ndarray, np.ndarray]:
+    """(kind, c, p): ``controller`` and ``plant`` compiled; kept for chapter laws and None.
+
+    A :class:`~rrt_pin.control.ChapterController` is immutable (frozen, compared by
+    identity) and so is :class:`~rrt_pin.params.Params`, so their arrays are kept
+    (read-only) in :data:`_LAWS`, by identity (no hashing of parameters); a pd_gravity
+    controller's model is a mutable Pinocchio object and is checked at every call.
+    """
+    from rrt_pin.control import ChapterController
+
+    key = (id(controller), id(plant))
+    kept = _LAWS.get(key)
+    if kept is not None and kept[0] is controller and kept[1] is plant:
+        return kept[2]
+    p = param_array(plant)
+    kind, c = _controller_arrays(controller, plant, p)
+    if controller is None or type(controller) is ChapterController:
+        c.setflags(write=False)
+        if len(_LAWS) >= 256:
+            _LAWS.clear()
+        _LAWS[key] = (controller, plant, (kind, c, p))  # both kept alive: their ids stay theirs
+    return kind, c, p
+
+
+#: The arrays of the last few (immutable) chapter laws and plants, by their identities.
+_LAWS: dict[tuple[int, int], tuple[Any, Params, tuple[int, np.ndarray, np.ndarray]]] = {}
 
 
 def _controller_arrays(controller: Any, plant: Params, p: np.ndarray) -> tuple[int, np.ndarray]:
@@ -140,7 +172,7 @@ def _params(params: Any) -> Params:
     return params
 
 
-def _check_model(model: Any, params: Params) -> None:
+def check_model(model: Any, params: Params) -> None:
     """Refuse a ``model`` that is not the RRT arm of ``params`` (the kernel's arm)."""
     if model is not None and not bool(model == _rrt_model(params)):
         raise InputError(
@@ -159,10 +191,18 @@ def _raise_status(
     step: float | None,
     max_steps: int,
     variant: int | None,
+    tau: np.ndarray | None = None,
 ) -> None:
     status, coordinate = int(info[0]), int(info[1])
     if status == codes.STATUS_OK:
         return
+    if status == codes.STATUS_EFFORT_NONFINITE:
+        row, k = divmod(coordinate, 3)
+        where = f" (variant {variant})" if variant is not None else ""
+        value = f" {float(tau[row, k])!r}" if tau is not None and row < tau.shape[0] else " nan"
+        raise DivergenceError(
+            float(t_fail), f"{_EFFORTS[k]}{where}", f"the controller returned{value}"
+        )
     name = _NAMES[coordinate] if 0 <= coordinate < 6 else "q1"
     if variant is not None:
         name = f"{name} (variant {variant})"
@@ -200,18 +240,6 @@ def _raise_status(
     else:  # pragma: no cover - a status the loop does not produce
         problem = f"the compiled integrator returned status {status}"
     raise DivergenceError(float(t_fail), name, problem, verb=verb)
-
-
-def _check_efforts(t: np.ndarray, tau: np.ndarray) -> None:
-    if not np.isfinite(tau).all():
-        bad = np.argwhere(~np.isfinite(tau))
-        *v, i, k = (int(x) for x in bad[0])
-        where = f" (variant {v[0]})" if v else ""
-        raise DivergenceError(
-            float(t[i]),
-            f"{_EFFORTS[k]}{where}",
-            f"the controller returned {float(tau[tuple(bad[0])])!r}",
-        )
 
 
 # --------------------------------------------------------------------------
@@ -263,27 +291,55 @@ def simulate_compiled(
     ensure_compiled()
     start = time.perf_counter() if start is None else start
     params = _params(params)
-    _check_model(model, params)
-    y0 = np.concatenate(
-        (_rows("q0", q0, "rad, rad, m", False), _rows("qd0", qd0, "rad/s, rad/s, m/s", False))
-    )
+    check_model(model, params)
+    q0 = _rows("q0", q0, "rad, rad, m", False)
+    qd0 = _rows("qd0", qd0, "rad/s, rad/s, m/s", False)
     t = validate.times(t_eval)
-    method, rtol, atol, step = _options(method, rtol, atol, step, t)
-    max_steps = _max_steps(max_steps)
-    p = param_array(params)
-    kind, c = _controller_arrays(controller, params, p)
+    from rrt_pin.simulate.options import resolve
 
+    options = resolve(t, backend="compiled", method=method, rtol=rtol, atol=atol, step=step)
+    return run_one(params, controller, q0, qd0, t, options, _max_steps(max_steps), start)
+
+
+def run_one(
+    params: Params,
+    controller: Any,
+    q0: np.ndarray,
+    qd0: np.ndarray,
+    t: np.ndarray,
+    options: Options,
+    max_steps: int = MAX_STEPS,
+    start: float | None = None,
+) -> SimulationResult:
+    """:func:`simulate_compiled` on inputs already checked (by it, or by :func:`rrt_pin.simulate.simulate`).
+
+    Args:
+        params: the arm (a :class:`~rrt_pin.params.Params`) [SI units].
+        controller: as :func:`simulate_compiled`'s (checked here: its kind and arm).
+        q0: initial positions (3,), finite [rad, rad, m].
+        qd0: initial velocities (3,), finite [rad/s, rad/s, m/s].
+        t: output times, as :func:`rrt_pin.validate.times` returns them [s].
+        options: as :func:`rrt_pin.simulate.options.resolve` returns them for this backend.
+        max_steps: step budget (accepted and rejected steps).
+        start: ``time.perf_counter()`` when the caller's call began (for ``wall_time``).
+    """
+    start = time.perf_counter() if start is None else start
+    kind, c, p = _law(controller, params)
     from rrt_pin.compiled import _jit_integrators as jit
 
+    y0 = np.empty(6)
+    y0[:3] = q0
+    y0[3:] = qd0
     out_y = np.empty((t.size, 6))
     out_tau = np.empty((t.size, 3))
-    atol_v = np.full(6, atol if atol is not None else 0.0)
+    method = options.method
+    rtol, atol, step = options.rtol, options.atol, options.step
     status, coordinate, n_evals, _, _, _, t_reached = jit.integrate(
-        methods.get(method).code,
+        method.code,
         y0,
         t,
         step if step is not None else 0.0,
-        atol_v,
+        _atol_vector(atol),
         rtol if rtol is not None else 0.0,
         math.inf,
         max_steps,
@@ -293,8 +349,8 @@ def simulate_compiled(
         out_y,
         out_tau,
     )
-    _raise_status((status, coordinate), t_reached, method, step, max_steps, None)
-    _check_efforts(t, out_tau)
+    if status != codes.STATUS_OK:
+        _raise_status((status, coordinate), t_reached, method.name, step, max_steps, None, out_tau)
     return SimulationResult(
         t=t,
         q=out_y[:, :3],
@@ -302,12 +358,20 @@ def simulate_compiled(
         tau=out_tau,
         n_evals=int(n_evals),
         wall_time=time.perf_counter() - start,
-        method=method,
+        method=method.name,
         backend="compiled",
         rtol=rtol,
         atol=atol,
         step=step,
     )
+
+
+@functools.lru_cache(maxsize=16)
+def _atol_vector(atol: float | None) -> np.ndarray:
+    """The absolute tolerance per state component (read-only) [rad, m, rad/s, m/s]."""
+    v = np.full(6, atol if atol is not None else 0.0)
+    v.setflags(write=False)
+    return v
 
 
 def _max_steps(value: Any) -> int:
@@ -336,10 +400,13 @@ def simulate_batch_compiled(
     step: float | None = None,
     efforts: bool = True,
     *,
+    keep: str = "trajectories",
+    threads: int | None = None,
+    band: float = SETTLING_BAND,
     max_steps: int = MAX_STEPS,
     start: float | None = None,
 ) -> BatchResult:
-    """Simulate B variants of the RRT arm, one after the other in one compiled loop.
+    """Simulate B variants of the RRT arm in machine code, on one or more threads.
 
     Args:
         params: one :class:`~rrt_pin.params.Params` for all variants, or one per
@@ -355,15 +422,37 @@ def simulate_batch_compiled(
         atol: absolute tolerance [rad, m, rad/s, m/s] (default 1e-12).
         step: longest step of the fixed-step methods [s].
         efforts: return the applied efforts (they are computed in any case).
+        keep: what is kept of each variant (one of :data:`rrt_pin.simulate.results.KEEPS`):
+
+            * ``"trajectories"`` (default): states and efforts at every output time,
+              shapes (B, T, 3);
+            * ``"final"``: the states and efforts at the last output time only,
+              shapes (B, 1, 3) (``result.t`` is that one time). DOP853 and RK45 skip
+              the dense output altogether (the same steps; the state is the last
+              step's end, equal to the trajectories' last row to round-off);
+            * ``"metrics"``: the final states as ``"final"``, and ``result.metrics``:
+              the per-variant columns of :func:`rrt_pin.metrics.batch_metrics`
+              (final_error [rad or m], settling_time [s], peak_effort [N·m or N] and
+              peak_effort_time [s], excursion [rad or m], control_energy [J]) of the
+              samples at every output time, computed as they are made and not kept.
+              The target is each controller's ``qf`` (a controller is required).
+
+        threads: threads running slices of the batch at once (the loop releases
+            the GIL); default :func:`rrt_pin.cpus.threads_for` (the CPUs free now,
+            no thread with fewer than :data:`MIN_PER_THREAD` variants). The results
+            do not depend on it, bit for bit.
+        band: the settling band of ``keep="metrics"`` (share of |q0 − qf|).
         max_steps: step budget of each variant.
         start: ``time.perf_counter()`` when the caller's call began (for ``wall_time``).
 
     Returns:
-        A :class:`~rrt_pin.simulate.BatchResult`: q, qd, tau of shape (B, N, 3);
-        ``n_evals`` is the total over the variants.
+        A :class:`~rrt_pin.simulate.BatchResult`: q, qd, tau of shape (B, T, 3)
+        (or (B, 1, 3)); ``n_evals`` is the total over the variants; ``threads``
+        the threads used; ``keep`` and ``metrics`` as asked.
 
     Raises:
-        InputError: bad shapes, values, controllers or options.
+        InputError: bad shapes, values, controllers or options, an unknown ``keep``,
+            ``keep="metrics"`` without a controller.
         DivergenceError: a variant failed (the message names it and the coordinate).
     """
     ensure_compiled()
@@ -372,61 +461,74 @@ def simulate_batch_compiled(
     qd0s = _rows("qd0s", qd0s, "rad/s, rad/s, m/s", True)
     if q0s.shape[0] != qd0s.shape[0]:
         raise InputError(f"q0s has {q0s.shape[0]} rows but qd0s has {qd0s.shape[0]}")
+    t = validate.times(t_eval)
+    from rrt_pin.simulate.options import resolve
+
+    options = resolve(t, backend="compiled", method=method, rtol=rtol, atol=atol, step=step)
+    return run_batch(
+        params, controllers, q0s, qd0s, t, options, efforts, keep=keep,
+        threads=threads, band=band, max_steps=max_steps, start=start,
+    )  # fmt: skip
+
+
+def run_batch(
+    params: Params | Sequence[Params],
+    controllers: Any,
+    q0s: np.ndarray,
+    qd0s: np.ndarray,
+    t: np.ndarray,
+    options: Options,
+    efforts: bool = True,
+    *,
+    keep: str = "trajectories",
+    threads: int | None = None,
+    band: float = SETTLING_BAND,
+    max_steps: int = MAX_STEPS,
+    start: float | None = None,
+) -> BatchResult:
+    """:func:`simulate_batch_compiled` on states, times and options already checked.
+
+    ``q0s`` and ``qd0s`` as :func:`rrt_pin.validate.states` returns them (B, 3), ``t``
+    as :func:`rrt_pin.validate.times`, ``options`` as :func:`rrt_pin.simulate.options.resolve`
+    for this backend; the other arguments are checked here.
+    """
+    start = time.perf_counter() if start is None else start
     count = q0s.shape[0]
+    keep = validate.choice("keep", keep, KEEPS)
+    band = validate.real("band", band, positive=True)
+    threads = None if threads is None else validate.positive_int("threads", threads)
+    max_steps = _max_steps(max_steps)
     plants = [_params(v) for v in _per_variant("params", params, count)]
     laws = _per_variant("controllers", controllers, count)
-    t = validate.times(t_eval)
-    method, rtol, atol, step = _options(method, rtol, atol, step, t)
-    max_steps = _max_steps(max_steps)
-
-    arrays: dict[int, np.ndarray] = {}
-    P = np.empty((count, 15))
-    C = np.empty((count, 24))
-    kinds = np.empty(count, dtype=np.int64)
-    for b, (plant, law) in enumerate(zip(plants, laws, strict=True)):
-        p = arrays.get(id(plant))
-        if p is None:
-            p = arrays[id(plant)] = param_array(plant)
-        P[b] = p
-        try:
-            kinds[b], C[b] = _controller_arrays(law, plant, p)
-        except InputError as e:
-            raise InputError(f"controllers[{b}]: {e}") from e
-
-    from rrt_pin.compiled import _jit_integrators as jit
-
-    Y0 = np.ascontiguousarray(np.concatenate((q0s, qd0s), axis=1))
-    out_y = np.empty((count, t.size, 6))
-    out_tau = np.empty((count, t.size, 3))
-    info = np.zeros((count, 6), dtype=np.int64)
-    t_reached = np.zeros(count)
-    jit.integrate_batch(
-        methods.get(method).code,
-        Y0,
-        t,
-        step if step is not None else 0.0,
-        np.full(6, atol if atol is not None else 0.0),
-        rtol if rtol is not None else 0.0,
-        math.inf,
-        max_steps,
-        P,
-        kinds,
-        C,
-        out_y,
-        out_tau,
-        info,
-        t_reached,
-    )
-    failed = np.flatnonzero(info[:, 0] != 0)
+    P, kinds, C = _batch_arrays(plants, laws)
+    qf = None
+    if keep == "metrics":
+        if any(law is None for law in laws):
+            raise InputError(
+                "keep='metrics' measures each variant against its controller's target qf: "
+                "give every variant a controller (or keep='final')"
+            )
+        qf = C[:, 6:9]
+    Y0 = np.concatenate((q0s, qd0s), axis=1)
+    method, rtol, atol, step = options.method.name, options.rtol, options.atol, options.step
+    y, tau, metrics, info, t_reached, used = integrate_arrays(
+        P, kinds, C, Y0, t, method, rtol, atol, step, max_steps,
+        keep=keep, qf=qf, band=band, threads=threads, detail=True,
+    )  # fmt: skip
+    failed = np.flatnonzero(info[:, 0] != codes.STATUS_OK)
     if failed.size:
         b = int(failed[0])
-        _raise_status(info[b], t_reached[b], method, step, max_steps, b)
-    _check_efforts(t, out_tau)
+        _raise_status(info[b], t_reached[b], method, step, max_steps, b, tau[b])
+    columns = None
+    if metrics is not None:
+        from rrt_pin.metrics import GROUPS, metric_columns
+
+        columns = metric_columns(GROUPS, metrics, ("q1", "q2", "q3"), _EFFORTS)
     return BatchResult(
-        t=t,
-        q=out_y[:, :, :3],
-        qd=out_y[:, :, 3:],
-        tau=out_tau if efforts else None,
+        t=t if keep == "trajectories" else t[-1:],
+        q=y[:, :, :3],
+        qd=y[:, :, 3:],
+        tau=tau if efforts else None,
         n_evals=int(info[:, 2].sum()),
         wall_time=time.perf_counter() - start,
         method=method,
@@ -434,8 +536,64 @@ def simulate_batch_compiled(
         rtol=rtol,
         atol=atol,
         step=step,
-        threads=1,
+        threads=used,
+        keep=keep,
+        metrics=columns,
     )
+
+
+def _batch_arrays(plants: list[Params], laws: list[Any]) -> tuple[np.ndarray, ...]:
+    """(P (B, 15), kinds (B,), C (B, 24)) of the variants, as :func:`_law` makes them one by one.
+
+    Chapter laws are laid out column by column (the batch's preparation is serial
+    work beside the threads); other laws go through :func:`_law` one by one.
+    """
+    from rrt_pin.control import ChapterController
+    from rrt_pin.kernel import PARAM_ORDER
+
+    count = len(laws)
+    if not all(type(law) is ChapterController for law in laws):
+        P = np.empty((count, 15))
+        C = np.empty((count, 24))
+        kinds = np.empty(count, dtype=np.int64)
+        for b, (plant, law) in enumerate(zip(plants, laws, strict=True)):
+            try:
+                kinds[b], C[b], P[b] = _law(law, plant)
+            except InputError as e:
+                raise InputError(f"controllers[{b}]: {e}") from e
+        return P, kinds, C
+    rows: dict[int, int] = {}
+    unique: list[Params] = []
+    which: list[int] = []
+    unfolded: list[int] = []  # eq. (31) with another arm's gravity terms (see _law)
+    for b, (plant, law) in enumerate(zip(plants, laws, strict=True)):
+        k = rows.get(id(plant))
+        if k is None:
+            k = rows[id(plant)] = len(unique)
+            unique.append(plant)
+        which.append(k)
+        own = law.params
+        if own is not plant and (own.g, own.m2, own.m3, own.L2) != (
+            plant.g, plant.m2, plant.m3, plant.L2,
+        ):  # fmt: skip
+            unfolded.append(b)
+    P = _table(map(operator.attrgetter(*PARAM_ORDER), unique), len(unique), 15)[which]
+    C = np.empty((count, 24))
+    C[:, 0:3] = _table((law.kp for law in laws), count, 3)
+    C[:, 3:6] = _table((law.kd for law in laws), count, 3)
+    C[:, 6:9] = _table((law.qf for law in laws), count, 3)
+    C[:, 9:] = P
+    kinds = np.full(count, codes.KIND_CHAPTER_FOLDED, dtype=np.int64)
+    for b in unfolded:
+        kinds[b] = codes.KIND_CHAPTER
+        C[b, 9:] = param_array(laws[b].params)
+    return P, kinds, C
+
+
+def _table(rows: Any, count: int, width: int) -> np.ndarray:
+    """``count`` tuples of ``width`` numbers as a (count, width) float array, in one pass."""
+    flat = itertools.chain.from_iterable(rows)
+    return np.fromiter(flat, dtype=float, count=count * width).reshape(count, width)
 
 
 def integrate_arrays(
@@ -450,7 +608,13 @@ def integrate_arrays(
     step: float | None,
     max_steps: int = MAX_STEPS,
     out: tuple[np.ndarray, np.ndarray] | None = None,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    *,
+    keep: str = "trajectories",
+    qf: np.ndarray | None = None,
+    band: float = SETTLING_BAND,
+    threads: int | None = 1,
+    detail: bool = False,
+) -> Any:
     """Run B prepared variants in machine code; failures are reported per variant, not raised.
 
     Args:
@@ -464,42 +628,105 @@ def integrate_arrays(
         atol: absolute tolerance [rad, m, rad/s, m/s] (adaptive methods).
         step: longest step [s] (fixed-step methods).
         max_steps: step budget of each variant.
-        out: buffers (≥ B, T, 6) and (≥ B, T, 3) to write the states and efforts into
-            (reused across calls, they keep memory flat and warm).
+        out: buffers (≥ B, R, 6) and (≥ B, R, 3) to write the states and efforts into
+            (reused across calls, they keep memory flat and warm); R = T, or 1 unless
+            ``keep="trajectories"``.
+        keep: ``"trajectories"``, ``"final"`` or ``"metrics"`` (see
+            :func:`simulate_batch_compiled`; unchecked here).
+        qf: targets (B, 3) of ``keep="metrics"`` [rad, rad, m]; default C[:, 6:9].
+        band: settling band of ``keep="metrics"`` (share of |q0 − qf|).
+        threads: threads running slices of the batch (None: :func:`rrt_pin.cpus.threads_for`).
+        detail: also return the metrics rows and the threads used.
 
     Returns:
-        ``(y, tau, info, t_reached)``: states (B, T, 6), efforts (B, T, 3), per-variant
+        ``(y, tau, info, t_reached)``: states (B, R, 6), efforts (B, R, 3), per-variant
         (status, coordinate, n_evals, n_steps, n_rejected, n_out) and the time each
-        variant reached (its failure time when status != OK) [s].
+        variant reached (its failure time when status != OK) [s]. With ``detail``:
+        ``(y, tau, metrics, info, t_reached, threads)``, ``metrics`` (B, METRIC_WIDTH)
+        laid out as the ``METRIC_*`` offsets of :mod:`rrt_pin.compiled.codes` (or None).
+        A failed variant's rows are left as they were.
     """
     ensure_compiled()
     from rrt_pin.compiled import _jit_integrators as jit
 
     count = Y0.shape[0]
+    code = _KEEP_CODES[keep]
+    rows = t.size if code == codes.KEEP_TRAJECTORIES else 1
     if out is None:
-        out_y, out_tau = np.empty((count, t.size, 6)), np.empty((count, t.size, 3))
+        out_y, out_tau = np.empty((count, rows, 6)), np.empty((count, rows, 3))
     else:
-        out_y, out_tau = out[0][:count], out[1][:count]
+        out_y, out_tau = out[0][:count, :rows], out[1][:count, :rows]
+    metrics = np.empty((count if code == codes.KEEP_METRICS else 0, codes.METRIC_WIDTH))
+    if qf is None:
+        qf = C[:, 6:9] if code == codes.KEEP_METRICS else np.empty((0, 3))
     info = np.zeros((count, 6), dtype=np.int64)
     t_reached = np.zeros(count)
-    jit.integrate_batch(
-        methods.get(method).code,
-        np.ascontiguousarray(Y0, dtype=np.float64),
-        t,
-        step if step is not None else 0.0,
-        np.full(6, atol if atol is not None else 0.0),
-        rtol if rtol is not None else 0.0,
-        math.inf,
-        max_steps,
-        np.ascontiguousarray(P, dtype=np.float64),
-        np.ascontiguousarray(kinds, dtype=np.int64),
-        np.ascontiguousarray(C, dtype=np.float64),
-        out_y,
-        out_tau,
-        info,
-        t_reached,
-    )
+    f8 = np.float64
+    Y0 = np.ascontiguousarray(Y0, dtype=f8)
+    P = np.ascontiguousarray(P, dtype=f8)
+    kinds = np.ascontiguousarray(kinds, dtype=np.int64)
+    C = np.ascontiguousarray(C, dtype=f8)
+    qf = np.ascontiguousarray(qf, dtype=f8)
+    method_code = methods.get(method).code
+    dt = step if step is not None else 0.0
+    atol_v = _atol_vector(atol)
+    rtol_v = rtol if rtol is not None else 0.0
+
+    def run(a: int, b: int) -> None:
+        jit.integrate_batch(
+            method_code, Y0[a:b], t, dt, atol_v, rtol_v, math.inf, max_steps, P[a:b],
+            kinds[a:b], C[a:b], code, qf[a:b] if qf.shape[0] else qf, float(band),
+            out_y[a:b], out_tau[a:b], metrics[a:b] if metrics.shape[0] else metrics,
+            info[a:b], t_reached[a:b],
+        )  # fmt: skip
+
+    if threads is None:
+        from rrt_pin import cpus
+
+        threads = cpus.threads_for(count, MIN_PER_THREAD)
+    used = _in_slices(run, count, threads)
+    if detail:
+        return out_y, out_tau, (metrics if metrics.shape[0] else None), info, t_reached, used
     return out_y, out_tau, info, t_reached
+
+
+#: Slices a thread takes at a time: enough that a thread slowed by another process's
+#: work on its core hands the rest of the batch to the others, few enough that the
+#: calls (a few microseconds each) do not count.
+_SLICES_PER_THREAD = 8
+_POOL: ThreadPoolExecutor | None = None
+_POOL_SIZE = 0
+
+
+def _in_slices(run: Callable[[int, int], None], count: int, threads: int) -> int:
+    """Call ``run(a, b)`` over slices covering range(count), on up to ``threads`` threads.
+
+    Threads take the next slice when done with theirs (a shared counter), so the
+    slices of a thread slowed by other work go to the others. Returns the threads used.
+    """
+    global _POOL, _POOL_SIZE
+    threads = max(1, min(threads, count))
+    if threads == 1:
+        run(0, count)
+        return 1
+    size = max(1, -(-count // (threads * _SLICES_PER_THREAD)))
+    edges = list(range(0, count, size)) + [count]
+    taken = itertools.count()  # next() is atomic under the GIL: each slice runs once
+
+    def worker() -> None:
+        while (i := next(taken)) < len(edges) - 1:
+            run(edges[i], edges[i + 1])
+
+    if _POOL is None or _POOL_SIZE < threads - 1:
+        if _POOL is not None:
+            _POOL.shutdown(wait=False)
+        _POOL = ThreadPoolExecutor(max_workers=threads - 1, thread_name_prefix="rrt-pin-batch")
+        _POOL_SIZE = threads - 1
+    helpers = [_POOL.submit(worker) for _ in range(threads - 1)]
+    worker()
+    for h in helpers:
+        h.result()
+    return threads
 
 
 def failure(

@@ -11,6 +11,7 @@ import numpy as np
 from rrt_pin import validate
 from rrt_pin.errors import InputError
 from rrt_pin.simulate.options import Options, resolve
+from rrt_pin.simulate.results import KEEPS
 
 if TYPE_CHECKING:
     from rrt_pin.params import Params
@@ -72,6 +73,8 @@ def _params_for(robot: Robot, params: Any, controllers: Sequence[Any]) -> Params
     """The chapter arm's Params for the compiled backend."""
     from rrt_pin.params import Params
 
+    if isinstance(params, Params):
+        return params
     for candidate in (params, robot.params, *(getattr(c, "params", None) for c in controllers)):
         if isinstance(candidate, Params):
             return candidate
@@ -173,13 +176,11 @@ def simulate(
             as_controller(controller, robot.nv)  # the same checks as the other backend
         integrate = _compiled()
         p = _params_for(robot, params, [controller])
-        model = robot.model if robot.params is None or robot.params is not p else None
+        if robot.params is None or robot.params is not p:
+            integrate.check_model(robot.model, p)
 
         def run(o: Options, began: float) -> SimulationResult:
-            return integrate.simulate_compiled(
-                p, controller, q0, qd0, t, o.method.name, o.rtol, o.atol, o.step,
-                model=model, start=began,
-            )  # fmt: skip
+            return integrate.run_one(p, controller, q0, qd0, t, o, start=began)
     else:
         from rrt_pin.simulate.pinocchio_backend import run_one
 
@@ -276,6 +277,7 @@ def simulate_batch(
     efforts: bool = True,
     params: Params | Sequence[Params] | None = None,
     estimate_error: bool = True,
+    keep: str = "trajectories",
 ) -> BatchResult:
     """Simulate B variants of a robot at once; the same defaults as :func:`simulate`.
 
@@ -286,8 +288,8 @@ def simulate_batch(
     evaluated as arrays; others variant by variant. ``odepack``'s max-norm
     error test holds every variant to the tolerance.
 
-    Compiled backend (the chapter's arm): variants run one after the other in
-    machine code, each with its own step control, and may also differ in
+    Compiled backend (the chapter's arm): variants run in machine code, each with
+    its own step control, on ``threads`` threads, and may also differ in
     parameters (``params``: one Params per variant).
 
     Args:
@@ -301,19 +303,31 @@ def simulate_batch(
         atol: absolute tolerance [rad, m, rad/s, m/s], in (0, 1) (default the method's).
         backend: ``pinocchio`` or ``compiled``.
         step: longest step of the fixed-step methods [s].
-        threads: OpenMP threads of ``pin.abaInParallel`` (default: the CPUs free
-            during the run, looked up every 50 ms, capped by ``OMP_NUM_THREADS``, none
-            with fewer than 32 variants); the compiled batch uses one.
+        threads: threads of the batch; default: the CPUs free now, none with too
+            little work, capped by ``OMP_NUM_THREADS`` (:mod:`rrt_pin.cpus`); the numbers
+            do not depend on it. Pinocchio backend: OpenMP threads of
+            ``pin.abaInParallel``, the free CPUs looked up again every 50 ms of the run,
+            at least 32 variants a thread; compiled backend: threads each running
+            slices of the variants.
         efforts: also return the applied efforts at every output time.
         params: the arm's Params for the compiled backend: one, or one per variant.
         estimate_error: also estimate the global error of q, per variant and over
             all (a second batch, states only; see :func:`simulate`); False skips it.
+            With ``keep="final"`` or ``"metrics"`` it estimates the final states' error.
+        keep: what is kept of each variant, one of :data:`~rrt_pin.simulate.results.KEEPS`:
+            ``"trajectories"`` (default), ``"final"`` (the last output time only,
+            shapes (B, 1, nv)) or ``"metrics"`` (the same, and ``result.metrics``:
+            the columns of :func:`rrt_pin.metrics.batch_metrics` against each
+            controller's target ``qf``; every controller must have one). The
+            compiled backend then stores no trajectory (``"final"`` also skips
+            the dense output of DOP853 and RK45); the Pinocchio backend computes
+            the trajectories and reduces them.
 
     Returns:
         States (B, T, nv) and efforts; ``result.variant(i)`` is one run.
 
     Raises:
-        InputError: bad shapes, values, controllers or options.
+        InputError: bad shapes, values, controllers or options; an unknown ``keep``.
         DivergenceError: a variant's state became non-finite or the integrator
             failed (the message names the coordinate and the variant).
     """
@@ -338,7 +352,8 @@ def simulate_batch(
     options = resolve(
         t, backend=backend, method=method, rtol=rtol, atol=atol, step=step, batch=True
     )
-    threads = None if threads is None else validate.positive_int("threads", threads)
+    keep = validate.choice("keep", keep, KEEPS)
+    chosen = None if threads is None else validate.positive_int("threads", threads)
     laws = []
     for i, c in enumerate(controllers):
         try:
@@ -352,18 +367,58 @@ def simulate_batch(
         else:
             plants = _params_for(robot, params, controllers)
 
-        def run(o: Options, began: float, keep: bool) -> BatchResult:
-            return integrate.simulate_batch_compiled(
-                plants, controllers, q0s, qd0s, t, o.method.name, o.rtol, o.atol, o.step,
-                keep, start=began,
+        def run(o: Options, began: float, tau: bool, kept: str) -> BatchResult:
+            return integrate.run_batch(
+                plants, controllers, q0s, qd0s, t, o, tau, keep=kept, threads=chosen,
+                start=began,
             )  # fmt: skip
     else:
         from rrt_pin.simulate.pinocchio_backend import run_batch
 
-        def run(o: Options, began: float, keep: bool) -> BatchResult:
-            return run_batch(robot, laws, q0s, qd0s, t, o, threads, keep, began)
+        targets = _targets(laws) if keep == "metrics" else None
 
-    result = _with_units(run(options, start, efforts), robot)
+        def run(o: Options, began: float, tau: bool, kept: str) -> BatchResult:
+            full = run_batch(robot, laws, q0s, qd0s, t, o, chosen, tau or kept == "metrics", began)
+            return _reduced(full, kept, targets, tau)
+
+    result = _with_units(run(options, start, efforts, keep), robot)
     if not estimate_error:
         return result
-    return _with_estimate(result, options, lambda o, began: run(o, began, False))
+    second = "trajectories" if keep == "trajectories" else "final"
+    return _with_estimate(result, options, lambda o, began: run(o, began, False, second))
+
+
+def _targets(laws: Sequence[Any]) -> np.ndarray:
+    """Each law's target qf (B, nv), for ``keep="metrics"``."""
+    targets = [getattr(law, "qf", None) for law in laws]
+    if any(qf is None for qf in targets):
+        raise InputError(
+            "keep='metrics' measures each variant against its controller's target qf: "
+            "every controller needs one (or keep='final')"
+        )
+    return np.array(targets, dtype=float)
+
+
+def _reduced(full: BatchResult, keep: str, qf: np.ndarray | None, efforts: bool) -> BatchResult:
+    """A batch with every output time reduced to what ``keep`` asks for."""
+    from dataclasses import replace
+
+    if keep == "trajectories":
+        return full
+    metrics = None
+    if keep == "metrics":
+        from rrt_pin.metrics import GROUPS, batch_metrics
+
+        with np.errstate(invalid="ignore"):
+            metrics = batch_metrics(
+                GROUPS, full.t, full.q, full.qd, full.tau, qf, full.q_names, full.tau_names
+            )
+    return replace(
+        full,
+        t=full.t[-1:],
+        q=full.q[:, -1:],
+        qd=full.qd[:, -1:],
+        tau=full.tau[:, -1:] if efforts and full.tau is not None else None,
+        keep=keep,
+        metrics=metrics,
+    )

@@ -62,6 +62,36 @@ def resolve(
             range (a tolerance must lie in (0, 1)), or an rtol below the method's
             floor (:attr:`~rrt_pin.methods.Method.min_rtol`, named).
     """
+    key = (backend, method, rtol, atol, step, jacobian, batch, type(rtol), type(atol), type(step))
+    try:
+        known = _RESOLVED.get(key)
+    except TypeError:  # an unhashable value: resolved (and refused) below
+        key, known = None, None
+    if known is not None:
+        return known
+    options = _resolve(t, backend, method, rtol, atol, step, jacobian, batch)
+    if key is not None and (options.method.adaptive or step is not None):  # not from t
+        if len(_RESOLVED) >= 64:
+            _RESOLVED.clear()
+        _RESOLVED[key] = options
+    return options
+
+
+#: Options resolved before, by their arguments (and their types: ``True`` is not ``1``),
+#: when they do not depend on the output times.
+_RESOLVED: dict[tuple, Options] = {}
+
+
+def _resolve(
+    t: np.ndarray,
+    backend: Any,
+    method: Any,
+    rtol: Any,
+    atol: Any,
+    step: Any,
+    jacobian: Any,
+    batch: bool,
+) -> Options:
     b = backends.get(backend, "simulate")
     m = methods.get(method if method is not None else b.default_method, b.name, batch=batch)
     validate.choice("jacobian", jacobian, JACOBIANS)

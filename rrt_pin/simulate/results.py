@@ -13,7 +13,11 @@ import numpy as np
 
 from rrt_pin.errors import InputError
 
-__all__ = ["BatchResult", "ErrorEstimate", "SimulationResult"]
+__all__ = ["KEEPS", "BatchResult", "ErrorEstimate", "SimulationResult"]
+
+#: What a batch may keep of each variant: every output time, the last one, or the
+#: last one and per-variant metrics (see :class:`BatchResult`).
+KEEPS = ("trajectories", "final", "metrics")
 
 
 @dataclass(frozen=True, eq=False)
@@ -119,6 +123,10 @@ class _Run:
             value = getattr(self, name)
             if value is None:
                 continue
+            if type(value) is np.ndarray and value.dtype == np.float64:
+                if value.flags.writeable:
+                    value.setflags(write=False)
+                continue  # already what is kept: no conversion
             arr = np.asarray(value, dtype=float)
             arr.setflags(write=False)
             object.__setattr__(self, name, arr)
@@ -193,7 +201,32 @@ class SimulationResult(_Run):
 
 @dataclass(frozen=True, eq=False)
 class BatchResult(_Run):
-    """B variants sampled at the same output times (shapes (B, N, nv))."""
+    """B variants sampled at the same output times (shapes (B, N, nv)).
+
+    Attributes (besides those of every result):
+        keep: what was kept of each variant: ``"trajectories"`` (every output
+            time), ``"final"`` or ``"metrics"`` (the last output time only: ``t``
+            holds that one time [s], q, qd and tau have shape (B, 1, nv)).
+        metrics: with ``keep="metrics"``, the columns of
+            :func:`rrt_pin.metrics.batch_metrics` (final_error_<q> [rad or m],
+            settling_time_<q> [s], peak_effort_<τ> [N·m or N],
+            peak_effort_time_<τ> [s], excursion_<q> [rad or m], control_energy
+            [J]), each of shape (B,), from the samples at every output time;
+            else None.
+    """
+
+    keep: str = "trajectories"
+    metrics: dict[str, np.ndarray] | None = None
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if self.metrics is not None:
+            frozen = {}
+            for name, value in self.metrics.items():
+                arr = np.array(value, dtype=float)
+                arr.setflags(write=False)
+                frozen[name] = arr
+            object.__setattr__(self, "metrics", frozen)
 
     def __len__(self) -> int:
         return int(self.q.shape[0])

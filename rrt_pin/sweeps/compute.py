@@ -215,19 +215,26 @@ def _arm_simulate(p: Plan, values: dict[str, np.ndarray], count: int, rows: list
     kinds = np.full(count, codes.KIND_CHAPTER_FOLDED, dtype=np.int64)
     kinds[bad] = codes.KIND_NONE  # integrated harmlessly, then reported as invalid
     T = p.t.size
-    buffers = (np.empty((min(SUB_BLOCK, count), T, 6)), np.empty((min(SUB_BLOCK, count), T, 3)))
+    buffers = None
     parts, failures, evals, keep = [], [None] * count, np.zeros(count), {}
     for a in range(0, count, SUB_BLOCK):
         b = min(a + SUB_BLOCK, count)
-        y, tau, info, reached = integrate_arrays(
+        # A block with no trajectory to keep has its metrics computed as its samples are
+        # made (the same numbers, no (B, T, 9) arrays); see integrate_arrays's keep.
+        lean = not any(a <= r < b for r in rows)
+        if not lean and buffers is None:
+            n = min(SUB_BLOCK, count)
+            buffers = (np.empty((n, T, 6)), np.empty((n, T, 3)))
+        y, tau, metrics, info, reached, _ = integrate_arrays(
             P[a:b], kinds[a:b], C[a:b], Y0[a:b], p.t, p.method, p.rtol, p.atol, p.step,
-            out=buffers,
+            out=None if lean else buffers, keep="metrics" if lean else "trajectories",
+            qf=qf[a:b], detail=True,
         )  # fmt: skip
         evals[a:b] = info[:, 2]
         for k in np.flatnonzero(info[:, 0]):
             failures[a + k] = failure(info[k], reached[k], p.method, p.step)
         part = _finish(p, y[..., :3], y[..., 3:], tau, qf[a:b], evals[a:b], bad[a:b], why[a:b],
-                       failures[a:b])  # fmt: skip
+                       failures[a:b], metrics)  # fmt: skip
         parts.append(part["columns"])
         for k in (r for r in rows if a <= r < b):
             keep[k] = (y[k - a, :, :3].copy(), y[k - a, :, 3:].copy(), tau[k - a].copy())
@@ -322,16 +329,26 @@ def _finish(
     bad: np.ndarray,
     why: list,
     failures: list,
+    metrics: np.ndarray | None = None,
 ) -> dict[str, Any]:
-    from rrt_pin.metrics import batch_metrics
+    """The block's columns: metrics, evaluations and failures.
+
+    The metrics come from ``metrics`` rows when the compiled loop made them, else
+    from the samples q, qd, tau.
+    """
+    from rrt_pin.metrics import batch_metrics, metric_columns
 
     robot = p.robot
     groups = p.spec.metrics
-    with np.errstate(invalid="ignore"):
-        columns = batch_metrics(
-            groups, p.t, q, qd, tau, qf, robot.q_names, robot.effort_names,
-            compiled=p.backend == "compiled",
-        )  # fmt: skip
+    if metrics is not None:
+        columns = metric_columns(groups, metrics, robot.q_names, robot.effort_names)
+        columns = {name: col.copy() for name, col in columns.items()}
+    else:
+        with np.errstate(invalid="ignore"):
+            columns = batch_metrics(
+                groups, p.t, q, qd, tau, qf, robot.q_names, robot.effort_names,
+                compiled=p.backend == "compiled",
+            )  # fmt: skip
     failed = np.array([f is not None for f in failures], dtype=bool) | bad
     if "evaluations" in groups:
         columns["evaluations"] = np.where(bad, np.nan, evals)

@@ -1,0 +1,253 @@
+"""Compiled batches that keep final states or metrics only, and their threads.
+
+Each lean result is checked against an independent computation: the full
+batch's last row, :func:`rrt_pin.metrics.batch_metrics` (numpy) on the full
+trajectories, one thread against several, the Pinocchio backend.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+
+import numpy as np
+import pytest
+
+from rrt_pin.control import ChapterController
+from rrt_pin.errors import InputError
+from rrt_pin.metrics import GROUPS, batch_metrics
+from rrt_pin.params import Params
+
+pytestmark = pytest.mark.skipif(
+    importlib.util.find_spec("numba") is None, reason="numba not installed (rrt-pin[fast])"
+)
+
+GRID = np.linspace(0.0, 15.0, 1501)
+NAMES = (("q1", "q2", "q3"), ("T01x", "T12y", "F23z"))
+
+
+@pytest.fixture(scope="module")
+def compiled():
+    from rrt_pin import compiled as backend
+
+    backend.ensure_compiled()
+    return backend
+
+
+def _variants(count: int, seed: int = 3):
+    """Chapter variants: masses, gains, targets and initial states varied (own Params each)."""
+    rng = np.random.default_rng(seed)
+    base = Params()
+    plants, laws = [], []
+    for i in range(count):
+        m = np.array([base.m1, base.m2, base.m3]) * rng.uniform(0.8, 1.25, 3)
+        plant = base.with_overrides({"m1": m[0], "m2": m[1], "m3": m[2]})
+        qf = np.array(base.qf) + rng.uniform(-0.2, 0.2, 3)
+        if i == 1:
+            qf[2] = base.q30  # a joint starting at its target: the band scales with its excursion
+        plants.append(plant)
+        laws.append(
+            ChapterController(
+                kp=tuple(np.array(base.kp) * rng.uniform(0.5, 1.5, 3)),
+                kd=tuple(np.array(base.kd) * rng.uniform(0.5, 1.5, 3)),
+                qf=tuple(qf),
+                params=plant,
+            )
+        )
+    q0s = np.array(base.q0) + rng.uniform(-0.1, 0.1, (count, 3))
+    q0s[1, 2] = base.q30
+    return plants, laws, q0s, np.zeros((count, 3))
+
+
+def _batch(compiled, variants, t=GRID, **kw):
+    plants, laws, q0s, qd0s = variants
+    return compiled.simulate_batch_compiled(plants, laws, q0s, qd0s, t, **kw)
+
+
+@pytest.mark.parametrize("method", ["DOP853", "RK45", "rk4", "verlet"])
+def test_final_states_equal_the_trajectories_last_row(compiled, method):
+    variants = _variants(6)
+    t = GRID[:301]  # 0..3 s
+    step = {"step": 0.01} if method in ("rk4", "verlet") else {}
+    full = _batch(compiled, variants, t, method=method, **step)
+    final = _batch(compiled, variants, t, method=method, keep="final", **step)
+    assert final.keep == "final" and final.metrics is None
+    assert final.q.shape == final.qd.shape == final.tau.shape == (6, 1, 3)
+    np.testing.assert_array_equal(final.t, t[-1:])
+    if step:  # fixed steps land on every output time: the same numbers
+        np.testing.assert_array_equal(final.q[:, 0], full.q[:, -1])
+        np.testing.assert_array_equal(final.tau[:, 0], full.tau[:, -1])
+        assert final.n_evals == full.n_evals
+    else:  # the last step's end, which the dense output reproduces to round-off
+        np.testing.assert_allclose(final.q[:, 0], full.q[:, -1], rtol=1e-13, atol=1e-14)
+        np.testing.assert_allclose(final.qd[:, 0], full.qd[:, -1], rtol=1e-12, atol=1e-13)
+        np.testing.assert_allclose(final.tau[:, 0], full.tau[:, -1], rtol=1e-12, atol=1e-10)
+        # no dense output: only the steps' evaluations
+        if method == "DOP853":
+            assert final.n_evals < full.n_evals
+    # the efforts are eq. (31) at the final states
+    for i, law in enumerate(variants[1]):
+        np.testing.assert_allclose(
+            final.tau[i, 0], law.efforts(final.q[i, 0], final.qd[i, 0]), rtol=1e-13, atol=1e-10
+        )
+
+
+@pytest.mark.parametrize("t", [GRID, GRID[:201]], ids=["settled", "not settled"])
+def test_metrics_equal_batch_metrics_on_the_trajectories(compiled, t):
+    variants = _variants(8)
+    full = _batch(compiled, variants, t)
+    lean = _batch(compiled, variants, t, keep="metrics")
+    qf = np.array([law.qf for law in variants[1]])
+    want = batch_metrics(GROUPS, t, full.q, full.qd, full.tau, qf, *NAMES)  # numpy
+    assert set(lean.metrics) == set(want)
+    for name, value in want.items():
+        got = lean.metrics[name]
+        assert got.shape == (8,) and not got.flags.writeable
+        if name.startswith(("settling_time", "peak_effort_time")):
+            np.testing.assert_array_equal(got, value, err_msg=name)  # sample times
+        else:
+            np.testing.assert_allclose(got, value, rtol=1e-12, atol=1e-15, err_msg=name)
+    settled = np.isfinite(np.column_stack([want[f"settling_time_{q}"] for q in NAMES[0]]))
+    assert settled.any() and not settled.all()  # both: a settling time, and NaN (not settled)
+    np.testing.assert_array_equal(lean.q[:, 0], full.q[:, -1])  # metrics ran the dense output
+    assert lean.n_evals == full.n_evals
+
+
+def test_threads_give_the_same_bits_and_are_kept(compiled):
+    variants = _variants(37)
+    for keep in ("trajectories", "final", "metrics"):
+        runs = [_batch(compiled, variants, GRID[:501], keep=keep, threads=n) for n in (1, 2, 3)]
+        assert [r.threads for r in runs] == [1, 2, 3]
+        for r in runs[1:]:
+            np.testing.assert_array_equal(r.q, runs[0].q)
+            np.testing.assert_array_equal(r.qd, runs[0].qd)
+            np.testing.assert_array_equal(r.tau, runs[0].tau)
+            assert r.n_evals == runs[0].n_evals
+            if keep == "metrics":
+                for name, value in runs[0].metrics.items():
+                    np.testing.assert_array_equal(r.metrics[name], value)
+    # an explicit count above the variants: one thread a variant at most
+    assert _batch(compiled, _variants(2), GRID[:51], threads=8).threads == 2
+
+
+@pytest.mark.parametrize(
+    ("cpus", "busy", "count", "threads"),
+    [(2, 0, 64, 2), (2, 1, 64, 1), (4, 1, 64, 3), (1, 0, 64, 1), (2, 0, 20, 1)],
+)
+def test_default_threads_follow_the_free_cpus(compiled, monkeypatch, cpus, busy, count, threads):
+    from rrt_pin import cpus as module
+    from rrt_pin.compiled.integrate import MIN_PER_THREAD
+
+    monkeypatch.setattr(module, "available", lambda: cpus)
+    monkeypatch.setattr(module, "busy", lambda: busy)
+    assert count >= 2 * MIN_PER_THREAD or threads == 1
+    r = _batch(compiled, _variants(count), GRID[:11], keep="final")
+    assert r.threads == threads
+    # simulate_batch hands its default over, and keeps an explicit count
+    from rrt_pin.robots import chapter_arm
+    from rrt_pin.simulate import simulate_batch
+
+    plants, laws, q0s, qd0s = _variants(count)
+    arm = chapter_arm(plants[0])
+    kw = {"backend": "compiled", "params": plants, "keep": "final", "estimate_error": False}
+    assert simulate_batch(arm, laws, q0s, qd0s, GRID[:11], **kw).threads == threads
+    assert simulate_batch(arm, laws, q0s, qd0s, GRID[:11], threads=1, **kw).threads == 1
+
+
+def test_simulate_batch_keeps_the_same_on_both_backends(compiled):
+    from rrt_pin.robots import chapter_arm
+    from rrt_pin.simulate import simulate_batch
+
+    base = Params()
+    _, laws, q0s, qd0s = _variants(3)
+    laws = [ChapterController(kp=law.kp, kd=law.kd, qf=law.qf, params=base) for law in laws]
+    t = GRID[:401]
+    arm = chapter_arm(base)
+    runs = {
+        backend: simulate_batch(
+            arm,
+            laws,
+            q0s,
+            qd0s,
+            t,
+            backend=backend,
+            keep="metrics",
+            estimate_error=backend == "compiled",
+        )  # fmt: skip
+        for backend in ("pinocchio", "compiled")
+    }
+    a, b = runs["pinocchio"], runs["compiled"]
+    assert a.q.shape == b.q.shape == (3, 1, 3) and a.keep == b.keep == "metrics"
+    np.testing.assert_allclose(a.q, b.q, atol=1e-9)
+    for name, value in a.metrics.items():
+        if name.startswith(("settling_time", "peak_effort_time")):  # sample times
+            np.testing.assert_allclose(b.metrics[name], value, atol=0.0101, err_msg=name)
+        else:
+            np.testing.assert_allclose(b.metrics[name], value, rtol=1e-7, atol=1e-8, err_msg=name)
+    assert b.estimate is not None and b.estimate.variants.shape == (3, 3)
+    assert b.estimate.max < 1e-8  # the final states' estimated error
+
+
+@pytest.mark.parametrize("backend", ["compiled", "pinocchio"])
+def test_an_unknown_keep_is_one_line_naming_it(compiled, backend):
+    from rrt_pin.robots import chapter_arm
+    from rrt_pin.simulate import simulate_batch
+
+    plants, laws, q0s, qd0s = _variants(2)
+    with pytest.raises(InputError, match=r"keep='final_state' is not one of") as e:
+        simulate_batch(
+            chapter_arm(plants[0]), laws, q0s, qd0s, GRID[:11], backend=backend,
+            keep="final_state",
+        )  # fmt: skip
+    assert "\n" not in str(e.value)
+    with pytest.raises(InputError, match=r"keep=3 is not one of trajectories, final, metrics"):
+        _batch(compiled, (plants, laws, q0s, qd0s), GRID[:11], keep=3)
+    with pytest.raises(InputError, match=r"keep='metrics' .* target qf"):
+        _batch(compiled, (plants, None, q0s, qd0s), GRID[:11], keep="metrics")
+
+
+def test_integrate_arrays_lean_rows(compiled):
+    """The sweeps' entry point: final rows and metrics rows from prepared arrays."""
+    from rrt_pin.compiled import codes
+    from rrt_pin.compiled.integrate import integrate_arrays
+    from rrt_pin.kernel import param_vector
+
+    plants, laws, q0s, qd0s = _variants(5)
+    P = np.array([param_vector(p) for p in plants])
+    C = np.column_stack([[law.kp for law in laws], [law.kd for law in laws],
+                         [law.qf for law in laws], P])  # fmt: skip
+    kinds = np.full(5, codes.KIND_CHAPTER_FOLDED)
+    Y0 = np.column_stack([q0s, qd0s])
+    t = GRID[:301]
+    args = (P, kinds, C, Y0, t, "DOP853", 1e-10, 1e-12, None)
+    y, tau, info, _ = integrate_arrays(*args)
+    yf, tauf, m, infof, _, used = integrate_arrays(*args, keep="metrics", threads=2, detail=True)
+    assert y.shape == (5, 301, 6) and yf.shape == (5, 1, 6) and used == 2
+    assert (info[:, 0] == 0).all() and (infof[:, 0] == 0).all()
+    np.testing.assert_array_equal(yf[:, 0], y[:, -1])
+    want = batch_metrics(GROUPS, t, y[..., :3], y[..., 3:], tau, C[:, 6:9], *NAMES)
+    np.testing.assert_allclose(m[:, codes.METRIC_ENERGY], want["control_energy"], rtol=1e-12)
+    np.testing.assert_array_equal(m[:, codes.METRIC_SETTLE + 2], want["settling_time_q3"])
+
+
+def test_batch_laws_of_another_arm_equal_single_runs(compiled):
+    """The batch's column-wise preparation: folded and unfolded eq. (31) as in single runs."""
+    plants, laws, q0s, qd0s = _variants(4)
+    other = Params(g=9.7, m2=40.0)  # eq. (31) built for another arm: its own gravity terms
+    laws[1] = ChapterController(kp=laws[1].kp, kd=laws[1].kd, qf=laws[1].qf, params=other)
+    laws[2] = ChapterController(  # equal values, another object: still folded
+        kp=laws[2].kp, kd=laws[2].kd, qf=laws[2].qf, params=Params(**vars(plants[2]))
+    )
+    t = GRID[:301]
+    batch = compiled.simulate_batch_compiled(plants, laws, q0s, qd0s, t, threads=2)
+    for i in range(4):
+        one = compiled.simulate_compiled(plants[i], laws[i], q0s[i], qd0s[i], t)
+        np.testing.assert_array_equal(batch.q[i], one.q)
+        np.testing.assert_array_equal(batch.tau[i], one.tau)
+    from rrt_pin.compiled import codes
+    from rrt_pin.compiled.integrate import _batch_arrays
+
+    _, kinds, _ = _batch_arrays(plants, laws)
+    assert (
+        list(kinds)
+        == [codes.KIND_CHAPTER_FOLDED, codes.KIND_CHAPTER] + [codes.KIND_CHAPTER_FOLDED] * 2
+    )
