@@ -24,6 +24,15 @@ def seed_model(seed_params):
     return rrt_model(seed_params)
 
 
+@pytest.fixture(autouse=True)
+def fresh_cpu_readings(monkeypatch):
+    """Every reading of the free CPUs is taken anew (tests replace what it reads)."""
+    from rrt_pin import cpus
+
+    monkeypatch.setattr(cpus, "FRESH", 0.0)
+    monkeypatch.setattr(cpus, "_last", (-1.0, 0))
+
+
 @pytest.fixture
 def rng() -> np.random.Generator:
     return np.random.default_rng(20261122)

@@ -128,3 +128,16 @@ def test_concurrent_calls_from_python_threads_are_each_correct():
             got = list(ex.map(lambda s: inverse_dynamics(arm, s * m.q, m.qd, m.qdd), (1, 2, 3, 4)))
             for g, e in zip(got, expected, strict=True):
                 np.testing.assert_array_equal(g, e)
+
+
+def test_a_reading_of_the_free_cpus_is_reused_briefly_and_a_busy_one_confirmed(monkeypatch):
+    monkeypatch.setattr(cpus, "FRESH", 10.0)
+    monkeypatch.setattr(cpus, "_last", (-1.0, 0))
+    monkeypatch.setattr(cpus, "available", lambda: 2)
+    readings = iter([1, 0])  # a spinning worker of ours seen as another job, once
+    monkeypatch.setattr(cpus, "busy", lambda: next(readings))
+    assert cpus.free() == 2  # confirmed: nothing else runs
+    monkeypatch.setattr(cpus, "busy", lambda: 1)
+    assert cpus.free() == 2  # reused within FRESH seconds
+    monkeypatch.setattr(cpus, "FRESH", 0.0)
+    assert cpus.free() == 1  # read again: a job holds a core now
