@@ -33,7 +33,7 @@ class Backend:
         extra: the pip extra that installs it.
         startup: what a process pays once before the first use [s] (numba's import and
             the machine code's load from the disk cache), beyond what every run pays.
-        aot_startup: the same for inverse dynamics when the kernel is built ahead of
+        aot_startup: the same when the dynamics and single runs are built ahead of
             time (:func:`rrt_pin.compiled.aot_built`: the module's load, no numba) [s].
         inverse_cost: inverse dynamics of the chapter's arm [s per sample].
         simulate_cost: the chapter's direct run with the backend's default method
@@ -136,12 +136,12 @@ def estimated_seconds(
         task: ``inverse`` or ``simulate``.
         work: samples (``inverse``) or simulated seconds (``simulate``).
         started: the process already paid the backend's start-up.
-        aot: the kernel is built ahead of time (inverse dynamics: a cheaper start-up).
+        aot: the code is built ahead of time (a cheaper start-up).
     """
     rate = backend.inverse_cost if task == "inverse" else backend.simulate_cost
     if rate is None:
         return None
-    startup = backend.aot_startup if aot and task == "inverse" else backend.startup
+    startup = backend.aot_startup if aot else backend.startup
     return (0.0 if started else startup) + rate * work
 
 

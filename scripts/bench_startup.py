@@ -50,6 +50,10 @@ def main() -> None:
                 py, "-m", "rrt_pin", "inverse", "--backend", "compiled",
                 "--csv", str(Path(d) / "c.csv"),
             ],
+            "simulate compiled": [
+                py, "-m", "rrt_pin", "simulate", "--backend", "compiled",
+                "--csv", str(Path(d) / "d.csv"),
+            ],
         }  # fmt: skip
         for argv in jobs.values():  # warm the page cache and the bytecode
             _seconds(argv)
@@ -59,7 +63,7 @@ def main() -> None:
                 times[name].append(_seconds(argv))
     floor = statistics.median(times["import pinocchio"])
     print(f"{'process':<18} {'median [s]':>10} {'over floor [s]':>15} {'target [s]':>11}")
-    # "inverse compiled" is there for comparison: no target.
+    # The compiled processes are there for comparison: no target.
     for name, ts in times.items():
         median = statistics.median(ts)
         target = f"{TARGETS[name]:.2f}" if name in TARGETS else ""

@@ -90,6 +90,39 @@ def test_a_process_computing_inverse_dynamics_does_not_import_numba(modules):
     np.testing.assert_allclose(got["tau"], expected, rtol=1e-13, atol=1e-12)
 
 
+def test_a_single_run_in_a_fresh_process_gives_the_jit_bits_without_numba(modules, monkeypatch):
+    code = (
+        "import sys, json, numpy as np\n"
+        "from rrt_pin.control import chapter_controller\n"
+        "from rrt_pin.params import Params\n"
+        "from rrt_pin.robots import chapter_arm\n"
+        "from rrt_pin.simulate import simulate\n"
+        "p = Params()\n"
+        "r = simulate(chapter_arm(p), chapter_controller(p), p.q0, np.zeros(3),\n"
+        "             np.linspace(0, 15, 301), backend='compiled')\n"
+        "print(json.dumps({'q': r.q.tolist(), 'tau': r.tau.tolist(), 'n': r.n_evals,\n"
+        "                  'numba': 'numba' in sys.modules}))\n"
+    )
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True
+    )
+    got = json.loads(out.stdout)
+    assert got["numba"] is False
+    from rrt_pin.compiled import integrate
+    from rrt_pin.control import chapter_controller
+
+    p = Params()
+    monkeypatch.setattr(_aot, "load", lambda: None)  # this process: numba's JIT
+    assert compiled.machine_code().__name__ == "rrt_pin.compiled._jit"
+    jit = integrate.simulate_compiled(
+        p, chapter_controller(p), p.q0, np.zeros(3), np.linspace(0, 15, 301)
+    )
+    np.testing.assert_array_equal(np.array(got["q"]), jit.q)
+    np.testing.assert_array_equal(np.array(got["tau"]), jit.tau)
+    assert got["n"] == jit.n_evals
+
+
 def test_a_damaged_module_is_dropped_and_the_jit_takes_over(tmp_path, monkeypatch, modules):
     from rrt_pin.compiled import dynamics
 
@@ -104,7 +137,7 @@ def test_a_damaged_module_is_dropped_and_the_jit_takes_over(tmp_path, monkeypatc
         dynamics.inverse_dynamics(q, q, q, Params()),
         compiled.inverse_dynamics(q, q, q, Params()),
     )
-    assert dynamics._jit().__name__ == "rrt_pin.compiled._jit_dynamics"
+    assert dynamics._jit().__name__ == "rrt_pin.compiled._jit"
 
 
 def test_a_failed_build_is_not_retried_by_every_process(tmp_path, monkeypatch):

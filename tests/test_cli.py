@@ -129,6 +129,9 @@ def test_import_is_light():
         ("auto", True, True, False, True, "inverse", None, 200_000, "compiled"),
         ("auto", True, False, False, True, "inverse", None, 200_000, "compiled"),
         ("auto", True, True, False, True, "simulate", "DOP853", 15.0, "pinocchio"),
+        ("auto", True, True, False, True, "simulate", "DOP853", 1e3, "compiled"),
+        ("auto", True, True, False, False, "simulate", "DOP853", 1e3, "pinocchio"),
+        ("compiled", True, True, False, True, "simulate", "DOP853", 15.0, "compiled"),
         ("compiled", True, True, False, True, "inverse", None, 10, "compiled"),
     ],
 )
@@ -148,8 +151,8 @@ def test_auto_backend_picks_compiled_only_when_built_and_faster(
     monkeypatch.setattr(compiled, "ensure_compiled", lambda: loads.append(1) or _FakeReport())
     assert resolve_backend(requested, robot, task, method, work=work) == expected
     # numba is imported and the JIT loaded only when compiled runs without the
-    # ahead-of-time module (which inverse dynamics loads on first use)
-    jit = expected == "compiled" and not (aot and task == "inverse")
+    # ahead-of-time module (which the run loads on first use)
+    jit = expected == "compiled" and not aot
     assert loads == ([1] if jit else [])
 
 
@@ -174,6 +177,9 @@ def test_compiled_backend_without_numba_is_one_line(monkeypatch, capsys):
         raise ImportError("numba not found: pip install rrt-pin[fast]")
 
     monkeypatch.setattr(compiled, "ensure_compiled", missing)
+    # without numba nothing built ahead of time matches either (its key names numba)
+    monkeypatch.setattr(compiled, "aot_built", lambda: False)
+    monkeypatch.setattr("rrt_pin.compiled._aot.load", lambda: None)
     assert main(["simulate", "--backend", "compiled"]) == 2
     err = capsys.readouterr().err
     assert (

@@ -363,9 +363,9 @@ def resolve_backend(
     ``pinocchio``. ``-v`` says which and why. A backend the robot does not
     support is refused. With ``compiled``, importing numba and loading (or
     compiling) the code happens here, and one line on stderr says how long it
-    took, so that the run's own time excludes it; inverse dynamics with the
-    kernel built ahead of time (:func:`rrt_pin.compiled.aot_built`) skips that
-    (its start-up is a few milliseconds).
+    took, so that the run's own time excludes it; with the dynamics and single
+    runs built ahead of time (:func:`rrt_pin.compiled.aot_built`) that is skipped
+    (their start-up is ~20 ms).
 
     Raises:
         InputError: ``compiled`` was asked for but numba is missing.
@@ -384,8 +384,8 @@ def resolve_backend(
             try:
                 from rrt_pin import compiled
 
-                # The inverse kernel built ahead of time loads in milliseconds, no numba.
-                aot = task == "inverse" and compiled.aot_built()
+                # Dynamics and single runs built ahead of time load in ~20 ms, no numba.
+                aot = compiled.aot_built()
                 started = compiled.is_loaded()
                 built = started or aot or compiled.is_compiled()
             except ImportError:
@@ -429,8 +429,8 @@ def resolve_backend(
         try:
             from rrt_pin import compiled
 
-            if task == "inverse" and compiled.aot_built():
-                return requested  # loaded on first use, in milliseconds (no numba import)
+            if compiled.aot_built():
+                return requested  # loaded on first use, in ~20 ms (no numba import)
             report = compiled.ensure_compiled()
         except MissingExtra:
             raise

@@ -46,6 +46,7 @@ __all__ = [
     "inverse_dynamics",
     "is_compiled",
     "is_loaded",
+    "machine_code",
     "mass_matrix",
     "nonlinear_effects",
     "simulate_batch_compiled",
@@ -205,15 +206,44 @@ def _build_ahead_of_time() -> None:
 
 
 def aot_built() -> bool:
-    """Whether the closed-form dynamics (inverse and forward) load without numba.
+    """Whether the closed-form dynamics and single runs load without numba.
 
     Cheap: looks for the ahead-of-time module of the current sources
-    (:mod:`rrt_pin.compiled._aot`); :func:`inverse_dynamics` then costs a
-    process a few milliseconds of start-up instead of ~0.8 s.
+    (:mod:`rrt_pin.compiled._aot`); :func:`inverse_dynamics`,
+    :func:`forward_dynamics` and :func:`simulate_compiled` then cost a process
+    ~20 ms of start-up instead of ~0.8 s (batches still load numba's JIT).
     """
     from rrt_pin.compiled import _aot
 
     return _aot.is_built()
+
+
+def machine_code() -> Any:
+    """The compiled functions of the dynamics and of single runs, by name.
+
+    The ahead-of-time module when it is built (no numba import), else numba's
+    JIT functions (imported, loaded or compiled by :func:`ensure_compiled`).
+
+    Raises:
+        ImportError: numba is not installed and nothing is built ahead of time.
+    """
+    from rrt_pin.compiled import _aot
+
+    module = _aot.load()
+    if module is not None:
+        return module
+    ensure_compiled()
+    from rrt_pin.compiled import _jit
+
+    return _Functions(_jit.DISPATCHERS)
+
+
+class _Functions:
+    """Attribute access to a dict of functions (the JIT's dispatchers, by name)."""
+
+    def __init__(self, functions: dict[str, Any]) -> None:
+        self.__dict__.update(functions)
+        self.__name__ = "rrt_pin.compiled._jit"
 
 
 def compile_report() -> CompileReport | None:

@@ -1,11 +1,11 @@
-"""Ahead-of-time machine code of the closed-form dynamics: no numba in the processes that use it.
+"""Ahead-of-time machine code of the dynamics and of single runs: no numba in the processes that use it.
 
 The JIT path (:mod:`rrt_pin.compiled._jit`) makes every process import numba and
 load its cache: ~0.65 s before the first sample, for a kernel that then takes
-10 ns a sample. This module builds the same functions of
-:mod:`rrt_pin.compiled._jit_dynamics` (``mass_matrix_batch``, ``bias_batch``,
-``inverse_batch``, ``forward_batch``: the same Python source, the same inlined
-callees, compiled by numba for this CPU) into a plain extension module with
+10 ns a sample. This module builds the same functions (:data:`EXPORTS`: the
+closed-form dynamics of :mod:`rrt_pin.compiled._jit_dynamics` and the single-run
+integrator of :mod:`rrt_pin.compiled._jit_integrators`; the same Python source,
+the same inlined callees, compiled by numba for this CPU) into a plain extension module with
 ``numba.pycc``, once, next to the JIT cache (same fingerprint directory, so a change
 of the sources, Python, numba or CPU gets a new one and the old one is pruned with
 its directory). Importing it needs numpy only: measured by ``scripts/bench_aot.py``,
@@ -13,6 +13,7 @@ a process that loads it and runs the chapter's 15,001 samples costs what
 ``import numpy`` does, against 0.82 s with the JIT cache, at the same ns/sample and
 with the same efforts bit for bit.
 
+Threaded batches keep the JIT: its functions release the GIL, ``pycc``'s do not.
 The build needs numba (with its ``pycc``) and a C compiler; it runs in a child
 process, writes into a temporary file renamed into place (a crash leaves no
 partial module), and is only ever an optimisation: when it cannot be built or
@@ -21,8 +22,11 @@ loaded, the JIT path is used and nothing else changes.
 
 from __future__ import annotations
 
+import hashlib
+import importlib
 import importlib.machinery
 import importlib.util
+import json
 import logging
 import os
 import subprocess
@@ -33,8 +37,13 @@ from types import ModuleType
 
 __all__ = ["EXPORTS", "build", "is_built", "load", "module_path"]
 
-#: Functions of ``_jit_dynamics`` the module exports (each with its JIT signature).
-EXPORTS = ("mass_matrix_batch", "bias_batch", "inverse_batch", "forward_batch")
+#: The functions the module exports, by JIT module (each with its JIT signature).
+EXPORTS = {
+    "rrt_pin.compiled._jit_dynamics": (
+        "mass_matrix_batch", "bias_batch", "inverse_batch", "forward_batch",
+    ),
+    "rrt_pin.compiled._jit_integrators": ("integrate",),
+}  # fmt: skip
 _NAME = "rrt_pin_dynamics_aot"
 #: Left in the cache directory when a build failed, so that later processes do not retry.
 _FAILED = "AOT_FAILED"
@@ -48,10 +57,13 @@ def module_path() -> Path | None:
     from rrt_pin.compiled import _cache
 
     fp = _cache.fingerprint()
+    # The exports are part of the file's name: another list is another module.
+    listed = json.dumps(EXPORTS, sort_keys=True).encode()
+    name = f"{_NAME}-{hashlib.sha256(listed).hexdigest()[:8]}"
     for base in _cache._base_candidates():
         path = base / fp
         if _cache._could_write(path):
-            return path / (_NAME + importlib.machinery.EXTENSION_SUFFIXES[0])
+            return path / (name + importlib.machinery.EXTENSION_SUFFIXES[0])
     return None
 
 
@@ -75,7 +87,8 @@ def load() -> ModuleType | None:
             raise ImportError(f"no loader for {path}")
         module = importlib.util.module_from_spec(spec)
         spec.loader.exec_module(module)
-        if not all(callable(getattr(module, name, None)) for name in EXPORTS):
+        names = [n for group in EXPORTS.values() for n in group]
+        if not all(callable(getattr(module, name, None)) for name in names):
             raise ImportError("a function is missing")
     except Exception as e:  # a damaged file: the JIT path takes over, the next build replaces it
         _failed = True
@@ -111,7 +124,7 @@ def build(timeout: float = 600.0) -> bool:
         except (OSError, subprocess.TimeoutExpired) as e:
             _logger.debug("ahead-of-time build failed: %s", e)
             return False
-        built = Path(work) / path.name
+        built = Path(work) / (_NAME + importlib.machinery.EXTENSION_SUFFIXES[0])
         if done.returncode != 0 or not built.is_file():
             last = (done.stderr.strip().splitlines() or ["no output"])[-1]
             _logger.debug("ahead-of-time build failed: %s", last)
@@ -134,20 +147,22 @@ def _compile_into(out_dir: str) -> None:
 
     from numba.pycc import CC
 
-    from rrt_pin.compiled import _jit_dynamics as jd
-
     warnings.simplefilter("ignore")  # pycc's deprecation notice: this is the measured choice
     cc = CC(_NAME)
     cc.output_dir = out_dir
     cc.target_cpu = "host"  # the module lives in this CPU's cache directory
     cc.verbose = False
-    for name in EXPORTS:
-        dispatcher = getattr(jd, name)
-        signature = dispatcher.overloads[dispatcher.signatures[0]].signature
-        cc.export(name, signature)(dispatcher.py_func)
+    for module_name, names in EXPORTS.items():
+        source = importlib.import_module(module_name)
+        for name in names:
+            dispatcher = getattr(source, name)
+            signature = dispatcher.overloads[dispatcher.signatures[0]].signature
+            cc.export(name, signature)(dispatcher.py_func)
     cc.compile()
     # The module must load and agree with the JIT's functions before it is kept.
     import numpy as np
+
+    from rrt_pin.compiled import _jit_dynamics as jd
 
     sys.path.insert(0, out_dir)
     module = importlib.import_module(_NAME)

@@ -20,7 +20,6 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from rrt_pin.compiled import ensure_compiled
 from rrt_pin.errors import InputError
 
 if TYPE_CHECKING:
@@ -126,15 +125,9 @@ def _refuse_overflow(check: float, out: np.ndarray) -> None:
 
 def _jit():
     """The dynamics' machine code: the ahead-of-time module when built, else numba's JIT."""
-    from rrt_pin.compiled import _aot
+    from rrt_pin.compiled import machine_code
 
-    module = _aot.load()
-    if module is not None:
-        return module
-    ensure_compiled()
-    from rrt_pin.compiled import _jit_dynamics
-
-    return _jit_dynamics
+    return machine_code()
 
 
 def mass_matrix(q: Any, params: Params) -> np.ndarray:

@@ -288,7 +288,9 @@ def simulate_compiled(
         DivergenceError: the compiled loop reported a failure (time, coordinate).
         ImportError: numba is not installed.
     """
-    ensure_compiled()
+    from rrt_pin.compiled import machine_code
+
+    machine_code()  # loaded (or compiled) before the run's clock starts
     start = time.perf_counter() if start is None else start
     params = _params(params)
     check_model(model, params)
@@ -325,8 +327,9 @@ def run_one(
     """
     start = time.perf_counter() if start is None else start
     kind, c, p = _law(controller, params)
-    from rrt_pin.compiled import _jit_integrators as jit
+    from rrt_pin.compiled import machine_code
 
+    jit = machine_code()  # built ahead of time, or the JIT's
     y0 = np.empty(6)
     y0[:3] = q0
     y0[3:] = qd0

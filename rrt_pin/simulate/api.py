@@ -217,7 +217,7 @@ def _with_units(result: Any, robot: Robot) -> Any:
     return dataclasses.replace(result, coordinate_units=units)
 
 
-def _prepare(robot: Robot, backend: Any, method: Any = None) -> None:
+def _prepare(robot: Robot, backend: Any, method: Any = None, batch: bool = False) -> None:
     """Imports and model building, which are not simulation time.
 
     Only what the method runs on is imported: ODEPACK's extension alone (a few
@@ -241,9 +241,14 @@ def _prepare(robot: Robot, backend: Any, method: Any = None) -> None:
         from rrt_pin import backends
 
         if backends.get("compiled").available():
-            from rrt_pin.compiled import ensure_compiled, integrate  # noqa: F401
+            from rrt_pin.compiled import ensure_compiled, integrate, machine_code  # noqa: F401
 
-            ensure_compiled()
+            # A single run takes the module built ahead of time when there is one;
+            # batches run on threads, which need the JIT's (GIL-free) functions.
+            if batch:
+                ensure_compiled()
+            else:
+                machine_code()
 
 
 def _passive(robot: Robot) -> Any:
@@ -335,7 +340,7 @@ def simulate_batch(
 
     first_params = params[0] if isinstance(params, (list, tuple)) and params else params
     robot = as_robot(model, first_params)  # type: ignore[arg-type]
-    _prepare(robot, backend, method)
+    _prepare(robot, backend, method, batch=True)
     start = time.perf_counter()
     n = robot.nv
     q0s = validate.states("q0s", q0s, n, "rad or m")
