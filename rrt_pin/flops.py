@@ -17,7 +17,14 @@ from dataclasses import astuple, dataclass, fields
 
 import numpy as np
 
-__all__ = ["KernelRow", "closed_loop_ns", "fma_rate", "kernel_flops", "kernel_rows"]
+__all__ = [
+    "KernelRow",
+    "closed_loop_kernel",
+    "closed_loop_ns",
+    "fma_rate",
+    "kernel_flops",
+    "kernel_rows",
+]
 
 #: The closed loop's evaluation beyond ``forward_terms`` and the sine/cosine: eq. (31)'s
 #: PD part (15), gravity (3), the residuals (5) and 3 divisions (the diagonal M).
@@ -126,24 +133,16 @@ def kernel_rows(ns_per_sample: dict[str, float], rate: float | None) -> list[Ker
     return rows
 
 
-def closed_loop_ns(repeats: int = 7) -> float | None:
-    """Median time of the compiled closed loop's evaluation, per state [ns].
+def closed_loop_kernel():  # noqa: ANN201
+    """A compiled loop evaluating the closed loop's dynamics (inlined) once per state.
 
-    Eq. (31) on the chapter's arm (the direct run's right-hand side), over the
-    15,001 states of the chapter's motion; None without numba.
+    ``run(kind, p, c, q, qd, out)`` writes q̈ (N, 3) [rad/s², m/s²] of the states
+    (q, qd) (N, 3) under the controller ``(kind, c)`` on the arm ``p``: what the
+    direct run's right-hand side computes. Needs numba (ImportError without it).
     """
-    try:
-        import numba
+    import numba
 
-        from rrt_pin.compiled import _jit_dynamics as jd
-    except ImportError:
-        return None
-    from rrt_pin.compiled.dynamics import param_array
-    from rrt_pin.compiled.integrate import _controller_arrays
-    from rrt_pin.control import chapter_controller
-    from rrt_pin.grid import time_grid
-    from rrt_pin.params import Params
-    from rrt_pin.trajectory import rest_to_rest
+    from rrt_pin.compiled import _jit_dynamics as jd
 
     closed_loop, as_p, as_c = jd.closed_loop_inline, jd.as_tuple_p, jd.as_tuple_c
 
@@ -157,6 +156,26 @@ def closed_loop_ns(repeats: int = 7) -> float | None:
             out[i, 0] = a1
             out[i, 1] = a2
             out[i, 2] = a3
+
+    return run
+
+
+def closed_loop_ns(repeats: int = 7) -> float | None:
+    """Median time of the compiled closed loop's evaluation, per state [ns].
+
+    Eq. (31) on the chapter's arm (the direct run's right-hand side), over the
+    15,001 states of the chapter's motion; None without numba.
+    """
+    try:
+        run = closed_loop_kernel()
+    except ImportError:
+        return None
+    from rrt_pin.compiled.dynamics import param_array
+    from rrt_pin.compiled.integrate import _controller_arrays
+    from rrt_pin.control import chapter_controller
+    from rrt_pin.grid import time_grid
+    from rrt_pin.params import Params
+    from rrt_pin.trajectory import rest_to_rest
 
     p = Params()
     pa = param_array(p)

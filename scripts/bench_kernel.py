@@ -65,28 +65,6 @@ def interleaved(
     return {k: statistics.median(v) for k, v in times.items()}
 
 
-def forward_loop():
-    """A numba loop evaluating the closed loop's dynamics (inlined) once per state [(N, 3) q̈]."""
-    import numba
-
-    from rrt_pin.compiled import _jit_dynamics as jd
-
-    closed_loop, as_p, as_c = jd.closed_loop_inline, jd.as_tuple_p, jd.as_tuple_c
-
-    @numba.njit
-    def run(kind, p, c, q, qd, out):
-        pt, ct = as_p(p), as_c(c)
-        for i in range(q.shape[0]):
-            a1, a2, a3, _, _, _, _ = closed_loop(
-                kind, ct, pt, q[i, 0], q[i, 1], q[i, 2], qd[i, 0], qd[i, 1], qd[i, 2]
-            )
-            out[i, 0] = a1
-            out[i, 1] = a2
-            out[i, 2] = a3
-
-    return run
-
-
 def rnea_loop(model, q, qd, qdd) -> np.ndarray:
     import pinocchio as pin
 
@@ -133,7 +111,9 @@ def main() -> int:
     from rrt_pin.control import chapter_controller
 
     kind, cvec = _controller_arrays(chapter_controller(p), p, pa)
-    forward = forward_loop()
+    from rrt_pin.flops import closed_loop_kernel
+
+    forward = closed_loop_kernel()
     from rrt_pin.flops import fma_rate
 
     rate = fma_rate()
