@@ -66,19 +66,18 @@ def kernel_flops() -> dict[str, int]:
 
     ``symbolic inverse`` excludes its sine and cosine (numpy calls libm);
     the compiled kernels include theirs (one vectorizable reduction for both).
+    Needs no numba (the counts are constants).
     """
     from rrt_pin import kernel
+    from rrt_pin.compiled.codes import SINCOS_FLOPS
 
-    counts = {"symbolic inverse": kernel.INVERSE_FLOPS}
-    try:
-        from rrt_pin.compiled import _jit_dynamics as jd
-    except ImportError:
-        return counts
-    counts["compiled inverse"] = kernel.INVERSE_FLOPS + jd.SINCOS_FLOPS
-    counts["compiled closed loop (per state)"] = (
-        kernel.FORWARD_FLOPS + jd.SINCOS_FLOPS + _CLOSED_LOOP_EXTRA
-    )
-    return counts
+    return {
+        "symbolic inverse": kernel.INVERSE_FLOPS,
+        "compiled inverse": kernel.INVERSE_FLOPS + SINCOS_FLOPS,
+        "compiled closed loop (per state)": (
+            kernel.FORWARD_FLOPS + SINCOS_FLOPS + _CLOSED_LOOP_EXTRA
+        ),
+    }
 
 
 def fma_rate(seconds: float = 0.3) -> float | None:

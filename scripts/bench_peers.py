@@ -508,44 +508,29 @@ def direct_sides(p, robot, law, t, quick: bool) -> list[Side]:
         Side("rrt-pin pinocchio, simulate() defaults", [("odepack rtol 1e-12", sim("pinocchio"))]),
     ]
     gains = (d.kp, d.kd)
-    sides.append(
-        Side(
-            "MuJoCo RK4, mujoco.rollout, eq. 31 in the model",
-            [
-                (
-                    f"dt {dt * 1e3:g} ms",
-                    mujoco_rollout_run(
-                        [mujoco_model(p, law="model", gains=gains, dt=dt)],
-                        [q0],
-                        [qd0],
-                        d.qf,
-                        n_out,
-                        sub,
-                    ),
-                )
-                for dt, sub in dts(3 if quick else 5)
-            ],
+    for label, lean in (
+        ("MuJoCo RK4, mujoco.rollout, eq. 31 in the model", False),
+        ("MuJoCo RK4, mujoco.rollout, eq. 31 in the model, no constraint stage", True),
+    ):
+        sides.append(
+            Side(
+                label,
+                [
+                    (
+                        f"dt {dt * 1e3:g} ms",
+                        mujoco_rollout_run(
+                            [mujoco_model(p, law="model", gains=gains, dt=dt, lean=lean)],
+                            [q0],
+                            [qd0],
+                            d.qf,
+                            n_out,
+                            sub,
+                        ),
+                    )
+                    for dt, sub in dts(3 if quick else 5)
+                ],
+            )
         )
-    )
-    sides.append(
-        Side(
-            "MuJoCo RK4, mujoco.rollout, eq. 31 in the model, no constraint stage",
-            [
-                (
-                    f"dt {dt * 1e3:g} ms",
-                    mujoco_rollout_run(
-                        [mujoco_model(p, law="model", gains=gains, dt=dt, lean=True)],
-                        [q0],
-                        [qd0],
-                        d.qf,
-                        n_out,
-                        sub,
-                    ),
-                )
-                for dt, sub in dts(3 if quick else 5)
-            ],
-        )
-    )
     sides.append(
         Side(
             "MuJoCo RK4, mj_step loop, eq. 31 in Python per stage",

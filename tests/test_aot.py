@@ -67,6 +67,15 @@ def test_non_finite_inputs_raise_the_same_flag(modules):
     assert np.isnan(jd.inverse_batch(q, q, q, p, a)) and np.isnan(aot.inverse_batch(q, q, q, p, b))
 
 
+def _fresh_process(code: str) -> dict:
+    """What ``code`` prints as JSON, run by a new Python on this checkout."""
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True
+    )
+    return json.loads(out.stdout)
+
+
 def test_a_process_computing_inverse_dynamics_does_not_import_numba(modules):
     code = (
         "import sys, json, numpy as np\n"
@@ -76,11 +85,7 @@ def test_a_process_computing_inverse_dynamics_does_not_import_numba(modules):
         "tau = inverse_dynamics(None, q, q, q, backend='compiled', params=Params())\n"
         "print(json.dumps({'tau': tau.tolist(), 'numba': 'numba' in sys.modules}))\n"
     )
-    env = dict(os.environ, PYTHONPATH=str(ROOT))
-    out = subprocess.run(
-        [sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True
-    )
-    got = json.loads(out.stdout)
+    got = _fresh_process(code)
     assert got["numba"] is False
     from rrt_pin.inverse import inverse_dynamics
     from rrt_pin.model import rrt_model
@@ -103,17 +108,14 @@ def test_a_single_run_in_a_fresh_process_gives_the_jit_bits_without_numba(module
         "print(json.dumps({'q': r.q.tolist(), 'tau': r.tau.tolist(), 'n': r.n_evals,\n"
         "                  'numba': 'numba' in sys.modules}))\n"
     )
-    env = dict(os.environ, PYTHONPATH=str(ROOT))
-    out = subprocess.run(
-        [sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True
-    )
-    got = json.loads(out.stdout)
+    got = _fresh_process(code)
     assert got["numba"] is False
     from rrt_pin.compiled import integrate
     from rrt_pin.control import chapter_controller
 
     p = Params()
     monkeypatch.setattr(_aot, "load", lambda: None)  # this process: numba's JIT
+    monkeypatch.setattr(compiled, "_code", None)  # chosen again
     assert compiled.machine_code().__name__ == "rrt_pin.compiled._jit"
     jit = integrate.simulate_compiled(
         p, chapter_controller(p), p.q0, np.zeros(3), np.linspace(0, 15, 301)
@@ -131,6 +133,7 @@ def test_a_damaged_module_is_dropped_and_the_jit_takes_over(tmp_path, monkeypatc
     monkeypatch.setattr(_aot, "module_path", lambda: bad)
     monkeypatch.setattr(_aot, "_loaded", None)
     monkeypatch.setattr(_aot, "_failed", False)
+    monkeypatch.setattr(compiled, "_code", None)  # chosen again, after the damage
     assert _aot.load() is None and not bad.exists()  # removed: the next build replaces it
     q = np.array([[0.1, 0.2, 0.3]])
     np.testing.assert_array_equal(
@@ -153,3 +156,4 @@ def test_a_failed_build_is_not_retried_by_every_process(tmp_path, monkeypatch):
     assert _aot.build() is False and _aot.build() is False
     assert len(calls) == 1 and not target.exists()
     assert "no C compiler" in (target.parent / "AOT_FAILED").read_text()
+    assert not _aot.can_build()  # so ensure_compiled neither retries nor announces a build

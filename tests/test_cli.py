@@ -180,6 +180,7 @@ def test_compiled_backend_without_numba_is_one_line(monkeypatch, capsys):
     # without numba nothing built ahead of time matches either (its key names numba)
     monkeypatch.setattr(compiled, "aot_built", lambda: False)
     monkeypatch.setattr("rrt_pin.compiled._aot.load", lambda: None)
+    monkeypatch.setattr(compiled, "_code", None)  # as in a process that has chosen nothing yet
     assert main(["simulate", "--backend", "compiled"]) == 2
     err = capsys.readouterr().err
     assert (

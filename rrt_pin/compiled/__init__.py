@@ -193,7 +193,7 @@ def _build_ahead_of_time() -> None:
     """Build the closed-form dynamics ahead of time once (see :mod:`rrt_pin.compiled._aot`)."""
     from rrt_pin.compiled import _aot
 
-    if _aot.is_built():
+    if _aot.is_built() or not _aot.can_build():
         return
     start = time.perf_counter()
     _logger.info("building the ahead-of-time dynamics module (once for these sources)")
@@ -222,20 +222,28 @@ def machine_code() -> Any:
     """The compiled functions of the dynamics and of single runs, by name.
 
     The ahead-of-time module when it is built (no numba import), else numba's
-    JIT functions (imported, loaded or compiled by :func:`ensure_compiled`).
+    JIT functions (imported, loaded or compiled by :func:`ensure_compiled`); the
+    choice is made once per process (every run asks).
 
     Raises:
         ImportError: numba is not installed and nothing is built ahead of time.
     """
-    from rrt_pin.compiled import _aot
+    global _code
+    if _code is None:
+        from rrt_pin.compiled import _aot
 
-    module = _aot.load()
-    if module is not None:
-        return module
-    ensure_compiled()
-    from rrt_pin.compiled import _jit
+        code = _aot.load()
+        if code is None:
+            ensure_compiled()
+            from rrt_pin.compiled import _jit
 
-    return _Functions(_jit.DISPATCHERS)
+            code = _Functions(_jit.DISPATCHERS)
+        _code = code
+    return _code
+
+
+#: What :func:`machine_code` chose in this process.
+_code: Any = None
 
 
 class _Functions:

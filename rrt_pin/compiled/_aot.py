@@ -35,7 +35,7 @@ import tempfile
 from pathlib import Path
 from types import ModuleType
 
-__all__ = ["EXPORTS", "build", "is_built", "load", "module_path"]
+__all__ = ["EXPORTS", "build", "can_build", "is_built", "load", "module_path"]
 
 #: The functions the module exports, by JIT module (each with its JIT signature).
 EXPORTS = {
@@ -97,6 +97,12 @@ def load() -> ModuleType | None:
         return None
     _loaded = module
     return module
+
+
+def can_build() -> bool:
+    """Whether :func:`build` would try: a cache directory, and no failed build for these sources."""
+    path = module_path()
+    return path is not None and not (path.parent / _FAILED).exists()
 
 
 def build(timeout: float = 600.0) -> bool:

@@ -47,6 +47,7 @@ from rrt_pin.compiled.codes import (
     KIND_PD_PLANT_GRAVITY,
     NC,
     NP,
+    SINCOS_FLOPS,  # noqa: F401  (re-exported: the flop count of vsincos, below)
 )
 
 __all__ = ["CACHE_PROBLEMS", "ORIGINS", "SIGNATURES", "jit"]
@@ -144,8 +145,6 @@ def sincos(x):
     return math.sin(x), math.cos(x)
 
 
-#: Floating-point operations of vsincos (reduction 6, two polynomials 20, assembly 7).
-SINCOS_FLOPS = 33
 #: Samples a block of inverse_batch: its q1 and q2 are scanned first, then the block
 #: takes the vectorized or the libm sine and cosine.
 _BLOCK = 256

@@ -32,6 +32,7 @@ __all__ = [
     "METHOD_VERLET",
     "NC",
     "NP",
+    "SINCOS_FLOPS",
     "STATUS_EFFORT_NONFINITE",
     "STATUS_MAX_STEPS",
     "STATUS_NO_CONVERGENCE",
@@ -82,3 +83,7 @@ METRIC_WIDTH = 16
 #: Number of physical parameters (``rrt_pin.kernel.PARAM_ORDER``) and of controller parameters.
 NP = 15
 NC = 9 + NP
+
+#: Floating-point operations of ``_jit_dynamics.vsincos`` (reduction 6, two polynomials 20,
+#: assembly 7): the compiled kernels' flop counts (:mod:`rrt_pin.flops`) include it.
+SINCOS_FLOPS = 33
