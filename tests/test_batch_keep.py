@@ -91,11 +91,19 @@ def test_final_states_equal_the_trajectories_last_row(compiled, method):
         )
 
 
-@pytest.mark.parametrize("t", [GRID, GRID[:201]], ids=["settled", "not settled"])
-def test_metrics_equal_batch_metrics_on_the_trajectories(compiled, t):
+@pytest.mark.parametrize(
+    ("t", "method"),
+    [(GRID, "DOP853"), (GRID[:201], "DOP853"), (GRID, "RK45"), (GRID, "rk4")],
+    ids=["settled", "not settled", "RK45", "rk4"],
+)
+def test_metrics_equal_batch_metrics_on_the_trajectories(compiled, t, method):
+    # The adaptive methods keep the scratch run by rows (dense output, efforts and
+    # metrics over contiguous rows), the fixed-step ones as the trajectories: both
+    # must give batch_metrics of the stored trajectories.
     variants = _variants(8)
-    full = _batch(compiled, variants, t)
-    lean = _batch(compiled, variants, t, keep="metrics")
+    step = {"step": 0.01} if method == "rk4" else {}
+    full = _batch(compiled, variants, t, method=method, **step)
+    lean = _batch(compiled, variants, t, keep="metrics", method=method, **step)
     qf = np.array([law.qf for law in variants[1]])
     want = batch_metrics(GROUPS, t, full.q, full.qd, full.tau, qf, *NAMES)  # numpy
     assert set(lean.metrics) == set(want)

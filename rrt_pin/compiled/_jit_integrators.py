@@ -220,6 +220,45 @@ def fill_efforts(kind, cvec, p, out_y, out_tau, n):
 
 
 @jit(None, inline=True)
+def fill_efforts_rows(kind, cvec, p, rows, n):
+    """``fill_efforts`` by rows: states rows[0:6], efforts into rows[6:9] (9, T), samples < n.
+
+    The same arithmetic per sample (the same bits); every row is contiguous, so
+    eq. (31)'s loop vectorizes with plain vector loads and stores.
+    """
+    q1, q2, q3, qd1, qd2, qd3 = rows[0], rows[1], rows[2], rows[3], rows[4], rows[5]
+    t1, t2, t3 = rows[6], rows[7], rows[8]
+    bad = False
+    chapter = kind == KIND_CHAPTER or kind == KIND_CHAPTER_FOLDED
+    if chapter:
+        for i in range(n):
+            chapter &= abs(q2[i]) < SINCOS_LIMIT
+    if chapter:
+        c = as_tuple_c(cvec)
+        for i in range(n):
+            s2, c2 = vsincos(q2[i])
+            u1, u2, u3 = eq31(c, q1[i], q2[i], q3[i], qd1[i], qd2[i], qd3[i], s2, c2)
+            t1[i] = u1
+            t2[i] = u2
+            t3[i] = u3
+            bad |= not (abs(u1 + u2 + u3) < math.inf)
+    else:
+        for i in range(n):
+            u1, u2, u3 = effort(kind, cvec, p, q1[i], q2[i], q3[i], qd1[i], qd2[i], qd3[i])
+            t1[i] = u1
+            t2[i] = u2
+            t3[i] = u3
+            bad |= not (abs(u1 + u2 + u3) < math.inf)
+    if not bad:
+        return -1
+    for i in range(n):
+        for k in range(3):
+            if not math.isfinite(rows[6 + k, i]):
+                return 3 * i + k
+    return -1
+
+
+@jit(None, inline=True)
 def combine(y, K, A, s, h, out):
     """Write y + h · Σ_{j<s} A[s, j] K[j] into ``out`` (SciPy's order: the sum, then · h)."""
     a0 = a1 = a2 = a3 = a4 = a5 = 0.0
@@ -284,13 +323,55 @@ def dense_rk45(F, y, t_eval, t, h, start, end, out_y):
             out_y[j, i] = h * (F[0, i] * x + F[1, i] * x2 + F[2, i] * x3 + F[3, i] * x4) + y[i]
 
 
+@jit(None, inline=True)
+def _step_fractions(t_eval, t, h, start, end, xs):
+    """xs[m] = (t_eval[start + m] − t) / h, the samples' fractions of the step (views from 0)."""
+    te = t_eval[start:end]
+    for m in range(te.shape[0]):
+        xs[m] = (te[m] - t) / h
+
+
+@jit(None, inline=True)
+def dense_dop853_rows(F, y, t_eval, t, h, start, end, rows, xs):
+    """``dense_dop853`` into rows (6, T): component i of sample m at rows[i, m].
+
+    The same operations in the same order (the same bits); the fractions x are
+    divided once into the scratch ``xs`` (≥ end − start), and each component's
+    samples are contiguous, so every loop vectorizes without gathers or scatters.
+    """
+    _step_fractions(t_eval, t, h, start, end, xs)
+    for i in range(N):
+        a, b, c, d, e, f, g, yi = F[0, i], F[1, i], F[2, i], F[3, i], F[4, i], F[5, i], F[6, i], y[i]
+        row = rows[i, start:end]
+        for m in range(row.shape[0]):
+            x = xs[m]
+            w = 1.0 - x
+            row[m] = ((((((g * x + f) * w + e) * x + d) * w + c) * x + b) * w + a) * x + yi
+
+
+@jit(None, inline=True)
+def dense_rk45_rows(F, y, t_eval, t, h, start, end, rows, xs):
+    """``dense_rk45`` into rows (6, T): component i of sample m at rows[i, m] (the same bits)."""
+    _step_fractions(t_eval, t, h, start, end, xs)
+    for i in range(N):
+        a, b, c, d, yi = F[0, i], F[1, i], F[2, i], F[3, i], y[i]
+        row = rows[i, start:end]
+        for m in range(row.shape[0]):
+            x = xs[m]
+            x2 = x * x
+            x3 = x2 * x
+            x4 = x3 * x
+            row[m] = h * (a * x + b * x2 + c * x3 + d * x4) + yi
+
+
 @jit(_RESULT(int64, _rvec, _rvec, _rvec, float64, float64, int64, _rvec, int64, _rvec, _mat, int64))
 def adaptive(method, y0, t_eval, atol, rtol, max_step, max_steps, p_arr, kind, c_arr, out_y, dense):
     """RK45 (method 0) or DOP853 (method 1) with SciPy's error control; see ``integrate``.
 
-    Needs len(t_eval) >= 2. ``dense`` 0: no dense output; the state reached at
-    t_eval[-1] (the last step's end, exactly) is written into out_y[0] instead,
-    and n_out is 1. The steps are the same either way.
+    Needs len(t_eval) >= 2. ``dense`` 1: out_y (T, 6) gets the state at every
+    t_eval; 2: the same by rows, out_y (6+, T) (``dense_*_rows``); 0: no dense output,
+    the state reached at t_eval[-1] (the last step's end, exactly) is written into
+    out_y[0] instead, and n_out is 1. The steps are the same either way.
     """
     p = as_tuple_p(p_arr)
     c = as_tuple_c(c_arr)
@@ -315,6 +396,7 @@ def adaptive(method, y0, t_eval, atol, rtol, max_step, max_steps, p_arr, kind, c
     err = np.empty(N)
     err3 = np.empty(N)
     scale = np.empty(N)
+    xs = np.empty(n_out if dense == 2 else 0)
     t = t_eval[0]
     t_bound = t_eval[n_out - 1]
     interval = t_bound - t
@@ -501,7 +583,12 @@ def adaptive(method, y0, t_eval, atol, rtol, max_step, max_steps, p_arr, kind, c
             end = i_out
             while end < n_out and t_eval[end] <= t_new:
                 end += 1
-            if dop853:
+            if dense == 2:
+                if dop853:
+                    dense_dop853_rows(F, y, t_eval, t, h, i_out, end, out_y, xs)
+                else:
+                    dense_rk45_rows(F, y, t_eval, t, h, i_out, end, out_y, xs)
+            elif dop853:
                 dense_dop853(F, y, t_eval, t, h, i_out, end, out_y)
             else:
                 dense_rk45(F, y, t_eval, t, h, i_out, end, out_y)
@@ -707,16 +794,20 @@ def integrate_batch(
       round-off; the fixed-step ones fill a scratch run and keep its last row;
     * KEEP_METRICS: the same, and out_m[b] (METRIC_WIDTH,): the metrics of the
       variant's samples at every output time (target qf[b], settling band
-      ``band``), computed from a scratch run reused by every variant.
+      ``band``), computed from a scratch run reused by every variant (the
+      adaptive methods store it by rows, (9, T): the dense output, the efforts
+      and the metrics pass then run over contiguous rows).
 
     ``info[b]`` receives (status, coordinate, n_evals, n_steps, n_rejected, n_out)
     and ``t_reached[b]`` the time reached [s]. Releases the GIL: threads may run
     disjoint slices of a batch at once.
     """
     T = t_eval.shape[0]
-    scratch = 0 if keep == KEEP_TRAJECTORIES else T
+    by_rows = keep == KEEP_METRICS and method < FIXED_STEP_FROM
+    scratch = 0 if keep == KEEP_TRAJECTORIES or by_rows else T
     sy = np.empty((scratch, N))
     st = np.empty((scratch, 3))
+    rows = np.empty((9, T if by_rows else 0))  # states and efforts by rows (metrics)
     for b in range(y0.shape[0]):
         if keep == KEEP_TRAJECTORIES:
             r = integrate(
@@ -729,6 +820,23 @@ def integrate_batch(
                 out_y[b], 0,
             )  # fmt: skip
             r = _with_efforts(r, t_eval, kind[b], cvec[b], p[b], out_y[b], out_tau[b])
+        elif keep == KEEP_METRICS and method < FIXED_STEP_FROM:
+            r = adaptive(
+                method, y0[b], t_eval, atol, rtol, max_step, max_steps, p[b], kind[b], cvec[b],
+                rows, 2,
+            )  # fmt: skip
+            if r[0] == STATUS_OK:
+                bad = fill_efforts_rows(kind[b], cvec[b], p[b], rows, r[5])
+                if bad >= 0:
+                    r = (STATUS_EFFORT_NONFINITE, bad, r[2], r[3], r[4], r[5], t_eval[bad // 3])
+            if r[0] == STATUS_OK:
+                for i in range(N):
+                    out_y[b, 0, i] = rows[i, T - 1]
+                for k in range(3):
+                    out_tau[b, 0, k] = rows[6 + k, T - 1]
+                variant_metrics(
+                    t_eval, rows[0:3].T, rows[3:6].T, rows[6:9].T, qf[b], band, out_m[b]
+                )
         else:
             r = integrate(
                 method, y0[b], t_eval, dt, atol, rtol, max_step, max_steps, p[b], kind[b],
