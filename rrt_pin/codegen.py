@@ -37,7 +37,15 @@ from rrt_pin.errors import InputError
 if TYPE_CHECKING:
     import pinocchio as pin
 
-__all__ = ["GeneratedRnea", "UnsupportedJoint", "check_supported", "count_flops", "rnea_source"]
+__all__ = [
+    "MAX_JOINTS",
+    "GeneratedRnea",
+    "UnsupportedJoint",
+    "check_supported",
+    "count_flops",
+    "rnea_source",
+    "unsupported_joint",
+]
 
 #: Joint model types, by ``shortname()``: revolute (R), prismatic (P), continuous (C).
 _KINDS = {
@@ -56,6 +64,9 @@ _KINDS = {
 }
 
 Scalar = float | str  # a constant, or the name of a temporary
+#: Most joints a generated RNEA is made for: its source grows with the joints (about
+#: 170 operations each) and numba's compile time faster than that.
+MAX_JOINTS = 64
 
 
 class UnsupportedJoint(InputError):
@@ -243,19 +254,46 @@ def _floats(x: Any) -> list[float]:
     return [float(v) for v in x]
 
 
+def unsupported_joint(model: pin.Model) -> str | None:
+    """Why the generated RNEA cannot compute ``model`` (its first unsupported joint), or None.
+
+    Cheap: reads the joint types only.
+    """
+    if model.njoints - 1 > MAX_JOINTS:
+        return (
+            f"the model has {model.njoints - 1} joints; the generated RNEA is made for "
+            f"at most {MAX_JOINTS}"
+        )
+    for i in range(1, model.njoints):
+        name = model.joints[i].shortname()
+        if name not in _KINDS:
+            return (
+                f"joint {str(model.names[i])!r} is a {name.removeprefix('JointModel')} joint "
+                f"({name}): the generated RNEA handles revolute, prismatic and continuous "
+                "joints only"
+            )
+    return None
+
+
+def check_supported(model: pin.Model) -> None:
+    """Refuse a model the generated RNEA cannot compute.
+
+    Raises:
+        UnsupportedJoint: a joint is not revolute, prismatic or continuous (the
+            message names the joint and its type), or there are more than
+            :data:`MAX_JOINTS` joints.
+    """
+    why = unsupported_joint(model)
+    if why is not None:
+        raise UnsupportedJoint(f"{why}; use backend='pinocchio'")
+
+
 def _joint(model: pin.Model, i: int) -> tuple[str, Vec, Vec]:
     """Kind (R, P, C), linear and angular parts of the joint's constant motion subspace S."""
     import numpy as np
 
     jm = model.joints[i]
-    name = jm.shortname()
-    kind = _KINDS.get(name)
-    if kind is None:
-        raise UnsupportedJoint(
-            f"joint {str(model.names[i])!r} is a {name.removeprefix('JointModel')} joint "
-            "(JointModel" + name.removeprefix("JointModel") + "): the generated RNEA handles "
-            "revolute, prismatic and continuous joints only; use backend='pinocchio'"
-        )
+    kind = _KINDS[jm.shortname()]
     data = jm.createData()
     q = np.zeros(jm.nq)
     if kind == "C":
@@ -265,23 +303,13 @@ def _joint(model: pin.Model, i: int) -> tuple[str, Vec, Vec]:
     return kind, _floats(s[:3]), _floats(s[3:])
 
 
-def check_supported(model: pin.Model) -> None:
-    """Refuse a model the generated RNEA cannot compute.
-
-    Raises:
-        UnsupportedJoint: a joint is not revolute, prismatic or continuous (the
-            message names the joint and its type).
-    """
-    for i in range(1, model.njoints):
-        _joint(model, i)
-
-
 def rnea_source(model: pin.Model) -> GeneratedRnea:
     """The straight-line RNEA of ``model`` (its gravity included) for one sample.
 
     Raises:
         UnsupportedJoint: a joint is not revolute, prismatic or continuous.
     """
+    check_supported(model)
     joints = [_joint(model, i) for i in range(1, model.njoints)]
     t = _Tracer()
     sp = _Spatial(t)
