@@ -453,7 +453,7 @@ def resolve_backend(
 
         if not backends.get("compiled").available():
             raise MissingExtra("numba", "fast", "backend 'compiled'")
-        if not robot.is_chapter_arm:
+        if not robot.supports("compiled"):  # inverse dynamics only: the generated kernel
             return _load_generated(robot)
         try:
             from rrt_pin import compiled
