@@ -113,19 +113,13 @@ class _Tracer:
     def __init__(self) -> None:
         self.lines: list[str] = []
         self._seen: dict[tuple, str] = {}
-        self.flops = 0
-        self.transcendentals = 0
 
-    def _emit(self, key: tuple, text: str, flops: int = 1) -> str:
+    def _emit(self, key: tuple, text: str) -> str:
         name = self._seen.get(key)
         if name is None:
             name = f"t{len(self.lines)}"
             self.lines.append(f"{name} = {text}")
             self._seen[key] = name
-            if key[0] in ("sin", "cos"):
-                self.transcendentals += 1
-            else:
-                self.flops += flops
         return name
 
     @staticmethod
@@ -133,7 +127,7 @@ class _Tracer:
         return repr(float(x)) if isinstance(x, float) else x
 
     def input(self, array: str, k: int) -> str:
-        return self._emit(("in", array, k), f"{array}[{k}]", flops=0)
+        return self._emit(("in", array, k), f"{array}[{k}]")
 
     def add(self, a: Scalar, b: Scalar) -> Scalar:
         if isinstance(a, float) and isinstance(b, float):
@@ -176,7 +170,7 @@ class _Tracer:
         return self._emit(("*", x, y), f"{self._c(x)} * {self._c(y)}")
 
     def call(self, fn: str, a: Scalar) -> str:
-        return self._emit((fn, a), f"{fn}({a})", flops=0)
+        return self._emit((fn, a), f"{fn}({a})")
 
     def dot(self, xs: list[Scalar], ys: list[Scalar]) -> Scalar:
         out: Scalar = 0.0
@@ -364,14 +358,30 @@ def rnea_source(model: pin.Model) -> GeneratedRnea:
             fixed, joint = transforms[i]
             fp = sp.act_force(fixed, sp.act_force(joint, f))
             force[parent] = (sp.vadd(force[parent][0], fp[0]), sp.vadd(force[parent][1], fp[1]))
+    outputs = tuple(t._c(x) for x in tau)
+    lines = _live(t.lines, outputs)
     return GeneratedRnea(
         nq=model.nq,
         nv=model.nv,
-        lines=tuple(t.lines),
-        tau=tuple(t._c(x) for x in tau),
-        flops=t.flops,
-        transcendentals=t.transcendentals,
+        lines=lines,
+        tau=outputs,
+        flops=count_flops(lines),
+        transcendentals=sum(line.split(" = ", 1)[1].startswith(("sin(", "cos(")) for line in lines),
     )
+
+
+def _live(lines: list[str], outputs: tuple[str, ...]) -> tuple[str, ...]:
+    """The statements the outputs depend on, in order (the others are dropped)."""
+    import re
+
+    needed = {o for o in outputs if not o[:1].isdigit() and not o.startswith("-")}
+    kept = []
+    for line in reversed(lines):
+        name, expr = line.split(" = ", 1)
+        if name in needed:
+            kept.append(line)
+            needed.update(re.findall(r"\bt\d+\b", expr))
+    return tuple(reversed(kept))
 
 
 def _rotation(t: _Tracer, axis: Vec, c: Scalar, s: Scalar) -> Mat:
