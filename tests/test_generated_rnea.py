@@ -339,3 +339,27 @@ def test_one_kernel_per_source_in_a_process():
     assert rnea.kernel_for(a) is rnea.kernel_for(b)  # two equal models, one kernel
     b.inertias[2].mass *= 2.0  # a changed model gets its own kernel
     assert rnea.kernel_for(b) is not rnea.kernel_for(a)
+
+
+@needs_numba
+def test_the_cli_runs_a_urdf_robot_on_the_compiled_backend(tmp_path, capsys):
+    from rrt_pin.cli import main
+    from rrt_pin.csvio import read_csv
+
+    urdf = str(robot_urdf("ur5"))
+    motion = ["--q0", "0,-1,1,0,1,0", "--qf", "1,-2,2,-1,0,1", "--tf", "2", "--dt", "0.01"]
+    tables = {}
+    for backend in ("pinocchio", "compiled"):
+        out = tmp_path / f"{backend}.csv"
+        argv = ["inverse", "--urdf", urdf, *motion, "--backend", backend, "--csv", str(out)]
+        assert main(argv) == 0
+        tables[backend] = read_csv(out)
+    err = capsys.readouterr().err
+    assert "generated inverse dynamics of ur5" in err
+    (names, pinocchio), (same, compiled) = tables["pinocchio"], tables["compiled"]
+    assert names == same
+    efforts = [k for k, n in enumerate(names) if n.startswith("tau_")]
+    assert worst(compiled[:, efforts], pinocchio[:, efforts]) <= AGREEMENT
+    gains = ["--kp", "1", "--kd", "1", "--tf", "1"]
+    code = main(["simulate", "--urdf", urdf, *motion[:4], *gains, "--backend", "compiled"])
+    assert code == 2 and "simulates the chapter's RRT arm only" in capsys.readouterr().err
