@@ -217,11 +217,11 @@ def inverse_dynamics(
 def _generated(
     b: Any, model: Any, robot: Any, q: Any, qd: Any, qdd: Any, num_threads: int | None
 ) -> np.ndarray:
-    """The ``compiled`` backend on a robot or model without Params: its generated RNEA."""
-    from rrt_pin.codegen import check_supported
+    """The ``compiled`` backend on a robot or model without Params: its generated RNEA.
 
+    An unsupported joint is refused (named) when the kernel is generated.
+    """
     pin_model = robot.model if robot is not None else model
-    check_supported(pin_model)
     nq = robot.nv if robot is not None else pin_model.nq
     nv = pin_model.nv
     # The kernel flags non-finite inputs and efforts itself (then they are named as below).

@@ -216,10 +216,10 @@ def test_the_chapter_arm_keeps_its_closed_form():
 
 @needs_numba
 def test_one_and_two_threads_give_the_same_bits():
-    from rrt_pin.compiled.rnea import MIN_SAMPLES_PER_THREAD
+    from rrt_pin.compiled.rnea import kernel_for
 
     model = _models()["panda"]()
-    q, qd, qdd = random_batch(model, 4 * MIN_SAMPLES_PER_THREAD + 3, seed=2)
+    q, qd, qdd = random_batch(model, 2 * kernel_for(model).min_per_thread + 3, seed=2)
     one = inverse_dynamics(model, q, qd, qdd, backend="compiled", num_threads=1)
     two = inverse_dynamics(model, q, qd, qdd, backend="compiled", num_threads=2)
     default = inverse_dynamics(model, q, qd, qdd, backend="compiled")

@@ -44,6 +44,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "MIN_SAMPLES_PER_THREAD",
+    "MIN_SECONDS_PER_THREAD",
     "Kernel",
     "generated_dir",
     "inverse_dynamics",
@@ -51,9 +52,12 @@ __all__ = [
     "module_source",
 ]
 
-#: Fewer samples than this per thread are not worth another thread (a slice's call
-#: through the thread pool costs a few microseconds).
-MIN_SAMPLES_PER_THREAD = 512
+#: Work a thread needs to be worth starting [s]: handing slices to a second thread
+#: costs ~30 µs on an idle core and ~100 µs as measured on a 2-core VM
+#: (scripts/bench_threads.py), so each thread gets at least this much.
+MIN_SECONDS_PER_THREAD = 150e-6
+#: The fewest samples a thread takes, whatever the kernel.
+MIN_SAMPLES_PER_THREAD = 256
 _SIGNATURE = "float64(float64[:, ::1], float64[:, ::1], float64[:, ::1], float64[:, ::1])"
 _logger = logging.getLogger("rrt_pin")
 _lock = threading.Lock()
@@ -73,6 +77,16 @@ class Kernel:
         origin: ``loaded`` (numba's disk cache), ``compiled`` (and saved) or ``memory``.
         seconds: what importing and compiling (or loading) took [s].
     """
+
+    @property
+    def min_per_thread(self) -> int:
+        """The fewest samples worth a thread: :data:`MIN_SECONDS_PER_THREAD` of estimated work.
+
+        The estimate, ~0.3 ns an operation and ~10 ns a sine or cosine, is what the
+        generated kernels of the chapter's arm, UR5 and Panda take on one core (within 40 %).
+        """
+        ns = 0.3 * self.flops + 10.0 * self.transcendentals + 1.0
+        return max(MIN_SAMPLES_PER_THREAD, int(MIN_SECONDS_PER_THREAD * 1e9 / ns))
 
     digest: str
     kernel: Any
@@ -268,8 +282,8 @@ def inverse_dynamics(
         qd: velocities (N, nv) [rad/s or m/s].
         qdd: accelerations (N, nv) [rad/s² or m/s²].
         num_threads: threads; default: the CPUs free now
-            (:func:`rrt_pin.cpus.threads_for`), none with fewer than
-            :data:`MIN_SAMPLES_PER_THREAD` samples.
+            (:func:`rrt_pin.cpus.threads_for`); never a thread with fewer samples
+            than :attr:`Kernel.min_per_thread`.
 
     Returns:
         The efforts (N, nv) [N·m or N] and whether every input and effort is finite
@@ -288,17 +302,19 @@ def inverse_dynamics(
             f"(nq={kernel.nq}, nv={kernel.nv})"
         )
     if num_threads is None:
-        threads = cpus.threads_for(n, MIN_SAMPLES_PER_THREAD)
+        threads = cpus.threads_for(n, kernel.min_per_thread)
     else:
         if isinstance(num_threads, bool) or not isinstance(num_threads, (int, np.integer)):
             raise InputError(f"num_threads={num_threads!r} must be an integer >= 1")
         if num_threads < 1:
             raise InputError(f"num_threads={num_threads!r} must be >= 1")
-        threads = int(max(1, min(num_threads, n // MIN_SAMPLES_PER_THREAD)))
+        threads = int(max(1, min(num_threads, n // kernel.min_per_thread)))
     out = np.empty((n, kernel.nv))
     if n == 0:
         return out, True
     fn = kernel.kernel
+    if threads == 1:
+        return out, fn(q, qd, qdd, out) == 0.0
     checks: list[float] = []
 
     def run(a: int, b: int) -> None:
