@@ -434,6 +434,8 @@ def resolve_backend(
             "faster by the estimate" if saves else
             "compiled code not built" if robot.supports("compiled") and runs and not built else
             "compiled would not be faster" if built else
+            "auto leaves this robot's generated inverse dynamics to --backend compiled"
+            if robot.supports("compiled", task) else
             "compiled cannot run this robot or method",
         )  # fmt: skip
     if requested == "compiled" and task == "inverse" and not robot.supports(requested, task):
