@@ -221,6 +221,10 @@ def _generated(
 
     An unsupported joint is refused (named) when the kernel is generated.
     """
+    import pinocchio as pin
+
+    if robot is None and not isinstance(model, pin.Model):
+        raise InputError(f"model must be a Robot or a pinocchio.Model, not {type(model).__name__}")
     pin_model = robot.model if robot is not None else model
     nq = robot.nv if robot is not None else pin_model.nq
     nv = pin_model.nv
