@@ -26,7 +26,8 @@ class Backend:
     Attributes:
         name: ``pinocchio``, ``symbolic`` or ``compiled``.
         summary: one line for help texts.
-        any_robot: runs any URDF; else only the chapter's RRT arm (a closed-form kernel).
+        any_robot: the tasks it computes for any fixed-base robot whose joints it
+            handles (the others: the chapter's RRT arm only, by its closed-form kernel).
         tasks: ``inverse`` and/or ``simulate``.
         default_method: the integration method ``simulate`` uses when none is given.
         requires: the module that must import (``pinocchio``, ``numpy``, ``numba``).
@@ -35,7 +36,9 @@ class Backend:
             the machine code's load from the disk cache), beyond what every run pays.
         aot_startup: the same when the dynamics and single runs are built ahead of
             time (:func:`rrt_pin.compiled.aot_built`: the module's load, no numba) [s].
-        inverse_cost: inverse dynamics of the chapter's arm [s per sample].
+        inverse_cost: inverse dynamics of the chapter's arm [s per sample] (for
+            ``compiled``, its closed-form kernel: other robots' generated kernels
+            have no cost here, so ``auto`` does not choose them).
         simulate_cost: the chapter's direct run with the backend's default method
             [s per simulated second].
 
@@ -45,7 +48,7 @@ class Backend:
 
     name: str
     summary: str
-    any_robot: bool
+    any_robot: tuple[str, ...]
     tasks: tuple[str, ...]
     default_method: str | None
     requires: str
@@ -73,6 +76,10 @@ class Backend:
         """Whether it computes ``task`` (``inverse`` or ``simulate``)."""
         return task in self.tasks
 
+    def runs_any_robot(self, task: str) -> bool:
+        """Whether it computes ``task`` for robots other than the chapter's arm."""
+        return task in self.any_robot
+
 
 #: Every backend, by name; the first is the default and the engine of record.
 BACKENDS: dict[str, Backend] = {
@@ -81,7 +88,7 @@ BACKENDS: dict[str, Backend] = {
         Backend(
             "pinocchio",
             "Pinocchio's RNEA/ABA in C++, any URDF (the engine of record)",
-            any_robot=True,
+            any_robot=("inverse", "simulate"),
             tasks=("inverse", "simulate"),
             default_method="odepack",
             requires="pinocchio",
@@ -91,15 +98,17 @@ BACKENDS: dict[str, Backend] = {
         Backend(
             "symbolic",
             "the chapter arm's generated closed-form numpy kernel",
-            any_robot=False,
+            any_robot=(),
             tasks=("inverse",),
             default_method=None,
             requires="numpy",
         ),
         Backend(
             "compiled",
-            "the chapter arm's kernel and integrators in machine code (numba)",
-            any_robot=False,
+            "machine code (numba): the chapter arm's kernel and integrators; inverse "
+            "dynamics of any robot with revolute, prismatic or continuous joints, generated "
+            "from its model",
+            any_robot=("inverse",),
             tasks=("inverse", "simulate"),
             default_method="DOP853",
             requires="numba",

@@ -6,7 +6,9 @@ run in C++ over the whole batch by ``pin.rneaInParallel`` with a
 once per sample. For the RRT arm, two other backends give the same efforts
 from the closed-form equations of motion: ``"symbolic"`` (the generated numpy
 kernel :mod:`rrt_pin.kernel`) and ``"compiled"`` (the numba backend
-:mod:`rrt_pin.compiled`).
+:mod:`rrt_pin.compiled`). For any other fixed-base robot whose joints are
+revolute, prismatic or continuous, ``"compiled"`` runs the RNEA generated from
+its Pinocchio model (:mod:`rrt_pin.codegen`, :mod:`rrt_pin.compiled.rnea`).
 
 Units: q in rad (revolute) or m (prismatic), q̇ in rad/s or m/s, q̈ in rad/s²
 or m/s²; efforts in N·m (revolute) or N (prismatic).
@@ -115,9 +117,11 @@ def inverse_dynamics(
 
     Args:
         model: a :class:`~rrt_pin.robot.Robot` or a Pinocchio model (any
-            fixed-base robot; its gravity is used). The ``symbolic`` and
-            ``compiled`` backends compute the chapter's arm: from the robot's
-            parameters, or from ``params`` (``model`` may then be None).
+            fixed-base robot; its gravity is used). The ``symbolic`` backend
+            computes the chapter's arm: from the robot's parameters, or from
+            ``params`` (``model`` may then be None); so does ``compiled`` then,
+            and for any other robot or model (no ``params``) it runs the RNEA
+            generated from the model (revolute, prismatic and continuous joints).
         q: joint coordinates, shape (N, nv) [rad or m] (angles for continuous
             joints; with a Pinocchio model, its (N, nq) configurations); (nv,)
             for one sample.
@@ -125,8 +129,8 @@ def inverse_dynamics(
         qdd: accelerations, shape (N, nv) [rad/s² or m/s²].
         backend: a backend of :mod:`rrt_pin.backends` that computes ``inverse``.
         params: the chapter arm's parameters (``symbolic``/``compiled`` with a model).
-        num_threads: threads for the Pinocchio backend; default: the CPUs
-            available, fewer for small batches.
+        num_threads: threads for the Pinocchio backend and the generated
+            kernels; default: the CPUs free now, fewer for small batches.
 
     Returns:
         Efforts, shape (N, nv) — (nv,) for a single sample, as ``pin.rnea`` —
@@ -168,6 +172,10 @@ def inverse_dynamics(
                 validate.samples(name, arr, width, unit)
             _check_finite(tau, robot.effort_names if robot is not None else None)
         return tau[0] if single else tau
+    if b.name == "compiled" and (robot.params is None if robot is not None else params is None):
+        if model is None:
+            raise InputError(f"backend={backend!r} needs a Robot, a Pinocchio model or Params")
+        return _generated(b, model, robot, q, qd, qdd, num_threads)
     if robot is not None:
         if not robot.supports(b.name):
             raise InputError(
@@ -203,6 +211,41 @@ def inverse_dynamics(
 
         tau = np.asarray(kernel.inverse_dynamics(q, qd, qdd, params), dtype=float)
         _check_finite(tau, ("T01x", "T12y", "F23z"))
+    return tau[0] if single else tau
+
+
+def _generated(
+    b: Any, model: Any, robot: Any, q: Any, qd: Any, qdd: Any, num_threads: int | None
+) -> np.ndarray:
+    """The ``compiled`` backend on a robot or model without Params: its generated RNEA.
+
+    An unsupported joint is refused (named) when the kernel is generated.
+    """
+    import pinocchio as pin
+
+    if robot is None and not isinstance(model, pin.Model):
+        raise InputError(f"model must be a Robot or a pinocchio.Model, not {type(model).__name__}")
+    pin_model = robot.model if robot is not None else model
+    nq = robot.nv if robot is not None else pin_model.nq
+    nv = pin_model.nv
+    # The kernel flags non-finite inputs and efforts itself (then they are named as below).
+    named = (("q", q, nq, "rad or m"), ("qd", qd, nv, "rad/s or m/s"))
+    named += (("qdd", qdd, nv, "rad/s² or m/s²"),)
+    arrays = [validate.samples(n, v, w, u, finite=False) for n, v, w, u in named]
+    (q, single), (qd, _), (qdd, _) = arrays
+    _same_count(q, qd, qdd)
+    if not b.available():
+        from rrt_pin.extras import MissingExtra
+
+        raise MissingExtra("numba", "fast", "backend 'compiled'")
+    from rrt_pin.compiled import rnea
+
+    configuration = q if robot is None else robot.configuration(q)
+    tau, finite = rnea.inverse_dynamics(pin_model, configuration, qd, qdd, num_threads)
+    if not finite:
+        for (name, _, width, unit), arr in zip(named, (q, qd, qdd), strict=True):
+            validate.samples(name, arr, width, unit)
+        _check_finite(tau, robot.effort_names if robot is not None else None)
     return tau[0] if single else tau
 
 

@@ -142,7 +142,11 @@ class Robot:
         joints: the moving joints, in Pinocchio's order.
         q_names, qd_names, qdd_names, effort_names: column names, one per coordinate.
         defaults: the default task (:class:`RobotDefaults`).
-        backends: backends that can compute this robot (see :mod:`rrt_pin.backends`).
+        backends: backends that compute every task of theirs for this robot (see
+            :mod:`rrt_pin.backends`).
+        inverse_backends: further backends that compute its inverse dynamics only
+            (``compiled``'s generated RNEA, when every joint is revolute, prismatic
+            or continuous).
         parameters: the chapter's symbols that apply to it (``--set`` accepts only these).
         params: the arm's :class:`~rrt_pin.params.Params` (None for a URDF).
         source: the URDF file, or None for the generated arm.
@@ -161,6 +165,7 @@ class Robot:
     backends: tuple[str, ...]
     parameters: tuple[str, ...]
     params: Params | None = None
+    inverse_backends: tuple[str, ...] = ()
     source: Path | None = None
     layout: str = "generic"
     regulator: str = "PD plus gravity compensation"
@@ -256,6 +261,7 @@ class Robot:
             effort_names=eff,
             defaults=defaults,
             backends=("pinocchio",),
+            inverse_backends=_generated_backends(model),
             parameters=("g", "Tp"),
             source=source,
             _model=model,
@@ -284,9 +290,13 @@ class Robot:
         """Whether this is the chapter's RRT arm (its closed-form kernels apply)."""
         return self.params is not None
 
-    def supports(self, backend: str) -> bool:
-        """Whether ``backend`` can compute this robot."""
-        return backend in self.backends
+    def supports(self, backend: str, task: str | None = None) -> bool:
+        """Whether ``backend`` computes this robot.
+
+        For ``task`` (``inverse`` or ``simulate``), or for every task of the
+        backend's when None.
+        """
+        return backend in self.backends or (task == "inverse" and backend in self.inverse_backends)
 
     # ------------------------------------------------------------------ units
     @property
@@ -409,7 +419,9 @@ class Robot:
             lines.append(f"  default q0: {','.join(f'{v:g}' for v in d.q0)}")
         if d.qf is not None:
             lines.append(f"  default qf: {','.join(f'{v:g}' for v in d.qf)}")
-        lines.append(f"  backends: {', '.join(self.backends)}")
+        extra = [b for b in self.inverse_backends if b not in self.backends]
+        also = f"; inverse dynamics also: {', '.join(extra)}" if extra else ""
+        lines.append(f"  backends: {', '.join(self.backends)}{also}")
         return "\n".join(lines) + "\n"
 
     def load_labels(self) -> tuple[tuple[str, str], ...]:
@@ -442,6 +454,13 @@ def _maybe(name: str, value: Any, n: int) -> tuple[float, ...] | None:
     if np.ndim(arr) == 0 and name in ("kp", "kd"):
         arr = np.full(n, validate.real(name, value))
     return tuple(float(v) for v in validate.vector(name, arr, n))
+
+
+def _generated_backends(model: pin.Model) -> tuple[str, ...]:
+    """``("compiled",)`` when its generated RNEA handles every joint of ``model``, else ()."""
+    from rrt_pin.codegen import unsupported_joint
+
+    return ("compiled",) if unsupported_joint(model) is None else ()
 
 
 def _joints_of(model: pin.Model) -> tuple[Joint, ...]:

@@ -13,7 +13,14 @@ Targets on 2 cores: ≥ 5.5× the loop for the chapter, ≥ 2.5× for UR5 and Pa
 The "batch" rows time ``simulate_batch`` (Pinocchio backend, --batch chapter variants,
 no error estimate) on 1 thread, 2 and the default; its ratios are to the 1-thread run.
 
-A second table times the default against one thread on the chapter's arm for small
+The "generated" table times ``inverse_dynamics(..., backend="compiled")`` on the RNEA
+generated from each robot's Pinocchio model (:mod:`rrt_pin.compiled.rnea`; for the
+chapter, its plain ``pin.Model``, as the arm's Robot runs the closed form), on one
+thread and the default, in the same interleaved rounds as the loop: ns a sample, the
+ratio to the loop, and the kernel's operations a sample (flops, sines and cosines).
+Its compilation (or load from the disk cache) is paid before the timing.
+
+A third table times the default against one thread on the chapter's arm for small
 batches (--sizes): the thread count follows the problem size, so the default should
 never be slower than one thread (default/1 ≤ 1, within noise).
 
@@ -56,13 +63,24 @@ def _loop(model, m) -> None:
         pin.rnea(model, data, m.q[i], m.qd[i], m.qdd[i])
 
 
-def _sides(robot, m) -> dict:  # noqa: ANN001
+def _sides(robot, m, generated: bool) -> dict:  # noqa: ANN001
     """The ways to compute the efforts of motion ``m``, by name."""
     model = robot.model
     pool = pin.ModelPool(model, 2)
     out = np.empty((model.nv, m.q.shape[0]), order="F")
     qT, qdT, qddT = (np.asfortranarray(robot.configuration(m.q).T), m.qd.T, m.qdd.T)
+    gen = {}
+    if generated:
+        # The chapter's Robot runs its closed form: its plain model runs the generated RNEA.
+        target = model if robot.is_chapter_arm else robot
+        gen = {
+            "gen 1": lambda: inverse_dynamics(
+                target, m.q, m.qd, m.qdd, backend="compiled", num_threads=1
+            ),
+            "gen default": lambda: inverse_dynamics(target, m.q, m.qd, m.qdd, backend="compiled"),
+        }
     return {
+        **gen,
         "loop": lambda: _loop(model, m),
         "raw 2": lambda: pin.rneaInParallel(2, pool, qT, qdT, qddT, out),
         "1": lambda: inverse_dynamics(robot, m.q, m.qd, m.qdd, num_threads=1),
@@ -120,6 +138,39 @@ def _batch_sides(variants: int) -> dict:
     return {"1": lambda: run(1), "2": lambda: run(2), "default": lambda: run(None)}
 
 
+def _generated_ready() -> dict[str, object]:
+    """Each case's generated kernel, compiled (or loaded) now; {} without numba."""
+    try:
+        from rrt_pin.compiled import rnea
+    except ImportError:
+        return {}
+    import importlib.util
+
+    if importlib.util.find_spec("numba") is None:
+        return {}
+    kernels = {}
+    for name, robot, _ in _cases():
+        kernel = rnea.kernel_for(robot.model)
+        print(f"generated RNEA of {name}: {kernel.origin} in {kernel.seconds:.2f} s")
+        kernels[name] = kernel
+    return kernels
+
+
+def _generated_table(load: str, rows: list) -> None:
+    """ns a sample and ratio to the loop of the generated kernels (1 thread, default)."""
+    if not rows:
+        return
+    print(f"\n{'generated':<9} {'load':<8} {'loop ns':>8} {'1 thread ns':>12} {'ratio':>7} "
+          f"{'default ns':>11} {'ratio':>7} {'flops':>6} {'sin/cos':>8}")  # fmt: skip
+    for name, n, med, kernel in rows:
+        ns = {k: med[k] / n * 1e9 for k in ("loop", "gen 1", "gen default")}
+        print(f"{name:<9} {load:<8} {ns['loop']:>8.0f} {ns['gen 1']:>12.1f} "
+              f"{ns['loop'] / ns['gen 1']:>6.2f}x {ns['gen default']:>11.1f} "
+              f"{ns['loop'] / ns['gen default']:>6.2f}x {kernel.flops:>6} "
+              f"{kernel.transcendentals:>8}")  # fmt: skip
+    print()
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=15)
@@ -127,6 +178,7 @@ def main() -> None:
     parser.add_argument("--batch", type=int, default=200, help="variants of simulate_batch")
     args = parser.parse_args()
     repeat = args.repeat
+    generated = _generated_ready()
     print(f"{'robot':<8} {'load':<8} {'loop [ms]':>10} {'raw 2':>7} {'1 thread':>9} "
           f"{'2 threads':>10} {'default':>8} {'default/1':>10}")  # fmt: skip
     for load in ("quiet", "1 busy"):
@@ -134,10 +186,13 @@ def main() -> None:
         if load != "quiet":
             burner = subprocess.Popen([sys.executable, "-c", BURNER])
             time.sleep(1.0)
+        rows = []
         try:
             for name, robot, m in _cases():
-                med = _median_times(_sides(robot, m), repeat)
+                med = _median_times(_sides(robot, m, bool(generated)), repeat)
                 base = med["loop"]
+                if generated:
+                    rows.append((name, m.q.shape[0], med, generated[name]))
                 print(f"{name:<8} {load:<8} {base * 1e3:>10.2f} {base / med['raw 2']:>6.2f}x "
                       f"{base / med['1']:>8.2f}x "
                       f"{base / med['2']:>9.2f}x {base / med['default']:>7.2f}x "
@@ -151,6 +206,7 @@ def main() -> None:
             if burner is not None:
                 burner.kill()
                 burner.wait()
+        _generated_table(load, rows)
     if args.sizes:
         _sizes([int(x) for x in args.sizes.split(",")], repeat)
 

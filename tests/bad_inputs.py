@@ -62,6 +62,9 @@ def make_files(tmp: Path) -> None:
     (tmp / "triangle.urdf").write_text(good.replace('izz="1.0"', 'izz="10.0"'))
     (tmp / "chain10000.urdf").write_text(chain_urdf(10_000))
     (tmp / "chain300.urdf").write_text(chain_urdf(300))
+    (tmp / "chain65.urdf").write_text(chain_urdf(65))
+    zeros = ",".join(["0"] * 65)
+    (tmp / "chain65.toml").write_text(f'[options]\nq0 = "{zeros}"\nqf = "{zeros}"\n')
     (tmp / "latin1.urdf").write_bytes(
         good.replace("RRT arm", "RRT arm (caf\xe9)").encode("latin-1")
     )
@@ -594,6 +597,21 @@ CASES = (
         "keyframes beyond counting",
         ("view", "--set", "Tp=1e300", "--serve-for", "0"),
         "would be 3e+301 keyframes; at most 100,000",
+    ),
+    Case(
+        "compiled inverse dynamics of a robot with too many joints",
+        (
+            "inverse",
+            "--urdf",
+            "{tmp}/chain65.urdf",
+            "--config",
+            "{tmp}/chain65.toml",
+            "--backend",
+            "compiled",
+            "--csv",
+            OUT,
+        ),
+        "--backend compiled: the model has 65 joints; the generated RNEA is made for at most 64",
     ),
     Case(
         "a long joint list in a message",

@@ -166,7 +166,7 @@ def test_urdf_needs_its_own_values(tmp_path, capsys):
         (
             ["--q0", "0,0,0,0,0,0", "--qf", "0,0,0,0,0,0", "--kp", "1", "--kd", "1"]
             + ["--backend", "compiled"],
-            "--urdf needs --backend pinocchio",
+            "simulates the chapter's RRT arm only; --urdf needs --backend pinocchio",
         ),
     ]
     for extra, words in cases:

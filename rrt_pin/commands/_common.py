@@ -348,21 +348,41 @@ def report_run(args: argparse.Namespace, how: str, summary: str) -> None:
     to.write(summary)
 
 
+def _load_generated(robot: Robot) -> str:
+    """Load (or compile) ``robot``'s generated inverse dynamics, and say how long it took."""
+    from rrt_pin.compiled import rnea
+    from rrt_pin.errors import InputError
+
+    try:
+        kernel = rnea.kernel_for(robot.model)
+    except ImportError as e:
+        raise InputError(f"backend 'compiled' is not available: {e}") from e
+    how = {"loaded": "loaded from the cache", "compiled": "compiled"}.get(
+        kernel.origin, "compiled (memory only, no cache)"
+    )
+    where = f" ({kernel.path.parent})" if kernel.path is not None else ""
+    note(f"generated inverse dynamics of {robot.name} {how} in {kernel.seconds:.2f} s{where}")
+    return "compiled"
+
+
 def resolve_backend(
     requested: str, robot: Robot, task: str, method: str | None = None, work: float = 0.0
 ) -> str:
     """The backend a run uses, loading the compiled one first so its cost is reported apart.
 
-    ``auto`` picks ``compiled`` only when the robot supports it (the chapter's
-    arm), it runs the method asked for (``auto`` never changes the method or the
+    ``auto`` picks ``compiled`` only for the chapter's arm (its closed-form
+    kernels, whose costs are known; other robots' generated inverse dynamics are
+    never chosen by ``auto``), it runs the method asked for (``auto`` never changes the method or the
     tolerances), its machine code is already built (in this process or in the
     disk cache, checked without importing numba), and the estimated time of the
     whole job, start-up included, is at most half of ``pinocchio``'s
     (:func:`rrt_pin.backends.estimated_seconds`: ``work`` is the number of
     samples for ``inverse``, the simulated seconds for ``simulate``); otherwise
     ``pinocchio``. ``-v`` says which and why. A backend the robot does not
-    support is refused. With ``compiled``, importing numba and loading (or
-    compiling) the code happens here, and one line on stderr says how long it
+    support is refused (a robot with a joint the generated RNEA does not handle:
+    the message names it). With ``compiled``, importing numba and loading (or
+    compiling) the code happens here (for another robot than the chapter's arm:
+    its generated kernel), and one line on stderr says how long it
     took, so that the run's own time excludes it; with the dynamics and single
     runs built ahead of time (:func:`rrt_pin.compiled.aot_built`) that is skipped
     (their start-up is ~20 ms).
@@ -414,11 +434,20 @@ def resolve_backend(
             "faster by the estimate" if saves else
             "compiled code not built" if robot.supports("compiled") and runs and not built else
             "compiled would not be faster" if built else
+            "auto leaves this robot's generated inverse dynamics to --backend compiled"
+            if robot.supports("compiled", task) else
             "compiled cannot run this robot or method",
         )  # fmt: skip
-    if not robot.supports(requested):
+    if requested == "compiled" and task == "inverse" and not robot.supports(requested, task):
+        from rrt_pin.codegen import unsupported_joint
+
         raise InputError(
-            f"--backend {requested} computes the chapter's RRT arm only; --urdf needs "
+            f"--backend compiled: {unsupported_joint(robot.model)}; --urdf needs --backend pinocchio"
+        )
+    if not robot.supports(requested, task):
+        what = "simulates" if task == "simulate" and requested == "compiled" else "computes"
+        raise InputError(
+            f"--backend {requested} {what} the chapter's RRT arm only; --urdf needs "
             "--backend pinocchio"
         )
     if requested == "compiled":
@@ -426,6 +455,8 @@ def resolve_backend(
 
         if not backends.get("compiled").available():
             raise MissingExtra("numba", "fast", "backend 'compiled'")
+        if not robot.supports("compiled"):  # inverse dynamics only: the generated kernel
+            return _load_generated(robot)
         try:
             from rrt_pin import compiled
 

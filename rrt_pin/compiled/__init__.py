@@ -17,6 +17,10 @@ Public API (SI units throughout):
 * whole simulations: :func:`simulate_compiled` (the ``backend="compiled"`` of
   :func:`rrt_pin.simulate.simulate`) and :func:`simulate_batch_compiled` (many
   chapter variants: gains, targets, initial states and masses per variant);
+* inverse dynamics of any other fixed-base robot with revolute, prismatic or
+  continuous joints: :mod:`rrt_pin.compiled.rnea` (the RNEA generated from its
+  Pinocchio model by :mod:`rrt_pin.codegen`, compiled once per model and cached
+  on disk by the hash of its source; not loaded by :func:`ensure_compiled`);
 * methods: those of :data:`rrt_pin.methods.METHODS` that run compiled
   (``rrt_pin.methods.names("compiled")``): ``RK45``, ``DOP853`` (adaptive,
   step by step as SciPy's ``solve_ivp``), ``symplectic_euler``, ``rk4``,

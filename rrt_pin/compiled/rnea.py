@@ -1,0 +1,326 @@
+"""Inverse dynamics of any supported fixed-base robot in machine code, generated from its model.
+
+:func:`rrt_pin.codegen.rnea_source` turns a ``pin.Model`` into the straight-line
+RNEA of one sample; :func:`module_source` wraps it in a loop over a batch,
+``kernel(Q (N, nq), V (N, nv), A (N, nv), out (N, nv))``, which is written to a
+file named by the SHA-256 of that source, imported from there and compiled by
+numba with ``cache=True`` and ``nogil=True`` (:func:`kernel_for`). The file's
+directory is ``generated/`` under the base cache directory of
+:mod:`rrt_pin.compiled._cache` (``$RRT_PIN_CACHE_DIR``, ``$NUMBA_CACHE_DIR/rrt_pin``,
+``~/.cache/rrt_pin/numba``, …); numba keeps the machine code beside it, in
+``__pycache__`` (or under ``$NUMBA_CACHE_DIR``), keyed by the file's contents, the
+CPU and the toolchain, so a second process loads it instead of compiling. Each
+process keeps one kernel per source in memory.
+
+:func:`inverse_dynamics` splits a batch over threads as the compiled batches do
+(:func:`rrt_pin.compiled.integrate._in_slices`). Each call of the kernel
+returns 0.0 when every input and effort of its samples is finite, else NaN (one
+sum a sample, no branch), so non-finite values are searched only then.
+
+Units: Q in rad or m (continuous joints: cos θ, sin θ), V in rad/s or m/s, A in
+rad/s² or m/s²; efforts in N·m (revolute) or N (prismatic).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib.util
+import logging
+import os
+import sys
+import threading
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from rrt_pin import codegen, cpus
+from rrt_pin.errors import InputError
+
+if TYPE_CHECKING:
+    import pinocchio as pin
+
+__all__ = [
+    "MIN_SAMPLES_PER_THREAD",
+    "MIN_SECONDS_PER_THREAD",
+    "Kernel",
+    "generated_dir",
+    "inverse_dynamics",
+    "kernel_for",
+    "module_source",
+]
+
+#: Work a thread needs to be worth starting [s]: handing slices to a second thread
+#: costs ~30 µs on an idle core and ~100 µs as measured on a 2-core VM
+#: (scripts/bench_threads.py), so each thread gets at least this much.
+MIN_SECONDS_PER_THREAD = 150e-6
+#: The fewest samples a thread takes, whatever the kernel.
+MIN_SAMPLES_PER_THREAD = 256
+_SIGNATURE = "float64(float64[:, ::1], float64[:, ::1], float64[:, ::1], float64[:, ::1])"
+_logger = logging.getLogger("rrt_pin")
+_lock = threading.Lock()
+
+
+@dataclass(frozen=True)
+class Kernel:
+    """One model's compiled RNEA over a batch.
+
+    Attributes:
+        digest: SHA-256 of the module's source (its file is ``rnea_<digest[:24]>.py``).
+        kernel: ``kernel(Q, V, A, out) -> 0.0 or nan`` (numba dispatcher).
+        nq: configuration size; nv: efforts per sample.
+        flops: arithmetic operations a sample (sines and cosines apart).
+        transcendentals: sines and cosines a sample.
+        path: the module's file, or None (compiled in memory only).
+        origin: ``loaded`` (numba's disk cache), ``compiled`` (and saved) or ``memory``.
+        seconds: what importing and compiling (or loading) took [s].
+    """
+
+    @property
+    def min_per_thread(self) -> int:
+        """The fewest samples worth a thread: :data:`MIN_SECONDS_PER_THREAD` of estimated work.
+
+        The estimate, ~0.3 ns an operation and ~10 ns a sine or cosine, is what the
+        generated kernels of the chapter's arm, UR5 and Panda take on one core (within 40 %).
+        """
+        ns = 0.3 * self.flops + 10.0 * self.transcendentals + 1.0
+        return max(MIN_SAMPLES_PER_THREAD, int(MIN_SECONDS_PER_THREAD * 1e9 / ns))
+
+    digest: str
+    kernel: Any
+    nq: int
+    nv: int
+    flops: int
+    transcendentals: int
+    path: Path | None
+    origin: str
+    seconds: float
+
+
+#: Kernels of this process, by the SHA-256 of their source.
+_KERNELS: dict[str, Kernel] = {}
+#: Models already generated, by id: (the model, a copy to notice changes, its kernel).
+_MODELS: dict[int, tuple[Any, Any, Kernel]] = {}
+_MODEL_CACHE = 16
+
+
+def _pairwise_sum(terms: list[str]) -> str:
+    """A balanced sum of ``terms`` (a short dependency chain)."""
+    while len(terms) > 1:
+        terms = [
+            f"({terms[k]} + {terms[k + 1]})" if k + 1 < len(terms) else terms[k]
+            for k in range(0, len(terms), 2)
+        ]
+    return terms[0]
+
+
+def module_source(gen: codegen.GeneratedRnea) -> str:
+    """The Python module of the batch kernel around ``gen``'s straight-line RNEA (no numba import).
+
+    ``kernel(Q, V, A, out)`` writes the efforts of each row into ``out`` and returns
+    0.0 when every entry of Q, V, A and out is finite, else NaN.
+    """
+    ind = " " * 8
+    checked = [f"q[{k}]" for k in range(gen.nq)]
+    checked += [f"{x}[{k}]" for x in ("v", "a") for k in range(gen.nv)]
+    checked += [t for t in gen.tau if not t[:1].isdigit() and not t.startswith("-")]
+    lines = [
+        '"""Generated by rrt_pin.compiled.rnea from a Pinocchio model: do not edit.',
+        "",
+        f"RNEA of nq={gen.nq}, nv={gen.nv}: {gen.flops} flops and "
+        f"{gen.transcendentals} sines/cosines a sample.",
+        '"""',
+        "",
+        "from math import cos, sin",
+        "",
+        "",
+        "def kernel(Q, V, A, out):",
+        "    check = 0.0",
+        "    for i in range(Q.shape[0]):",
+        f"{ind}q = Q[i]",
+        f"{ind}v = V[i]",
+        f"{ind}a = A[i]",
+        *(f"{ind}{line}" for line in gen.lines),
+        *(f"{ind}out[i, {k}] = {t}" for k, t in enumerate(gen.tau)),
+        f"{ind}s = {_pairwise_sum(checked)}",
+        f"{ind}check += s - s",
+        "    return check",
+        "",
+    ]
+    return "\n".join(lines)
+
+
+def generated_dir() -> Path | None:
+    """The writable directory of the generated modules (created), or None."""
+    from rrt_pin.compiled import _cache
+
+    for base in _cache._base_candidates():
+        path = base / "generated"
+        if _cache._writable(path):
+            return path
+    return None
+
+
+def _write(path: Path, text: str) -> bool:
+    """Write ``text`` to ``path`` unless it already holds it (atomically); whether it does now."""
+    try:
+        if path.read_text(encoding="utf-8") == text:
+            return True
+    except (OSError, UnicodeDecodeError):
+        pass
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.{threading.get_ident()}.tmp")
+    try:
+        tmp.write_text(text, encoding="utf-8")
+        os.replace(tmp, path)
+    except OSError:
+        tmp.unlink(missing_ok=True)
+        return False
+    return True
+
+
+def _import(path: Path, name: str) -> Any:
+    spec = importlib.util.spec_from_file_location(name, path)
+    module = importlib.util.module_from_spec(spec)  # type: ignore[arg-type]
+    spec.loader.exec_module(module)  # type: ignore[union-attr]
+    sys.modules[name] = module
+    return module
+
+
+def _compile(source: str, digest: str, gen: codegen.GeneratedRnea) -> Kernel:
+    try:
+        import numba
+    except ImportError as e:
+        from rrt_pin.extras import MissingExtra
+
+        raise MissingExtra("numba", "fast", "backend 'compiled'") from e
+    start = time.perf_counter()
+    name = f"rrt_pin_rnea_{digest[:24]}"
+    where = generated_dir()
+    path = where / f"{name.removeprefix('rrt_pin_')}.py" if where is not None else None
+    dispatcher, origin = None, "memory"
+    if path is not None and _write(path, source):
+        try:
+            fn = _import(path, name).kernel
+            dispatcher = numba.njit(_SIGNATURE, cache=True, nogil=True, error_model="numpy")(fn)
+            origin = "loaded" if sum(dispatcher.stats.cache_hits.values()) else "compiled"
+        except Exception as exc:  # a damaged or unwritable numba cache: compile in memory
+            from rrt_pin.compiled._cache import warn_once
+
+            warn_once(f"generated RNEA cache {path.parent}: {type(exc).__name__}: {exc}"[:300])
+            dispatcher = None
+    if dispatcher is None:
+        namespace: dict[str, Any] = {}
+        exec(compile(source, f"<{name}>", "exec"), namespace)  # noqa: S102 - our own source
+        fn = namespace["kernel"]
+        dispatcher = numba.njit(_SIGNATURE, cache=False, nogil=True, error_model="numpy")(fn)
+        path, origin = None, "memory"
+    seconds = time.perf_counter() - start
+    _logger.info("generated RNEA %s: %s in %.2f s", digest[:12], origin, seconds)
+    return Kernel(
+        digest=digest,
+        kernel=dispatcher,
+        nq=gen.nq,
+        nv=gen.nv,
+        flops=gen.flops,
+        transcendentals=gen.transcendentals,
+        path=path,
+        origin=origin,
+        seconds=seconds,
+    )
+
+
+def kernel_for(model: pin.Model) -> Kernel:
+    """The compiled RNEA of ``model`` (generated, written, loaded or compiled once per process).
+
+    A model seen before and unchanged (compared with a copy kept) costs a dict
+    look-up and a model comparison (a few microseconds).
+
+    Raises:
+        UnsupportedJoint: a joint is not revolute, prismatic or continuous.
+        MissingExtra: numba is not installed.
+    """
+    entry = _MODELS.get(id(model))
+    if entry is not None and entry[0] is model and bool(entry[1] == model):
+        return entry[2]
+    import pinocchio as pin
+
+    gen = codegen.rnea_source(model)
+    source = module_source(gen)
+    digest = hashlib.sha256(source.encode()).hexdigest()
+    with _lock:
+        kernel = _KERNELS.get(digest)
+        if kernel is None:
+            kernel = _KERNELS[digest] = _compile(source, digest, gen)
+    _MODELS.pop(id(model), None)
+    _MODELS[id(model)] = (model, pin.Model(model), kernel)
+    while len(_MODELS) > _MODEL_CACHE:
+        _MODELS.pop(next(iter(_MODELS)))
+    return kernel
+
+
+def _c_array(x: np.ndarray) -> np.ndarray:
+    """``x`` as the kernel takes it: float64, C-ordered, writable (copied only if needed)."""
+    if x.dtype == np.float64 and x.flags.c_contiguous and x.flags.writeable:
+        return x
+    return np.array(x, dtype=np.float64, order="C")
+
+
+def inverse_dynamics(
+    model: pin.Model,
+    q: np.ndarray,
+    qd: np.ndarray,
+    qdd: np.ndarray,
+    num_threads: int | None = None,
+) -> tuple[np.ndarray, bool]:
+    """Efforts of a batch with ``model``'s generated kernel, and whether all was finite.
+
+    Args:
+        model: a fixed-base Pinocchio model with supported joints.
+        q: configurations (N, nq) [rad or m; cos θ, sin θ for continuous joints].
+        qd: velocities (N, nv) [rad/s or m/s].
+        qdd: accelerations (N, nv) [rad/s² or m/s²].
+        num_threads: threads; default: the CPUs free now
+            (:func:`rrt_pin.cpus.threads_for`); never a thread with fewer samples
+            than :attr:`Kernel.min_per_thread`.
+
+    Returns:
+        The efforts (N, nv) [N·m or N] and whether every input and effort is finite
+        (when not, the caller names the first bad value).
+
+    Raises:
+        InputError: bad ``num_threads`` or shapes that do not fit the model.
+        UnsupportedJoint: a joint the generated RNEA does not handle.
+    """
+    kernel = kernel_for(model)
+    q, qd, qdd = _c_array(q), _c_array(qd), _c_array(qdd)
+    n = q.shape[0]
+    if q.shape != (n, kernel.nq) or qd.shape != (n, kernel.nv) or qdd.shape != (n, kernel.nv):
+        raise InputError(
+            f"{q.shape=}, {qd.shape=}, {qdd.shape=} do not fit the model "
+            f"(nq={kernel.nq}, nv={kernel.nv})"
+        )
+    if num_threads is None:
+        threads = cpus.threads_for(n, kernel.min_per_thread)
+    else:
+        if isinstance(num_threads, bool) or not isinstance(num_threads, (int, np.integer)):
+            raise InputError(f"num_threads={num_threads!r} must be an integer >= 1")
+        if num_threads < 1:
+            raise InputError(f"num_threads={num_threads!r} must be >= 1")
+        threads = int(max(1, min(num_threads, n // kernel.min_per_thread)))
+    out = np.empty((n, kernel.nv))
+    if n == 0:
+        return out, True
+    fn = kernel.kernel
+    if threads == 1:
+        return out, fn(q, qd, qdd, out) == 0.0
+    checks: list[float] = []
+
+    def run(a: int, b: int) -> None:
+        checks.append(fn(q[a:b], qd[a:b], qdd[a:b], out[a:b]))
+
+    from rrt_pin.compiled.integrate import _in_slices
+
+    _in_slices(run, n, threads)
+    return out, not any(c != 0.0 for c in checks)
