@@ -240,6 +240,24 @@ def test_one_and_two_threads_give_the_same_bits():
 
 
 @needs_numba
+def test_read_only_inputs_are_taken_as_they_are():
+    """Read-only arrays (a loaded or shared motion) reach the kernel without a copy."""
+    from rrt_pin.compiled import rnea
+
+    model = _models()["ur5"]()
+    q, qd, qdd = random_batch(model, 300, seed=5)
+    want = inverse_dynamics(model, q, qd, qdd, backend="compiled", num_threads=1)
+    frozen = []
+    for a in (q, qd, qdd):
+        a = a.copy()
+        a.flags.writeable = False
+        frozen.append(a)
+    assert all(rnea._c_array(a) is a for a in frozen)  # no copy on the way
+    got, finite = rnea.inverse_dynamics(model, *frozen, num_threads=1)  # the kernel takes them
+    assert finite and np.array_equal(got, want)
+
+
+@needs_numba
 @pytest.mark.parametrize("array, index", [("q", (7, 2)), ("qd", (1100, 1)), ("qdd", (0, 5))])
 @pytest.mark.parametrize("bad", [np.nan, np.inf])
 def test_non_finite_input_is_refused_naming_the_array(array, index, bad):

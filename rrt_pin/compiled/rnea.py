@@ -58,7 +58,6 @@ __all__ = [
 MIN_SECONDS_PER_THREAD = 150e-6
 #: The fewest samples a thread takes, whatever the kernel.
 MIN_SAMPLES_PER_THREAD = 256
-_SIGNATURE = "float64(float64[:, ::1], float64[:, ::1], float64[:, ::1], float64[:, ::1])"
 _logger = logging.getLogger("rrt_pin")
 _lock = threading.Lock()
 
@@ -188,6 +187,13 @@ def _import(path: Path, name: str) -> Any:
     return module
 
 
+def _signature(numba: Any) -> Any:
+    """kernel(Q, V, A, out) -> float64: inputs C-ordered and read-only accepted (no copy)."""
+    f8 = numba.float64
+    read = numba.types.Array(f8, 2, "C", readonly=True)
+    return f8(read, read, read, f8[:, ::1])
+
+
 def _compile(source: str, digest: str, gen: codegen.GeneratedRnea) -> Kernel:
     try:
         import numba
@@ -196,6 +202,7 @@ def _compile(source: str, digest: str, gen: codegen.GeneratedRnea) -> Kernel:
 
         raise MissingExtra("numba", "fast", "backend 'compiled'") from e
     start = time.perf_counter()
+    signature = _signature(numba)
     name = f"rrt_pin_rnea_{digest[:24]}"
     where = generated_dir()
     path = where / f"{name.removeprefix('rrt_pin_')}.py" if where is not None else None
@@ -203,7 +210,7 @@ def _compile(source: str, digest: str, gen: codegen.GeneratedRnea) -> Kernel:
     if path is not None and _write(path, source):
         try:
             fn = _import(path, name).kernel
-            dispatcher = numba.njit(_SIGNATURE, cache=True, nogil=True, error_model="numpy")(fn)
+            dispatcher = numba.njit(signature, cache=True, nogil=True, error_model="numpy")(fn)
             origin = "loaded" if sum(dispatcher.stats.cache_hits.values()) else "compiled"
         except Exception as exc:  # a damaged or unwritable numba cache: compile in memory
             from rrt_pin.compiled._cache import warn_once
@@ -214,7 +221,7 @@ def _compile(source: str, digest: str, gen: codegen.GeneratedRnea) -> Kernel:
         namespace: dict[str, Any] = {}
         exec(compile(source, f"<{name}>", "exec"), namespace)  # noqa: S102 - our own source
         fn = namespace["kernel"]
-        dispatcher = numba.njit(_SIGNATURE, cache=False, nogil=True, error_model="numpy")(fn)
+        dispatcher = numba.njit(signature, cache=False, nogil=True, error_model="numpy")(fn)
         path, origin = None, "memory"
     seconds = time.perf_counter() - start
     _logger.info("generated RNEA %s: %s in %.2f s", digest[:12], origin, seconds)
@@ -261,10 +268,8 @@ def kernel_for(model: pin.Model) -> Kernel:
 
 
 def _c_array(x: np.ndarray) -> np.ndarray:
-    """``x`` as the kernel takes it: float64, C-ordered, writable (copied only if needed)."""
-    if x.dtype == np.float64 and x.flags.c_contiguous and x.flags.writeable:
-        return x
-    return np.array(x, dtype=np.float64, order="C")
+    """``x`` as the kernel takes it: float64, C-ordered (copied only if needed; read-only is fine)."""
+    return np.ascontiguousarray(x, dtype=np.float64)
 
 
 def inverse_dynamics(
