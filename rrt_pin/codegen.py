@@ -14,7 +14,9 @@ motion = (linear, angular), the root accelerated by −gravity):
   ``fᵢ = Iᵢ aᵢ + vᵢ ×* Iᵢ vᵢ``;
 * backward pass: ``τᵢ = Sᵢᵀ fᵢ``, ``fλ += λXᵢ* fᵢ``.
 
-Joints handled (anything else makes the model unsupported, :class:`UnsupportedJoint`):
+The joints' armature (``model.armature``, rotor inertia) adds ``armature · q̈`` to each
+effort, as in Pinocchio's ``rnea``. Joints handled (anything else makes the model
+unsupported, :class:`UnsupportedJoint`):
 revolute about x, y, z or any axis (``JointModelRX/RY/RZ``, ``RevoluteUnaligned``),
 prismatic along x, y, z or any axis (``PX/PY/PZ``, ``PrismaticUnaligned``) and
 continuous (``RUBX/RUBY/RUBZ``, ``RevoluteUnboundedUnaligned``: two configuration
@@ -316,6 +318,7 @@ def rnea_source(model: pin.Model) -> GeneratedRnea:
     force: list[Any] = [None] * n
     transforms: list[Any] = [None] * n
     subspace: list[Any] = [None] * n
+    qdds: list[Scalar] = [0.0] * model.nv
     for i in range(1, n):
         kind, s_lin, s_ang = joints[i - 1]
         jm = model.joints[i]
@@ -323,6 +326,7 @@ def rnea_source(model: pin.Model) -> GeneratedRnea:
         placement = model.jointPlacements[i]
         fixed = ([_floats(r) for r in placement.rotation], _floats(placement.translation))
         qd, qdd = t.input("v", jm.idx_v), t.input("a", jm.idx_v)
+        qdds[jm.idx_v] = qdd
         if kind == "P":
             x = t.input("q", jm.idx_q)
             joint = ([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]], sp.scale(x, s_lin))
@@ -349,10 +353,13 @@ def rnea_source(model: pin.Model) -> GeneratedRnea:
         cor = sp.force_cross(v, sp.inertia_times(inert, v))
         force[i] = (sp.vadd(ia[0], cor[0]), sp.vadd(ia[1], cor[1]))
     tau: list[Scalar] = [0.0] * model.nv
+    armature = _floats(model.armature)
     for i in range(n - 1, 0, -1):
         s_lin, s_ang = subspace[i]
         f = force[i]
-        tau[model.joints[i].idx_v] = t.add(t.dot(s_lin, f[0]), t.dot(s_ang, f[1]))
+        k = model.joints[i].idx_v
+        # τ = Sᵀ f, then + armature · q̈ (rotor inertia), as Pinocchio's rnea adds it last
+        tau[k] = t.add(t.add(t.dot(s_lin, f[0]), t.dot(s_ang, f[1])), t.mul(armature[k], qdds[k]))
         parent = int(model.parents[i])
         if parent > 0:
             fixed, joint = transforms[i]

@@ -240,6 +240,18 @@ def test_one_and_two_threads_give_the_same_bits():
 
 
 @needs_numba
+def test_armature_is_added_as_pinocchio_does():
+    """A model with rotor inertia (``model.armature``, e.g. from MJCF) gets armature · q̈."""
+    model = pin.Model(tree_model())
+    model.armature = np.linspace(0.05, 0.9, model.nv)
+    q, qd, qdd = random_batch(model, 400, seed=8)
+    ref = pin_loop(model, q, qd, qdd)
+    without = pin_loop(tree_model(), q, qd, qdd)
+    assert worst(without, ref) > 1e-3  # the armature matters here
+    assert worst(inverse_dynamics(model, q, qd, qdd, backend="compiled"), ref) <= AGREEMENT
+
+
+@needs_numba
 def test_read_only_inputs_are_taken_as_they_are():
     """Read-only arrays (a loaded or shared motion) reach the kernel without a copy."""
     from rrt_pin.compiled import rnea
