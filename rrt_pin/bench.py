@@ -231,11 +231,19 @@ def inverse_backends(
 
 
 def rows_csv(rows: Iterable[BenchRow | KernelRow], kind: type = BenchRow) -> str:
-    """Rows of one ``kind`` as CSV text under its header (numbers to 6 digits)."""
-    lines = [",".join(kind.header())]
+    """Rows of one ``kind`` as CSV text under its header (numbers to 6 digits).
+
+    A text with a comma or a quote is quoted, as the csv module does.
+    """
+    import csv
+    import io
+
+    text = io.StringIO()
+    writer = csv.writer(text, lineterminator="\n")
+    writer.writerow(kind.header())
     for r in rows:
-        lines.append(",".join(f"{v:.6g}" if isinstance(v, float) else str(v) for v in r.values()))
-    return "\n".join(lines) + "\n"
+        writer.writerow(f"{v:.6g}" if isinstance(v, float) else str(v) for v in r.values())
+    return text.getvalue()
 
 
 def write_rows(path: str | Path, rows: Iterable[BenchRow]) -> Path:
@@ -641,10 +649,11 @@ def run_bench(
 
 
 def kernel_table(inverse: Sequence[BenchRow], quick: bool = False) -> list[KernelRow]:
-    """ns/sample of each inverse backend and of the compiled closed loop, against the FMA limit.
+    """ns/sample of the inverse backends and other kernels, against the FMA limit.
 
-    The inverse rows' times are divided by their sample counts; the closed loop
-    (the direct run's right-hand side) is timed here, per state.
+    The kernels: each inverse backend, the compiled closed loop and the RNEA generated
+    for other robots (UR5 and Panda; UR5 only with ``quick``). The inverse rows' times are divided by their sample counts; the closed loop
+    (the direct run's right-hand side) and the generated kernels are timed here.
     """
     from rrt_pin import flops
 
@@ -662,7 +671,11 @@ def kernel_table(inverse: Sequence[BenchRow], quick: bool = False) -> list[Kerne
     loop = flops.closed_loop_ns(repeats=3 if quick else 7)
     if loop is not None:
         ns["compiled closed loop (per state)"] = loop
-    return flops.kernel_rows(ns, flops.fma_rate(0.1 if quick else 0.3))
+    generated, counts = flops.generated_kernels(
+        flops.GENERATED_ROBOTS[:1] if quick else flops.GENERATED_ROBOTS, repeats=3 if quick else 7
+    )
+    ns.update(generated)
+    return flops.kernel_rows(ns, flops.fma_rate(0.1 if quick else 0.3), counts)
 
 
 def _on_front(row: BenchRow, rows: Sequence[BenchRow]) -> bool:

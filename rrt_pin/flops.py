@@ -22,9 +22,13 @@ __all__ = [
     "closed_loop_kernel",
     "closed_loop_ns",
     "fma_rate",
+    "generated_kernels",
     "kernel_flops",
     "kernel_rows",
 ]
+
+#: Robots whose generated RNEA ``rrt-pin bench`` times (example-robot-data names).
+GENERATED_ROBOTS = ("ur5", "panda")
 
 #: The closed loop's evaluation beyond ``forward_terms`` and the sine/cosine: eq. (31)'s
 #: PD part (15), gravity (3), the residuals (5) and 3 divisions (the diagonal M).
@@ -120,9 +124,14 @@ def fma_rate(seconds: float = 0.3) -> float | None:
     return best
 
 
-def kernel_rows(ns_per_sample: dict[str, float], rate: float | None) -> list[KernelRow]:
-    """Rows for measured kernels: ``ns_per_sample`` by kernel name, ``rate`` from :func:`fma_rate`."""
-    counts = kernel_flops()
+def kernel_rows(
+    ns_per_sample: dict[str, float], rate: float | None, counts: dict[str, int] | None = None
+) -> list[KernelRow]:
+    """Rows for measured kernels: ``ns_per_sample`` by kernel name, ``rate`` from :func:`fma_rate`.
+
+    ``counts``: operation counts of kernels beyond :func:`kernel_flops`'s (by name).
+    """
+    counts = {**kernel_flops(), **(counts or {})}
     peak = 2.0 * rate / 1e9 if rate else float("nan")
     rows = []
     for name, ns in ns_per_sample.items():
@@ -130,6 +139,46 @@ def kernel_rows(ns_per_sample: dict[str, float], rate: float | None) -> list[Ker
         gflops = flops / ns if flops else float("nan")
         rows.append(KernelRow(name, ns, flops, gflops, peak, gflops / peak))
     return rows
+
+
+def generated_kernels(
+    robots: tuple[str, ...] = GENERATED_ROBOTS, repeats: int = 7, samples: int = 15_001
+) -> tuple[dict[str, float], dict[str, int]]:
+    """ns/sample and flops a sample of the RNEA generated for each robot; ({}, {}) without numba.
+
+    One thread, the kernel alone (no checks around it), over ``samples`` states of a
+    rest-to-rest motion (0.2..0.8 rad or m per joint in 15 s), median of ``repeats``;
+    compiling (or loading) each kernel is paid before. Sines and cosines are not in
+    the flops (libm calls, as for the symbolic kernel).
+    """
+    try:
+        import numba  # noqa: F401
+    except ImportError:
+        return {}, {}
+    from rrt_pin.compiled import rnea
+    from rrt_pin.robots import get
+    from rrt_pin.trajectory import rest_to_rest
+
+    ns: dict[str, float] = {}
+    counts: dict[str, int] = {}
+    for name in robots:
+        robot = get(name)
+        kernel = rnea.kernel_for(robot.model)
+        n = robot.nv
+        m = rest_to_rest(np.zeros(n), np.linspace(0.2, 0.8, n), 15.0, np.linspace(0, 15, samples))
+        q = np.ascontiguousarray(robot.configuration(m.q))
+        qd, qdd = np.ascontiguousarray(m.qd), np.ascontiguousarray(m.qdd)
+        out = np.empty((samples, n))
+        kernel.kernel(q, qd, qdd, out)
+        times = []
+        for _ in range(repeats):
+            start = time.perf_counter()
+            kernel.kernel(q, qd, qdd, out)
+            times.append(time.perf_counter() - start)
+        label = f"compiled inverse generated for {robot.name}"
+        ns[label] = 1e9 * float(np.median(times)) / samples
+        counts[label] = kernel.flops
+    return ns, counts
 
 
 def closed_loop_kernel():  # noqa: ANN201

@@ -568,9 +568,7 @@ def main() -> int:
     ap.add_argument("--batch", type=int, default=2000, help="variants in the batch")
     ap.add_argument("--process-runs", type=int, default=5, help="whole-process runs (median)")
     ap.add_argument("--check", action="store_true", help="exit 1 when a target is missed")
-    ap.add_argument(
-        "--lean-rtol", type=float, default=1e-9, help="rtol of the lean batches"
-    )
+    ap.add_argument("--lean-rtol", type=float, default=1e-9, help="rtol of the lean batches")
     ap.add_argument(
         "--lean-atol",
         type=float,

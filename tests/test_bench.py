@@ -99,6 +99,14 @@ def test_bench_quick_end_to_end(tmp_path, capsys):
     by_name = {line.split(",")[0]: line.split(",") for line in kernels[1:]}
     compiled = by_name["compiled inverse"]
     assert 0 < float(compiled[5]) <= 1  # a fraction of the machine's limit
+    # the RNEA generated for another robot (UR5 in --quick), its flops counted in its source
+    from rrt_pin.compiled.rnea import kernel_for
+    from rrt_pin.robots import get
+
+    generated = by_name["compiled inverse generated for ur5"]
+    assert int(generated[2]) == kernel_for(get("ur5").model).flops > 0
+    assert float(generated[3]) == pytest.approx(int(generated[2]) / float(generated[1]), rel=1e-4)
+    assert 0 < float(generated[5]) <= 1
     assert "of the FMA limit" in out
 
 
@@ -181,3 +189,15 @@ def test_the_fma_rate_is_a_plausible_core_rate():
 
     rate = fma_rate(0.05)
     assert 1e8 < rate < 2e11  # between a slow core and 4x today's widest vector unit
+
+
+def test_rows_csv_quotes_a_name_with_a_comma():
+    """A kernel or setting named with a comma stays one column (read back by the csv module)."""
+    import csv
+
+    from rrt_pin.bench import rows_csv
+    from rrt_pin.flops import KernelRow
+
+    text = rows_csv([KernelRow("a, b", 1.5, 3, 2.0, 50.0, 0.04)], KernelRow)
+    header, row = list(csv.reader(text.splitlines()))
+    assert header == KernelRow.header() and row == ["a, b", "1.5", "3", "2", "50", "0.04"]

@@ -341,7 +341,8 @@ def dense_dop853_rows(F, y, t_eval, t, h, start, end, rows, xs):
     """
     _step_fractions(t_eval, t, h, start, end, xs)
     for i in range(N):
-        a, b, c, d, e, f, g, yi = F[0, i], F[1, i], F[2, i], F[3, i], F[4, i], F[5, i], F[6, i], y[i]
+        a, b, c, d = F[0, i], F[1, i], F[2, i], F[3, i]
+        e, f, g, yi = F[4, i], F[5, i], F[6, i], y[i]
         row = rows[i, start:end]
         for m in range(row.shape[0]):
             x = xs[m]
