@@ -171,6 +171,28 @@ def rms_scaled(v, scale):
     return math.sqrt(s / v.shape[0])
 
 
+_ry2 = types.Array(float64, 2, "A", readonly=True)
+_wy2 = types.Array(float64, 2, "A")
+
+
+@jit(types.boolean(int64, _rvec, _rvec, _ry2, _wy2, int64))
+def efforts_at(kind, cvec, p, y, tau, n):
+    """``effort`` at the first ``n`` states y (n, 6+) into tau (n, 3): any controller kind.
+
+    Whether one is not finite (|τ1 + τ2 + τ3| < inf fails). Compiled once (any
+    layout: rows of a run, transposed rows of a scratch run) for the callers' loops
+    that are not eq. (31)'s vectorized one.
+    """
+    bad = False
+    for i in range(n):
+        u1, u2, u3 = effort(kind, cvec, p, y[i, 0], y[i, 1], y[i, 2], y[i, 3], y[i, 4], y[i, 5])
+        tau[i, 0] = u1
+        tau[i, 1] = u2
+        tau[i, 2] = u3
+        bad |= not (abs(u1 + u2 + u3) < math.inf)
+    return bad
+
+
 @jit(int64(int64, _rvec, _rvec, _mat, _mat, int64))
 def fill_efforts(kind, cvec, p, out_y, out_tau, n):
     """The controller's efforts at the first ``n`` output states, into out_tau.
@@ -201,15 +223,7 @@ def fill_efforts(kind, cvec, p, out_y, out_tau, n):
             tf[3 * j + 2] = u3
             bad |= not (abs(u1 + u2 + u3) < math.inf)
     else:
-        for i in range(n):
-            u1, u2, u3 = effort(
-                kind, cvec, p, out_y[i, 0], out_y[i, 1], out_y[i, 2], out_y[i, 3], out_y[i, 4],
-                out_y[i, 5],
-            )  # fmt: skip
-            out_tau[i, 0] = u1
-            out_tau[i, 1] = u2
-            out_tau[i, 2] = u3
-            bad |= not (abs(u1 + u2 + u3) < math.inf)
+        bad = efforts_at(kind, cvec, p, out_y, out_tau, n)
     if not bad:
         return -1
     for i in range(n):
@@ -243,12 +257,7 @@ def fill_efforts_rows(kind, cvec, p, rows, n):
             t3[i] = u3
             bad |= not (abs(u1 + u2 + u3) < math.inf)
     else:
-        for i in range(n):
-            u1, u2, u3 = effort(kind, cvec, p, q1[i], q2[i], q3[i], qd1[i], qd2[i], qd3[i])
-            t1[i] = u1
-            t2[i] = u2
-            t3[i] = u3
-            bad |= not (abs(u1 + u2 + u3) < math.inf)
+        bad = efforts_at(kind, cvec, p, rows[0:6].T, rows[6:9].T, n)
     if not bad:
         return -1
     for i in range(n):

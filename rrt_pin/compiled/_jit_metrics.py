@@ -35,14 +35,33 @@ _r1 = types.Array(float64, 1, "A", readonly=True)
 _r2 = types.Array(float64, 2, "C", readonly=True)
 _r3 = types.Array(float64, 3, "A", readonly=True)
 _w2 = float64[:, ::1]
+_a2 = types.Array(float64, 2, "A", readonly=True)
 
 
 @jit(None, inline=True)
+def _joint(out, k, t, final, last, top, when, far):
+    """Joint k's columns of ``out`` from its pass: last sample outside the band, peak, excursion."""
+    T = t.shape[0]
+    out[METRIC_FINAL + k] = final
+    if last == -1:
+        out[METRIC_SETTLE + k] = t[0]
+    elif last == T - 1:
+        out[METRIC_SETTLE + k] = math.nan
+    else:
+        out[METRIC_SETTLE + k] = t[last + 1]
+    out[METRIC_PEAK + k] = top
+    out[METRIC_PEAK_TIME + k] = t[when]
+    out[METRIC_EXCURSION + k] = far
+
+
+@jit(types.void(_r1, _a2, _a2, _a2, _r1, float64, float64[::1]))
 def variant_metrics(t, q, qd, tau, qf, band, out):
     """One run's metrics into ``out`` (METRIC_WIDTH,): q, qd, tau (T, 3) sampled at t (T,), target qf (3,).
 
     One pass over the samples, the three joints side by side (a row of q, qd and
     tau is read once); the same operations in the same order as a pass per joint.
+    Compiled once for every caller (any layout of q, qd, tau: columns of stored runs,
+    transposed rows of a scratch run), not inlined into each.
     """
     T = q.shape[0]
     f0, f1, f2 = qf[0], qf[1], qf[2]
@@ -94,22 +113,6 @@ def variant_metrics(t, q, qd, tau, qf, band, out):
     _joint(out, 1, t, abs(q[T - 1, 1] - f1), last1, top1, when1, far1)
     _joint(out, 2, t, abs(q[T - 1, 2] - f2), last2, top2, when2, far2)
     out[METRIC_ENERGY] = total
-
-
-@jit(None, inline=True)
-def _joint(out, k, t, final, last, top, when, far):
-    """Joint k's columns of ``out`` from its pass: last sample outside the band, peak, excursion."""
-    T = t.shape[0]
-    out[METRIC_FINAL + k] = final
-    if last == -1:
-        out[METRIC_SETTLE + k] = t[0]
-    elif last == T - 1:
-        out[METRIC_SETTLE + k] = math.nan
-    else:
-        out[METRIC_SETTLE + k] = t[last + 1]
-    out[METRIC_PEAK + k] = top
-    out[METRIC_PEAK_TIME + k] = t[when]
-    out[METRIC_EXCURSION + k] = far
 
 
 @jit(types.void(_r1, _r3, _r3, _r3, _r2, float64, _w2))
