@@ -372,8 +372,8 @@ def resolve_backend(
 
     ``auto`` picks ``compiled`` only for the chapter's arm (its closed-form
     kernels, whose costs are known; other robots' generated inverse dynamics are
-    never chosen by ``auto``), it runs the method asked for (``auto`` never changes the method or the
-    tolerances), its machine code is already built (in this process or in the
+    never chosen by ``auto``), it runs the method asked for (``auto`` never
+    changes the method or the tolerances), its machine code is already built (in this process or in the
     disk cache, checked without importing numba), and the estimated time of the
     whole job, start-up included, is at most half of ``pinocchio``'s
     (:func:`rrt_pin.backends.estimated_seconds`: ``work`` is the number of
