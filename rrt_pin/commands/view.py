@@ -236,6 +236,11 @@ def run(args: argparse.Namespace) -> int:
                 f"rrt-pin: port {DEFAULT_PORT} is in use; serving on port {server.port}",
                 file=sys.stderr,
             )
+        serving = not (args.screenshot and args.serve_for is None)
+        if serving:
+            # Before the URL: a caller that waits for the URL and then stops the server
+            # (a signal) must not stop it before the hints are out.
+            _hints(server)
         print(server.url, flush=True)
         if args.host not in ("127.0.0.1", "localhost", "::1"):
             print(
@@ -258,7 +263,6 @@ def run(args: argparse.Namespace) -> int:
             if args.serve_for is None:
                 return 0
         try:
-            _hints(server)
             _serve(args.serve_for, start)
         except KeyboardInterrupt:
             print("rrt-pin: viewer stopped", file=sys.stderr)
