@@ -30,7 +30,6 @@ rad/s² or m/s²; τ in N·m (revolute) or N (prismatic).
 from __future__ import annotations
 
 import ast
-import hashlib
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -101,12 +100,6 @@ class GeneratedRnea:
         body = [f"    {line}" for line in self.lines]
         body += [f"    tau[{k}] = {t}" for k, t in enumerate(self.tau)]
         return "\n".join([f"def {name}(q, v, a, tau):", *body, "    return tau", ""])
-
-    @property
-    def digest(self) -> str:
-        """SHA-256 of the statements and outputs (what identifies the model's dynamics)."""
-        text = "\n".join([*self.lines, *self.tau, f"{self.nq} {self.nv}"])
-        return hashlib.sha256(text.encode()).hexdigest()
 
 
 class _Tracer:

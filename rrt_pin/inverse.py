@@ -154,23 +154,13 @@ def inverse_dynamics(
             pin_model, nq = robot.model, robot.nv
         else:
             pin_model, nq = model, model.nq
-        nv = pin_model.nv
         # Pinocchio turns a non-finite input into non-finite efforts: the inputs are
         # searched (and the bad one named) only when the efforts are not all finite.
-        named = (("q", q, nq, "rad or m"), ("qd", qd, nv, "rad/s or m/s"))
-        (q, single), (qd, _), (qdd, _) = (
-            validate.samples(n, v, w, u, finite=False)
-            for n, v, w, u in (*named, ("qdd", qdd, nv, "rad/s² or m/s²"))
-        )
-        _same_count(q, qd, qdd)
+        (q, qd, qdd), single = _samples_unchecked(q, qd, qdd, nq, pin_model.nv)
         configuration = robot.configuration if robot is not None else None
         tau = _rnea_batch(pin_model, q, qd, qdd, num_threads, configuration)
         if not np.isfinite(tau).all():
-            for (name, _, width, unit), arr in zip(
-                (*named, ("qdd", None, nv, "rad/s² or m/s²")), (q, qd, qdd), strict=True
-            ):
-                validate.samples(name, arr, width, unit)
-            _check_finite(tau, robot.effort_names if robot is not None else None)
+            _refuse_nonfinite((q, qd, qdd), tau, robot)
         return tau[0] if single else tau
     if b.name == "compiled" and (robot.params is None if robot is not None else params is None):
         if model is None:
@@ -227,13 +217,8 @@ def _generated(
         raise InputError(f"model must be a Robot or a pinocchio.Model, not {type(model).__name__}")
     pin_model = robot.model if robot is not None else model
     nq = robot.nv if robot is not None else pin_model.nq
-    nv = pin_model.nv
     # The kernel flags non-finite inputs and efforts itself (then they are named as below).
-    named = (("q", q, nq, "rad or m"), ("qd", qd, nv, "rad/s or m/s"))
-    named += (("qdd", qdd, nv, "rad/s² or m/s²"),)
-    arrays = [validate.samples(n, v, w, u, finite=False) for n, v, w, u in named]
-    (q, single), (qd, _), (qdd, _) = arrays
-    _same_count(q, qd, qdd)
+    (q, qd, qdd), single = _samples_unchecked(q, qd, qdd, nq, pin_model.nv)
     if not b.available():
         from rrt_pin.extras import MissingExtra
 
@@ -243,10 +228,36 @@ def _generated(
     configuration = q if robot is None else robot.configuration(q)
     tau, finite = rnea.inverse_dynamics(pin_model, configuration, qd, qdd, num_threads)
     if not finite:
-        for (name, _, width, unit), arr in zip(named, (q, qd, qdd), strict=True):
-            validate.samples(name, arr, width, unit)
-        _check_finite(tau, robot.effort_names if robot is not None else None)
+        _refuse_nonfinite((q, qd, qdd), tau, robot)
     return tau[0] if single else tau
+
+
+#: The inputs' names and units, in order.
+_INPUTS = (("q", "rad or m"), ("qd", "rad/s or m/s"), ("qdd", "rad/s² or m/s²"))
+
+
+def _samples_unchecked(
+    q: Any, qd: Any, qdd: Any, nq: int, nv: int
+) -> tuple[tuple[np.ndarray, np.ndarray, np.ndarray], bool]:
+    """(q, qd, qdd) as (N, nq), (N, nv), (N, nv) arrays, not searched for non-finite values.
+
+    For engines that turn a non-finite input into a non-finite effort (then
+    :func:`_refuse_nonfinite` names it). Also whether a single sample was given.
+    """
+    checked = [
+        validate.samples(name, value, width, unit, finite=False)
+        for (name, unit), value, width in zip(_INPUTS, (q, qd, qdd), (nq, nv, nv), strict=True)
+    ]
+    q, qd, qdd = (a for a, _ in checked)
+    _same_count(q, qd, qdd)
+    return (q, qd, qdd), checked[0][1]
+
+
+def _refuse_nonfinite(arrays: tuple[np.ndarray, ...], tau: np.ndarray, robot: Any) -> None:
+    """Efforts not all finite: name the first non-finite input, else the overflowing effort."""
+    for (name, unit), a in zip(_INPUTS, arrays, strict=True):
+        validate.samples(name, a, a.shape[1], unit)
+    _check_finite(tau, robot.effort_names if robot is not None else None)
 
 
 def _check_finite(tau: np.ndarray, names: tuple[str, ...] | None) -> None:
