@@ -182,7 +182,7 @@ def test_compiled_codes_have_one_source():
     assert len({m.code for m in methods.METHODS.values() if m.code is not None}) == len(
         methods.names("compiled")
     )
-    for name in ("_jit_integrators.py", "_jit_dynamics.py", "integrate.py"):
+    for name in ("_jit_integrators.py", "_jit_batch.py", "_jit_dynamics.py", "integrate.py"):
         text = (PACKAGE / "compiled" / name).read_text(encoding="utf-8")
         assert not re.search(r"(method|kind|status)\s*[=!<>]=?\s*\d", text), name
         assert "see _jit" not in text

@@ -68,7 +68,7 @@ _LAZY = {
     "simulate_compiled": "rrt_pin.compiled.integrate",
     "simulate_batch_compiled": "rrt_pin.compiled.integrate",
 }
-_JIT = "rrt_pin.compiled._jit_integrators"
+_JIT = "rrt_pin.compiled._jit_batch"
 #: Where a function's machine code can come from (:attr:`CompileReport.origins`).
 _logger = logging.getLogger("rrt_pin")
 _available: bool | None = None

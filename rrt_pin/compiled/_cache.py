@@ -71,6 +71,8 @@ JIT_MODULES: tuple[str, ...] = (
     "rrt_pin.compiled._jit_dynamics",
     "rrt_pin.compiled._jit_metrics",
     "rrt_pin.compiled._jit_integrators",
+    "rrt_pin.compiled._jit_batch",
+    "rrt_pin.compiled._jit",
     "rrt_pin.compiled._dop853_coefficients",
 )
 _READY = "READY.json"

@@ -12,6 +12,7 @@ import glob
 import time
 from pathlib import Path
 
+import llvmlite.binding
 import numba
 
 from rrt_pin.compiled import _cache
@@ -33,6 +34,16 @@ ORIGIN_KINDS = {
     "compiled": "compiled and saved",
     "memory": "compiled in memory only",
 }
+
+# A loop over a batch's lanes (rrt_pin.compiled._jit_batch) reads a few dozen rows of
+# per-variant values and writes six: LLVM vectorizes it only after checking, once per
+# loop, that the rows do not overlap, and by default gives up beyond 128 such checks
+# (and numba cannot declare its arrays free of aliasing). Process-wide, as numba's own
+# '-vector-library' option; it only lets more loops vectorize (with the checks), the
+# same operations per element. Part of the machine code: _cache fingerprints this file.
+LLVM_OPTIONS = ("--vectorize-memory-check-threshold=4096", "--runtime-memory-check-threshold=512")
+for _option in LLVM_OPTIONS:
+    llvmlite.binding.set_option("rrt_pin", _option)
 
 _CACHE_DIR = _cache.cache_dir()
 #: Name -> signature of every function compiled here (for the cache record).

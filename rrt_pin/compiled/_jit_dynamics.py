@@ -264,6 +264,50 @@ def effort(kind, c, p, q1, q2, q3, qd1, qd2, qd3):
     return control(kind, c, q1, q2, q3, qd1, qd2, qd3, 0.0, 0.0, 0.0)
 
 
+@jit(None, inline=True)
+def control_sc(kind, c, q1, q2, q3, qd1, qd2, qd3, s2, c2, G2, G3):
+    """``control(kind, c, q, q̇, 0.0, G2, G3)`` given (s2, c2) = ``sincos(q2)``, by selects.
+
+    The same operations as ``control`` for every kind (the same bits), all of them
+    computed and the kind's chosen: no call and no branch, so that a loop over
+    variants of different kinds vectorizes (:mod:`rrt_pin.compiled._jit_lanes`).
+    """
+    u1 = -c[3] * qd1 - c[0] * (q1 - c[6])
+    u2 = -c[4] * qd2 - c[1] * (q2 - c[7])
+    u3 = -c[5] * qd3 - c[2] * (q3 - c[8])
+    e1, e2, e3 = eq31(c, q1, q2, q3, qd1, qd2, qd3, s2, c2)
+    law = kind == KIND_CHAPTER
+    plant = kind == KIND_PD_PLANT_GRAVITY or kind == KIND_CHAPTER_FOLDED
+    other = math.nan if kind != KIND_NONE else 0.0  # an unknown kind fails loudly
+    v1 = e1 if law else (u1 + 0.0 if plant else other)
+    v2 = e2 if law else (u2 + G2 if plant else other)
+    v3 = e3 if law else (u3 + G3 if plant else other)
+    return v1, v2, v3
+
+
+@jit(None, inline=True)
+def accelerations(kind, c, k, q1, q2, q3, qd1, qd2, qd3, s2, c2):
+    """``closed_loop`` given (s2, c2) = ``sincos(q2)`` and k = ``inverse_constants(*p)``.
+
+    No call and no branch (selects): the body of the variants' loop of
+    :mod:`rrt_pin.compiled._jit_lanes`, and of ``closed_loop`` (one definition).
+    """
+    k0, k1, k2, k3, k4, k5, k6, k7, k8, k9 = k
+    M11, M22, n1, n2, n3, G2, G3 = forward_terms(
+        c2, s2, q3, qd1, qd2, qd3, k0, k1, k2, k3, k4, k5, k6, k7, k8, k9
+    )
+    u1, u2, u3 = control_sc(kind, c, q1, q2, q3, qd1, qd2, qd3, s2, c2, G2, G3)
+    M33 = k0  # m3
+    tiny = 1e-13 * (abs(M11) + abs(M22) + abs(M33))  # nan if any entry is nan
+    bad = 3 if not (tiny < M33 < _INF) else 0
+    bad = 2 if not (tiny < M22 < _INF) else bad
+    bad = 1 if not (tiny < M11 < _INF) else bad
+    a1 = (u1 - n1) / M11 if bad == 0 else 0.0
+    a2 = (u2 - n2 - G2) / M22 if bad == 0 else 0.0
+    a3 = (u3 - n3 - G3) / M33 if bad == 0 else 0.0
+    return a1, a2, a3, u1, u2, u3, bad
+
+
 @jit(
     types.Tuple((_f8, _f8, _f8, _f8, _f8, _f8, int64))(
         int64, _CT, _PT, _f8, _f8, _f8, _f8, _f8, _f8
@@ -276,29 +320,17 @@ def closed_loop(kind, c, p, q1, q2, q3, qd1, qd2, qd3):
     controller's efforts [N·m, N·m, N]. M is diagonal (the generated
     ``forward_terms``: M12 = M13 = M23 = 0 proved when generated), so q̈ is
     three divisions; ``bad`` is 0, or 1 + the index of the first diagonal
-    entry that is not > 1e-13·trace and finite (as ldl_solve's pivots). One
-    evaluation serves the dynamics and, for kinds 2 and 3, the gravity
+    entry that is not > 1e-13·trace and finite (as ldl_solve's pivots; q̈ is
+    then 0). One evaluation serves the dynamics and, for kinds 2 and 3, the gravity
     compensation. Sine and cosine are one inlined vsincos (no libm call)
     unless |q2| >= SINCOS_LIMIT.
     """
     s2, c2 = sincos(q2)
-    k0, k1, k2, k3, k4, k5, k6, k7, k8, k9 = inverse_constants(
+    k = inverse_constants(
         p[0], p[1], p[2], p[3], p[4], p[5], p[6], p[7], p[8], p[9], p[10], p[11], p[12],
         p[13], p[14],
     )  # fmt: skip
-    M11, M22, n1, n2, n3, G2, G3 = forward_terms(
-        c2, s2, q3, qd1, qd2, qd3, k0, k1, k2, k3, k4, k5, k6, k7, k8, k9
-    )
-    u1, u2, u3 = control(kind, c, q1, q2, q3, qd1, qd2, qd3, 0.0, G2, G3)
-    M33 = k0  # m3
-    tiny = 1e-13 * (abs(M11) + abs(M22) + abs(M33))  # nan if any entry is nan
-    if not (tiny < M11 < _INF):
-        return 0.0, 0.0, 0.0, u1, u2, u3, 1
-    if not (tiny < M22 < _INF):
-        return 0.0, 0.0, 0.0, u1, u2, u3, 2
-    if not (tiny < M33 < _INF):
-        return 0.0, 0.0, 0.0, u1, u2, u3, 3
-    return (u1 - n1) / M11, (u2 - n2 - G2) / M22, (u3 - n3 - G3) / M33, u1, u2, u3, 0
+    return accelerations(kind, c, k, q1, q2, q3, qd1, qd2, qd3, s2, c2)
 
 
 #: closed_loop inlined at numba's IR level into its caller: the integrators' hot

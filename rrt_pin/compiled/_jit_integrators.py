@@ -37,12 +37,8 @@ from rrt_pin.compiled._jit_dynamics import (
     jit,
     vsincos,
 )
-from rrt_pin.compiled._jit_metrics import variant_metrics
 from rrt_pin.compiled.codes import (
     FIXED_STEP_FROM,
-    KEEP_FINAL,
-    KEEP_METRICS,
-    KEEP_TRAJECTORIES,
     KIND_CHAPTER,
     KIND_CHAPTER_FOLDED,
     METHOD_DOP853,
@@ -57,7 +53,7 @@ from rrt_pin.compiled.codes import (
     STATUS_STEP_UNDERFLOW,
 )
 
-__all__ = ["integrate", "integrate_batch"]
+__all__ = ["integrate"]
 
 
 #: Verlet's fixed-point iterations stop at this relative change (as rrt_pin.integrators) …
@@ -374,14 +370,13 @@ def dense_rk45_rows(F, y, t_eval, t, h, start, end, rows, xs):
             row[m] = h * (a * x + b * x2 + c * x3 + d * x4) + yi
 
 
-@jit(_RESULT(int64, _rvec, _rvec, _rvec, float64, float64, int64, _rvec, int64, _rvec, _mat, int64))
-def adaptive(method, y0, t_eval, atol, rtol, max_step, max_steps, p_arr, kind, c_arr, out_y, dense):
+@jit(_RESULT(int64, _rvec, _rvec, _rvec, float64, float64, int64, _rvec, int64, _rvec, _mat))
+def adaptive(method, y0, t_eval, atol, rtol, max_step, max_steps, p_arr, kind, c_arr, out_y):
     """RK45 (method 0) or DOP853 (method 1) with SciPy's error control; see ``integrate``.
 
-    Needs len(t_eval) >= 2. ``dense`` 1: out_y (T, 6) gets the state at every
-    t_eval; 2: the same by rows, out_y (6+, T) (``dense_*_rows``); 0: no dense output,
-    the state reached at t_eval[-1] (the last step's end, exactly) is written into
-    out_y[0] instead, and n_out is 1. The steps are the same either way.
+    One run (a batch's variants run side by side in :mod:`rrt_pin.compiled._jit_batch`,
+    whose lanes do these operations): out_y (T, 6) gets the state at every t_eval
+    (needs len(t_eval) >= 2).
     """
     p = as_tuple_p(p_arr)
     c = as_tuple_c(c_arr)
@@ -406,7 +401,6 @@ def adaptive(method, y0, t_eval, atol, rtol, max_step, max_steps, p_arr, kind, c
     err = np.empty(N)
     err3 = np.empty(N)
     scale = np.empty(N)
-    xs = np.empty(n_out if dense == 2 else 0)
     t = t_eval[0]
     t_bound = t_eval[n_out - 1]
     interval = t_bound - t
@@ -555,7 +549,7 @@ def adaptive(method, y0, t_eval, atol, rtol, max_step, max_steps, p_arr, kind, c
         n_steps += 1
 
         # Dense output at the t_eval points of (t, t_new] (t_eval[0] in the first step).
-        if dense and i_out < n_out and t_eval[i_out] <= t_new:
+        if i_out < n_out and t_eval[i_out] <= t_new:
             if dop853:
                 for s in range(n_stages + 1, 16):
                     combine(y, K, D8_A, s, h, ytmp)
@@ -593,12 +587,7 @@ def adaptive(method, y0, t_eval, atol, rtol, max_step, max_steps, p_arr, kind, c
             end = i_out
             while end < n_out and t_eval[end] <= t_new:
                 end += 1
-            if dense == 2:
-                if dop853:
-                    dense_dop853_rows(F, y, t_eval, t, h, i_out, end, out_y, xs)
-                else:
-                    dense_rk45_rows(F, y, t_eval, t, h, i_out, end, out_y, xs)
-            elif dop853:
+            if dop853:
                 dense_dop853(F, y, t_eval, t, h, i_out, end, out_y)
             else:
                 dense_rk45(F, y, t_eval, t, h, i_out, end, out_y)
@@ -609,10 +598,6 @@ def adaptive(method, y0, t_eval, atol, rtol, max_step, max_steps, p_arr, kind, c
             y[i] = y_new[i]
             f[i] = K[n_stages, i]
         if t - t_bound >= 0.0:
-            if not dense:
-                for i in range(N):
-                    out_y[0, i] = y[i]
-                i_out = 1
             return STATUS_OK, -1, n_evals, n_steps, n_rejected, i_out, t
 
 
@@ -777,92 +762,7 @@ def integrate(
         of output rows filled.
     """
     if method < FIXED_STEP_FROM:
-        r = adaptive(method, y0, t_eval, atol, rtol, max_step, max_steps, p, kind, cvec, out_y, 1)
+        r = adaptive(method, y0, t_eval, atol, rtol, max_step, max_steps, p, kind, cvec, out_y)
     else:
         r = fixed(method, y0, t_eval, dt, max_steps, p, kind, cvec, out_y)
     return _with_efforts(r, t_eval, kind, cvec, p, out_y, out_tau)
-
-
-@jit(
-    types.void(
-        int64, _rmat, _rvec, float64, _rvec, float64, float64, int64, _rmat, _rivec, _rmat,
-        int64, _rmat, float64, float64[:, :, ::1], float64[:, :, ::1], _mat, int64[:, ::1], _vec,
-    )
-)  # fmt: skip
-def integrate_batch(
-    method, y0, t_eval, dt, atol, rtol, max_step, max_steps, p, kind, cvec, keep, qf, band,
-    out_y, out_tau, out_m, info, t_reached,
-):  # fmt: skip
-    """Run every variant b (rows of y0, p, kind, cvec), one after the other.
-
-    ``keep`` (a ``KEEP_*`` code) says what is written for variant b:
-
-    * KEEP_TRAJECTORIES: out_y[b] (T, 6) and out_tau[b] (T, 3) at every output time;
-    * KEEP_FINAL: out_y[b, 0] and out_tau[b, 0] at the last output time only. The
-      adaptive methods then skip the dense output (and its extra stages) and
-      report the last step's end, which the full run's interpolant reproduces to
-      round-off; the fixed-step ones fill a scratch run and keep its last row;
-    * KEEP_METRICS: the same, and out_m[b] (METRIC_WIDTH,): the metrics of the
-      variant's samples at every output time (target qf[b], settling band
-      ``band``), computed from a scratch run reused by every variant (the
-      adaptive methods store it by rows, (9, T): the dense output, the efforts
-      and the metrics pass then run over contiguous rows).
-
-    ``info[b]`` receives (status, coordinate, n_evals, n_steps, n_rejected, n_out)
-    and ``t_reached[b]`` the time reached [s]. Releases the GIL: threads may run
-    disjoint slices of a batch at once.
-    """
-    T = t_eval.shape[0]
-    by_rows = keep == KEEP_METRICS and method < FIXED_STEP_FROM
-    scratch = 0 if keep == KEEP_TRAJECTORIES or by_rows else T
-    sy = np.empty((scratch, N))
-    st = np.empty((scratch, 3))
-    rows = np.empty((9, T if by_rows else 0))  # states and efforts by rows (metrics)
-    for b in range(y0.shape[0]):
-        if keep == KEEP_TRAJECTORIES:
-            r = integrate(
-                method, y0[b], t_eval, dt, atol, rtol, max_step, max_steps, p[b], kind[b],
-                cvec[b], out_y[b], out_tau[b],
-            )  # fmt: skip
-        elif keep == KEEP_FINAL and method < FIXED_STEP_FROM:
-            r = adaptive(
-                method, y0[b], t_eval, atol, rtol, max_step, max_steps, p[b], kind[b], cvec[b],
-                out_y[b], 0,
-            )  # fmt: skip
-            r = _with_efforts(r, t_eval, kind[b], cvec[b], p[b], out_y[b], out_tau[b])
-        elif keep == KEEP_METRICS and method < FIXED_STEP_FROM:
-            r = adaptive(
-                method, y0[b], t_eval, atol, rtol, max_step, max_steps, p[b], kind[b], cvec[b],
-                rows, 2,
-            )  # fmt: skip
-            if r[0] == STATUS_OK:
-                bad = fill_efforts_rows(kind[b], cvec[b], p[b], rows, r[5])
-                if bad >= 0:
-                    r = (STATUS_EFFORT_NONFINITE, bad, r[2], r[3], r[4], r[5], t_eval[bad // 3])
-            if r[0] == STATUS_OK:
-                for i in range(N):
-                    out_y[b, 0, i] = rows[i, T - 1]
-                for k in range(3):
-                    out_tau[b, 0, k] = rows[6 + k, T - 1]
-                variant_metrics(
-                    t_eval, rows[0:3].T, rows[3:6].T, rows[6:9].T, qf[b], band, out_m[b]
-                )
-        else:
-            r = integrate(
-                method, y0[b], t_eval, dt, atol, rtol, max_step, max_steps, p[b], kind[b],
-                cvec[b], sy, st,
-            )  # fmt: skip
-            if r[0] == STATUS_OK:
-                for i in range(N):
-                    out_y[b, 0, i] = sy[T - 1, i]
-                for k in range(3):
-                    out_tau[b, 0, k] = st[T - 1, k]
-                if keep == KEEP_METRICS:
-                    variant_metrics(t_eval, sy[:, :3], sy[:, 3:], st, qf[b], band, out_m[b])
-        info[b, 0] = r[0]
-        info[b, 1] = r[1]
-        info[b, 2] = r[2]
-        info[b, 3] = r[3]
-        info[b, 4] = r[4]
-        info[b, 5] = r[5]
-        t_reached[b] = r[6]
