@@ -5,9 +5,11 @@ must not interfere) with its own cache directory, and checks that it succeeds,
 computes the right efforts, says at most one line on stderr, and that
 ``is_compiled()`` before the run agreed with what the run then paid.
 
-Full compilations (about 15 s each) are few: one to fill the shared cache, one
+Full compilations (30–50 s each) are few: one to fill the shared cache, one
 after every file is damaged, one on a full disk, one in a fresh clone; the
-other scenarios damage a single function's files or load from a copy.
+other scenarios damage a single function's files or load from a copy. They run
+side by side (:func:`scenarios`): the full disk's beside the shared cache's, then
+the damaged cache's beside the fresh clone's, each test waiting for its own.
 """
 
 from __future__ import annotations
@@ -73,29 +75,41 @@ def _env(cache: Path, root: Path, **extra: str) -> dict[str, str]:
     return env
 
 
+class Probe:
+    """The backend run from the package under ``root`` with cache base ``cache``, in a child.
+
+    Started at once (a compilation from scratch runs beside the others);
+    :meth:`result` waits for it.
+    """
+
+    def __init__(self, cache: Path, root: Path = REPO, mode: str = "cli", **extra: str) -> None:
+        self.root = root
+        self.process = subprocess.Popen(
+            [sys.executable, "-c", PROBE, mode],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+            env=_env(cache, root, **extra),
+            cwd=cache.parent,  # not the repository: '' on sys.path must not shadow `root`
+        )
+
+    def result(self) -> tuple[dict, list[str]]:
+        """The probe's summary and its stderr lines (after checking it succeeded,
+        imported the package from ``root`` and matched Pinocchio)."""
+        stdout, stderr = self.process.communicate(timeout=600)
+        assert self.process.returncode == 0, stderr
+        assert "Traceback" not in stderr, stderr
+        data = json.loads(stdout)
+        assert Path(data["package"]).is_relative_to(self.root), data["package"]
+        assert data["error"] <= TIGHT
+        return data, stderr.strip().splitlines()
+
+
 def probe(
     cache: Path, root: Path = REPO, mode: str = "cli", **extra: str
 ) -> tuple[dict, list[str]]:
-    """Run the backend from the package under ``root`` with cache base ``cache``.
-
-    Returns:
-        The probe's summary and its stderr lines (after checking it succeeded,
-        imported the package from ``root`` and matched Pinocchio).
-    """
-    out = subprocess.run(
-        [sys.executable, "-c", PROBE, mode],
-        capture_output=True,
-        text=True,
-        env=_env(cache, root, **extra),
-        cwd=cache.parent,  # not the repository: '' on sys.path must not shadow `root`
-        timeout=600,
-    )
-    assert out.returncode == 0, out.stderr
-    assert "Traceback" not in out.stderr, out.stderr
-    data = json.loads(out.stdout)
-    assert Path(data["package"]).is_relative_to(root), data["package"]
-    assert data["error"] <= TIGHT
-    return data, out.stderr.strip().splitlines()
+    """Run the backend from the package under ``root`` with cache base ``cache`` and wait."""
+    return Probe(cache, root, mode, **extra).result()
 
 
 def _fingerprint_dir(base: Path) -> Path:
@@ -119,19 +133,62 @@ def _assert_one_warning(lines: list[str], directory: Path) -> None:
 
 
 @pytest.fixture(scope="module")
-def populated(tmp_path_factory) -> Path:
+def scenarios(tmp_path_factory) -> Iterator[dict]:
+    """The shared cache, and the three other compilations from scratch started beside it.
+
+    ``populated``: a cache base filled by one compilation of the repository's
+    sources (the full disk's compilation runs meanwhile); then ``damaged`` (a copy
+    of it with every file truncated or garbage) and ``clone`` (a copy used by a
+    fresh clone of the sources) start, and the fixture returns: each test waits
+    for its own probe.
+    """
+    root = tmp_path_factory.mktemp("scenarios")
+    started: dict = {}
+    with contextlib.ExitStack() as stack:
+        try:
+            full = stack.enter_context(tmpfs(root / "full", "size=16k"))
+        except _NoTmpfs as e:
+            started["full"] = e
+        else:
+            started["full"] = (full, Probe(full))
+        base = root / "populated" / "cache"
+        base.parent.mkdir()
+        data, lines = probe(base)
+        assert data["before"] is False and data["from_cache"] is False
+        assert set(data["origins"].values()) == {"compiled"}
+        assert lines == []
+        started["populated"] = base
+        damaged = _copy_cache(base, root / "damaged")
+        _damage_every_file(damaged)
+        started["damaged"] = (damaged, Probe(damaged.parent))
+        clone = root / "clone"
+        shutil.copytree(
+            REPO / "rrt_pin", clone / "rrt_pin", ignore=shutil.ignore_patterns("__pycache__")
+        )
+        shutil.copytree(base, root / "clone-cache")
+        started["clone"] = (clone, root / "clone-cache", Probe(root / "clone-cache", root=clone))
+        try:
+            yield started
+        finally:
+            for value in started.values():
+                if isinstance(value, tuple) and value[-1].process.poll() is None:
+                    value[-1].process.kill()
+                    value[-1].process.communicate()
+
+
+@pytest.fixture(scope="module")
+def populated(scenarios) -> Path:
     """A cache base filled by one compilation of the repository's sources."""
-    base = tmp_path_factory.mktemp("populated") / "cache"
-    data, lines = probe(base)
-    assert data["before"] is False and data["from_cache"] is False
-    assert set(data["origins"].values()) == {"compiled"}
-    assert lines == []
-    return base
+    return scenarios["populated"]
+
+
+class _NoTmpfs(Exception):
+    """Mounting a tmpfs is not permitted here."""
 
 
 @contextlib.contextmanager
 def tmpfs(path: Path, options: str) -> Iterator[Path]:
-    """Mount a tmpfs on ``path`` (skip the test where mounting is not permitted)."""
+    """Mount a tmpfs on ``path`` (raises _NoTmpfs where mounting is not permitted)."""
     path.mkdir(parents=True, exist_ok=True)
     try:
         subprocess.run(
@@ -140,7 +197,7 @@ def tmpfs(path: Path, options: str) -> Iterator[Path]:
             capture_output=True,
         )
     except (OSError, subprocess.CalledProcessError) as e:
-        pytest.skip(f"cannot mount a tmpfs: {e}")
+        raise _NoTmpfs(f"cannot mount a tmpfs: {e}") from e
     try:
         yield path
     finally:
@@ -148,8 +205,8 @@ def tmpfs(path: Path, options: str) -> Iterator[Path]:
 
 
 # --- damaged files ------------------------------------------------------------------------
-def test_every_file_truncated_or_garbage_is_discarded_and_recompiled(populated, tmp_path):
-    path = _copy_cache(populated, tmp_path)
+def _damage_every_file(path: Path) -> None:
+    """Truncate or overwrite every cache file of ``path`` (and drop its record)."""
     (path / "READY.json").unlink()  # numba itself meets the damage (no record to check)
     files = _cache_files(path)
     assert len(files) >= 2 * 10
@@ -159,7 +216,11 @@ def test_every_file_truncated_or_garbage_is_discarded_and_recompiled(populated, 
             file.write_bytes(data[: len(data) // 2])
         else:
             file.write_bytes(b"\x80\x05garbage" * (len(data) // 9 + 1))
-    data, lines = probe(path.parent)
+
+
+def test_every_file_truncated_or_garbage_is_discarded_and_recompiled(scenarios):
+    path, started = scenarios["damaged"]
+    data, lines = started.result()
     assert data["before"] is False
     assert set(data["origins"].values()) == {"compiled"}
     assert data["cache_dir"] == str(path)
@@ -192,23 +253,25 @@ def test_one_damaged_data_file_is_recompiled_alone(populated, tmp_path, record):
 
 
 # --- full and read-only disks -------------------------------------------------------------
-def test_full_disk_compiles_in_memory_with_one_warning(tmp_path, monkeypatch):
-    with tmpfs(tmp_path / "full", "size=16k") as full:
-        data, lines = probe(full)
-        assert data["before"] is False and data["from_cache"] is False
-        assert "memory" in data["origins"].values()
-        assert set(data["origins"].values()) <= {"memory", "compiled"}
-        _assert_one_warning(lines, full)
-        assert "No space left on device" in lines[0]
-        # Nothing is marked complete there, so the next run is not promised a cheap start.
-        from rrt_pin.compiled import _cache
+def test_full_disk_compiles_in_memory_with_one_warning(scenarios, monkeypatch):
+    if isinstance(scenarios["full"], _NoTmpfs):
+        pytest.skip(str(scenarios["full"]))
+    full, started = scenarios["full"]
+    data, lines = started.result()
+    assert data["before"] is False and data["from_cache"] is False
+    assert "memory" in data["origins"].values()
+    assert set(data["origins"].values()) <= {"memory", "compiled"}
+    _assert_one_warning(lines, full)
+    assert "No space left on device" in lines[0]
+    # Nothing is marked complete there, so the next run is not promised a cheap start.
+    from rrt_pin.compiled import _cache
 
-        monkeypatch.setenv("RRT_PIN_CACHE_DIR", str(full))
+    monkeypatch.setenv("RRT_PIN_CACHE_DIR", str(full))
+    _cache.cache_dir.cache_clear()
+    try:
+        assert not _cache.is_cached()
+    finally:
         _cache.cache_dir.cache_clear()
-        try:
-            assert not _cache.is_cached()
-        finally:
-            _cache.cache_dir.cache_clear()
     # numba never fell back to caching next to the sources.
     assert not list((REPO / "rrt_pin").rglob("*.nbi"))
 
@@ -217,7 +280,11 @@ def test_full_disk_compiles_in_memory_with_one_warning(tmp_path, monkeypatch):
 def test_read_only_cache_dir_falls_back_with_one_warning(populated, tmp_path, mode):
     fallback = tmp_path / "xdg"
     shutil.copytree(populated, fallback / "rrt_pin" / "numba")
-    with tmpfs(tmp_path / "ro", "ro,size=1m") as ro:
+    with contextlib.ExitStack() as stack:
+        try:
+            ro = stack.enter_context(tmpfs(tmp_path / "ro", "ro,size=1m"))
+        except _NoTmpfs as e:
+            pytest.skip(str(e))
         data, lines = probe(ro, mode=mode, XDG_CACHE_HOME=str(fallback))
     assert data["before"] is True and data["from_cache"] is True
     assert Path(data["cache_dir"]).parent == fallback / "rrt_pin" / "numba"
@@ -227,15 +294,10 @@ def test_read_only_cache_dir_falls_back_with_one_warning(populated, tmp_path, mo
 
 
 # --- is_compiled() in a fresh clone --------------------------------------------------------
-def test_is_compiled_in_a_fresh_clone_answers_what_numba_pays(populated, tmp_path):
-    clone = tmp_path / "clone"
-    shutil.copytree(
-        REPO / "rrt_pin", clone / "rrt_pin", ignore=shutil.ignore_patterns("__pycache__")
-    )
-    cache = tmp_path / "cache"
-    shutil.copytree(populated, cache)
+def test_is_compiled_in_a_fresh_clone_answers_what_numba_pays(scenarios):
+    clone, cache, started = scenarios["clone"]
     # Same contents, cache filled from the repository: numba recompiles here, and says so.
-    data, lines = probe(cache, root=clone)
+    data, lines = started.result()
     assert data["before"] is False
     assert data["from_cache"] is False and set(data["origins"].values()) == {"compiled"}
     assert lines == []
