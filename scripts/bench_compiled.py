@@ -25,14 +25,16 @@ back to back, see :func:`interleaved`):
    seeded random states (target <= 1e-12 relative), and the compiled trajectories
    against the Pinocchio backend's with the same method and tolerance;
 6. process: whole-process ``rrt-pin inverse --csv`` with ``--backend pinocchio`` and
-   ``--backend compiled``, and ``import numba`` alone (budget 1 s).
+   ``--backend compiled``, and ``import numba`` alone (budget 1 s);
+7. lanes: the batch of section 4 (final states and metrics, one thread) with each
+   count of variants integrated side by side (``rrt_pin.compiled._jit_batch.LANES``).
 
 ``scripts/bench_direct.py`` and ``scripts/bench_inverse.py`` import
 :func:`direct_rows`, :func:`batch_rows` and :func:`inverse_verdict` from here for
 their compiled rows.
 
     .venv/bin/python scripts/bench_compiled.py [--repeat 21] [--batch 2000] [--check]
-        [--only direct,batch,busy,inverse,physics,process]
+        [--only direct,batch,busy,inverse,physics,process,lanes] [--lanes 16]
 """
 
 from __future__ import annotations
@@ -562,6 +564,52 @@ def section_process(runs: int) -> dict[str, bool]:
     }
 
 
+def section_lanes(count: int, repeat: int, lean_rtol: float, lean_atol: float) -> dict[str, bool]:
+    """The lean batches on one thread with 1, 4, 8, 16 and 32 lanes, interleaved."""
+    from rrt_pin import compiled
+    from rrt_pin.compiled import _jit_batch
+
+    plants, controllers, q0s, qd0s = seed_variants(count)
+    t = np.linspace(0.0, 15.0, 1501)
+    default = _jit_batch.LANES
+    counts = (1, 4, 8, 16, 32)
+
+    def batch(keep: str, lanes: int):
+        def go():
+            _jit_batch.LANES = lanes
+            try:
+                return compiled.simulate_batch_compiled(
+                    plants, controllers, q0s, qd0s, t, rtol=lean_rtol, atol=lean_atol,
+                    keep=keep, threads=1,
+                )  # fmt: skip
+            finally:
+                _jit_batch.LANES = default
+
+        return go
+
+    funcs = {(keep, n): batch(keep, n) for keep in ("final", "metrics") for n in counts}
+    results = {k: f() for k, f in funcs.items()}
+    for keep in ("final", "metrics"):
+        for n in counts:
+            assert np.array_equal(results[(keep, n)].q, results[(keep, 1)].q), "lanes changed bits"
+    medians = interleaved(funcs, max(3, repeat // 5), inner=1)
+    print(
+        f"\n7. lanes: {count} chapter variants, one thread, rtol {lean_rtol:g}, atol "
+        f"{lean_atol:g}; sims/s by variants integrated side by side (default {default}; "
+        "the same bits at every count)"
+    )
+    print(f"{'kept':<10}" + "".join(f"{n:>10}" for n in counts))
+    for keep in ("final", "metrics"):
+        print(f"{keep:<10}" + "".join(f"{count / medians[(keep, n)]:>10,.0f}" for n in counts))
+    best = min(counts, key=lambda n: medians[("metrics", n)] + medians[("final", n)])
+    return {
+        f"the default lanes ({default}) within 10 % of the fastest ({best})": (
+            medians[("metrics", default)] + medians[("final", default)]
+            <= 1.1 * (medians[("metrics", best)] + medians[("final", best)])
+        )
+    }
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=21, help="timed rounds per section (median)")
@@ -580,10 +628,20 @@ def main() -> int:
     ap.add_argument(
         "--only",
         default="direct,inverse,batch,busy,physics,process",
-        help="comma-separated sections to run",
+        help="comma-separated sections to run (also: lanes)",
+    )
+    ap.add_argument(
+        "--lanes",
+        type=int,
+        default=None,
+        help="variants a thread integrates side by side in adaptive batches (default 16)",
     )
     args = ap.parse_args()
     only = set(args.only.split(","))
+    if args.lanes is not None:
+        from rrt_pin.compiled import _jit_batch
+
+        _jit_batch.LANES = args.lanes
 
     start = time.perf_counter()
     print(f"1. {compile_line()} ({time.perf_counter() - start:.2f} s in all)")
@@ -600,6 +658,8 @@ def main() -> int:
         ok |= section_physics()
     if "process" in only:
         ok |= section_process(args.process_runs)
+    if "lanes" in only:
+        ok |= section_lanes(args.batch, args.repeat, args.lean_rtol, args.lean_atol)
     print()
     for label, good in ok.items():
         print(f"target {label}: {verdict(good)}")
