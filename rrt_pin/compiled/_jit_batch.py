@@ -52,15 +52,12 @@ from rrt_pin.compiled._jit_dynamics import (
     vsincos,
 )
 from rrt_pin.compiled._jit_integrators import (
-    D8_A,
     D8_C,
     D8_D,
     D8_E3,
     D8_E5,
-    D8_NS,
     MAX_FACTOR,
     MIN_FACTOR,
-    RK45_AB,
     RK45_C,
     RK45_E,
     RK45_P,
@@ -70,21 +67,18 @@ from rrt_pin.compiled._jit_integrators import (
     dense_dop853_rows,
     dense_rk45_rows,
     fill_efforts_rows,
-    first_nonfinite,
+    first_step,
     integrate,
-    rhs,
-    rms_scaled,
+    tableau,
 )
 from rrt_pin.compiled._jit_metrics import variant_metrics
 from rrt_pin.compiled.codes import (
     KEEP_FINAL,
     KEEP_METRICS,
     KEEP_TRAJECTORIES,
-    METHOD_DOP853,
     NC,
     STATUS_EFFORT_NONFINITE,
     STATUS_MAX_STEPS,
-    STATUS_NONFINITE,
     STATUS_OK,
     STATUS_SINGULAR_MASS,
     STATUS_STEP_UNDERFLOW,
@@ -325,17 +319,7 @@ def integrate_lanes(
         return
     T = t_eval.shape[0]
     dense = keep != KEEP_FINAL  # the states at every output time, into rows (6+, T) a lane
-    dop853 = method == METHOD_DOP853
-    if dop853:
-        n_stages = D8_NS
-        exponent = -1.0 / 8.0
-        order = 7.0
-        A = D8_A
-    else:
-        n_stages = 6
-        exponent = -1.0 / 5.0
-        order = 4.0
-        A = RK45_AB
+    dop853, n_stages, exponent, order, A = tableau(method)
     t_start = t_eval[0]
     t_bound = t_eval[T - 1]
     interval = t_bound - t_start
@@ -406,45 +390,18 @@ def integrate_lanes(
                     kd = kind[b]
                     for i in range(N):
                         y[i] = y0[b, i]
-                    ne = 0
-                    h0 = 0.0
-                    r = (STATUS_OK, -1, 0, 0, 0, 0, t_start)
-                    for stage in range(2):
-                        bd = rhs(ytmp if stage else y, pt, ct, kd, err if stage else f)
-                        ne += 1
-                        if bd != 0:
-                            r = (STATUS_SINGULAR_MASS, bd - 1, ne, 0, 0, 0, t_start + h0)
-                            break
-                        k = first_nonfinite(err if stage else f)
-                        if k >= 0:
-                            r = (STATUS_NONFINITE, k, ne, 0, 0, 0, t_start + h0)
-                            break
-                        if stage == 0:
-                            for i in range(N):
-                                scale[i] = atol[i] + abs(y[i]) * rtol
-                            d0 = rms_scaled(y, scale)
-                            d1 = rms_scaled(f, scale)
-                            if d0 < 1e-5 or d1 < 1e-5:
-                                h0 = 1e-6
-                            else:
-                                h0 = 0.01 * d0 / d1
-                            h0 = min(h0, interval)
-                            for i in range(N):
-                                ytmp[i] = y[i] + h0 * f[i]
-                    if r[0] != STATUS_OK:
+                    status, k, ne, h_first = first_step(
+                        y, t_start, pt, ct, kd, atol, rtol, order, interval, max_step, f, ytmp,
+                        err, scale,
+                    )  # fmt: skip
+                    if status != STATUS_OK:  # h_first: the failure time
+                        r = (status, k, ne, 0, 0, 0, h_first)
                         _finish(b, ln, r, keep, t_eval, p, kind, cvec, qf, band, out_y, out_tau,
                                 out_m, rows, info, t_reached)  # fmt: skip
                         continue
-                    for i in range(N):
-                        err[i] = err[i] - f[i]
-                    d2 = rms_scaled(err, scale) / h0
-                    if d1 <= 1e-15 and d2 <= 1e-15:
-                        h1 = max(1e-6, h0 * 1e-3)
-                    else:
-                        h1 = (0.01 / max(d1, d2)) ** (1.0 / (order + 1.0))
                     var[ln] = b
                     t[ln] = t_start
-                    h_abs[ln] = min(100.0 * h0, h1, interval, max_step)
+                    h_abs[ln] = h_first
                     n_evals[ln] = ne
                     n_steps[ln] = 0
                     n_rejected[ln] = 0

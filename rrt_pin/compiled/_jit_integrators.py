@@ -370,55 +370,33 @@ def dense_rk45_rows(F, y, t_eval, t, h, start, end, rows, xs):
             row[m] = h * (a * x + b * x2 + c * x3 + d * x4) + yi
 
 
-@jit(_RESULT(int64, _rvec, _rvec, _rvec, float64, float64, int64, _rvec, int64, _rvec, _mat))
-def adaptive(method, y0, t_eval, atol, rtol, max_step, max_steps, p_arr, kind, c_arr, out_y):
-    """RK45 (method 0) or DOP853 (method 1) with SciPy's error control; see ``integrate``.
+@jit(None, inline=True)
+def tableau(method):
+    """(dop853, stages, step-size exponent, order, A with B as its last row) of RK45 or DOP853."""
+    if method == METHOD_DOP853:
+        return True, D8_NS, -1.0 / 8.0, 7.0, D8_A
+    return False, 6, -1.0 / 5.0, 4.0, RK45_AB
 
-    One run (a batch's variants run side by side in :mod:`rrt_pin.compiled._jit_batch`,
-    whose lanes do these operations): out_y (T, 6) gets the state at every t_eval
-    (needs len(t_eval) >= 2).
+
+@jit(None, inline=True)
+def first_step(y, t, p, c, kind, atol, rtol, order, interval, max_step, f, ytmp, err, scale):
+    """f(t, y) into ``f``, then SciPy's ``select_initial_step`` (one more evaluation).
+
+    Returns:
+        (status, coordinate, n_evals, h): STATUS_OK and the first step size, or a
+        singular mass matrix or a non-finite derivative, its coordinate and the time
+        of the failing evaluation [s] in place of h. ``ytmp``, ``err``, ``scale`` are scratch.
     """
-    p = as_tuple_p(p_arr)
-    c = as_tuple_c(c_arr)
-    dop853 = method == METHOD_DOP853
-    if dop853:
-        n_stages = D8_NS
-        exponent = -1.0 / 8.0
-        order = 7.0
-        A = D8_A
-    else:
-        n_stages = 6
-        exponent = -1.0 / 5.0
-        order = 4.0
-        A = RK45_AB
-    n_out = t_eval.shape[0]
-    K = np.empty((16, N))
-    F = np.empty((7, N))
-    y = y0.copy()
-    y_new = np.empty(N)
-    ytmp = np.empty(N)
-    f = np.empty(N)
-    err = np.empty(N)
-    err3 = np.empty(N)
-    scale = np.empty(N)
-    t = t_eval[0]
-    t_bound = t_eval[n_out - 1]
-    interval = t_bound - t
-    n_evals = 0
-    n_steps = 0
-    n_rejected = 0
-    i_out = 0
-
-    # f(t0, y0), then SciPy's select_initial_step, which evaluates f(t0 + h0, y0 + h0 f0).
     h0 = 0.0
+    n_evals = 0
     for stage in range(2):
         bad = rhs(ytmp if stage else y, p, c, kind, err if stage else f)
         n_evals += 1
         if bad != 0:
-            return STATUS_SINGULAR_MASS, bad - 1, n_evals, 0, 0, 0, t + h0
+            return STATUS_SINGULAR_MASS, bad - 1, n_evals, t + h0
         k = first_nonfinite(err if stage else f)
         if k >= 0:
-            return STATUS_NONFINITE, k, n_evals, 0, 0, 0, t + h0
+            return STATUS_NONFINITE, k, n_evals, t + h0
         if stage == 0:
             for i in range(N):
                 scale[i] = atol[i] + abs(y[i]) * rtol
@@ -438,7 +416,42 @@ def adaptive(method, y0, t_eval, atol, rtol, max_step, max_steps, p_arr, kind, c
         h1 = max(1e-6, h0 * 1e-3)
     else:
         h1 = (0.01 / max(d1, d2)) ** (1.0 / (order + 1.0))
-    h_abs = min(100.0 * h0, h1, interval, max_step)
+    return STATUS_OK, -1, n_evals, min(100.0 * h0, h1, interval, max_step)
+
+
+@jit(_RESULT(int64, _rvec, _rvec, _rvec, float64, float64, int64, _rvec, int64, _rvec, _mat))
+def adaptive(method, y0, t_eval, atol, rtol, max_step, max_steps, p_arr, kind, c_arr, out_y):
+    """RK45 (method 0) or DOP853 (method 1) with SciPy's error control; see ``integrate``.
+
+    One run (a batch's variants run side by side in :mod:`rrt_pin.compiled._jit_batch`,
+    whose lanes do these operations): out_y (T, 6) gets the state at every t_eval
+    (needs len(t_eval) >= 2).
+    """
+    p = as_tuple_p(p_arr)
+    c = as_tuple_c(c_arr)
+    dop853, n_stages, exponent, order, A = tableau(method)
+    n_out = t_eval.shape[0]
+    K = np.empty((16, N))
+    F = np.empty((7, N))
+    y = y0.copy()
+    y_new = np.empty(N)
+    ytmp = np.empty(N)
+    f = np.empty(N)
+    err = np.empty(N)
+    err3 = np.empty(N)
+    scale = np.empty(N)
+    t = t_eval[0]
+    t_bound = t_eval[n_out - 1]
+    interval = t_bound - t
+    n_evals = 0
+    n_steps = 0
+    n_rejected = 0
+    i_out = 0
+
+    status, k, n_evals, h_abs = first_step(y, t, p, c, kind, atol, rtol, order, interval,
+                                           max_step, f, ytmp, err, scale)  # fmt: skip
+    if status != STATUS_OK:
+        return status, k, n_evals, 0, 0, 0, h_abs  # h_abs: the failure time
 
     limiting = 0
     while True:
