@@ -167,3 +167,25 @@ def test_failing_variants_leave_their_neighbours_alone(compiled, lanes):
         np.testing.assert_array_equal(y[b, :, 3:], one.qd)
         np.testing.assert_array_equal(tau[b], one.tau)
         assert info[b, 2] == one.n_evals
+
+
+def test_long_output_grids_use_fewer_lanes_and_keep_the_bits(compiled, lanes):
+    """Scratch runs stay bounded (9 values an output time a lane): fewer lanes, same numbers."""
+    from rrt_pin.compiled import codes
+    from rrt_pin.compiled.integrate import LANE_SCRATCH_BYTES, lanes_for
+
+    assert lanes_for(1501, codes.KEEP_METRICS, 16) == 16
+    assert lanes_for(10**7, codes.KEEP_TRAJECTORIES, 16) == 1
+    assert lanes_for(10**7, codes.KEEP_FINAL, 16) == 16  # no scratch run
+    many = 100_000
+    assert 1 < lanes_for(many, codes.KEEP_METRICS, 16) < 16
+    assert lanes_for(many, codes.KEEP_METRICS, 16) * 9 * 8 * many <= LANE_SCRATCH_BYTES
+    plants, controllers, q0s, qd0s = _mixed(5, seed=11)
+    t = np.linspace(0.0, 2.0, many)
+    got = []
+    for n in (16, 1):
+        lanes(n)
+        got.append(compiled.simulate_batch_compiled(plants, controllers, q0s, qd0s, t, threads=1))
+    np.testing.assert_array_equal(got[0].q, got[1].q)
+    np.testing.assert_array_equal(got[0].qd, got[1].qd)
+    np.testing.assert_array_equal(got[0].tau, got[1].tau)

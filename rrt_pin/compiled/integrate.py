@@ -599,6 +599,23 @@ def _table(rows: Any, count: int, width: int) -> np.ndarray:
     return np.fromiter(flat, dtype=float, count=count * width).reshape(count, width)
 
 
+#: Bytes a thread's lanes may hold in scratch runs (9 values an output time a lane,
+#: unless only final states are kept): 16 lanes up to ~14,000 output times, fewer
+#: beyond, one at 233,000 (one variant at a time kept 9 × T values).
+LANE_SCRATCH_BYTES = 16 * 2**20
+
+
+def lanes_for(times: int, keep: int, lanes: int) -> int:
+    """The lanes of an adaptive batch with ``times`` output times: ``lanes`` or fewer.
+
+    Fewer when their scratch runs would pass :data:`LANE_SCRATCH_BYTES` (``keep``, a
+    ``KEEP_*`` code: final states need none).
+    """
+    if keep == codes.KEEP_FINAL:
+        return lanes
+    return max(1, min(lanes, LANE_SCRATCH_BYTES // (9 * 8 * times)))
+
+
 def integrate_arrays(
     P: np.ndarray,
     kinds: np.ndarray,
@@ -675,6 +692,8 @@ def integrate_arrays(
     atol_v = _atol_vector(atol)
     rtol_v = rtol if rtol is not None else 0.0
 
+    lanes = lanes_for(t.size, code, jit.LANES) if method_code < codes.FIXED_STEP_FROM else 1
+
     def run(a: int, b: int) -> None:
         q = qf[a:b] if qf.shape[0] else qf
         m = metrics[a:b] if metrics.shape[0] else metrics
@@ -682,7 +701,7 @@ def integrate_arrays(
             jit.integrate_lanes(
                 method_code, Y0[a:b], t, atol_v, rtol_v, math.inf, max_steps, P[a:b],
                 kinds[a:b], C[a:b], code, q, float(band), out_y[a:b], out_tau[a:b], m,
-                info[a:b], t_reached[a:b], jit.LANES,
+                info[a:b], t_reached[a:b], lanes,
             )  # fmt: skip
         else:
             jit.integrate_fixed(
@@ -694,7 +713,6 @@ def integrate_arrays(
         from rrt_pin import cpus
 
         threads = cpus.threads_for(count, MIN_PER_THREAD)
-    lanes = jit.LANES if method_code < codes.FIXED_STEP_FROM else 1
     used = _in_slices(run, count, threads, min_size=_VARIANTS_PER_LANE * lanes)
     if detail:
         return out_y, out_tau, (metrics if metrics.shape[0] else None), info, t_reached, used
