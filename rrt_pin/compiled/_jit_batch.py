@@ -184,12 +184,7 @@ def _dense_coefficients(Yf, Ynf, Kf, H, dop853, n_stages, FLf, M):
                         FLf[r, m] += Kf[j, m] * pjr
 
 
-@jit(
-    types.void(
-        types.boolean, types.Array(float64, 2, "A"), types.Array(float64, 1, "A"), _rvec,
-        float64, float64, int64, int64, _mat, _vec,
-    )
-)  # fmt: skip
+@jit(None, inline=True)
 def _dense_rows(dop853, F, y, t_eval, t, h, start, end, rows, xs):
     """One lane's dense output at t_eval[start:end] into its rows (``dense_*_rows``)."""
     if dop853:
