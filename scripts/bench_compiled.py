@@ -639,6 +639,8 @@ def main() -> int:
     args = ap.parse_args()
     only = set(args.only.split(","))
     if args.lanes is not None:
+        if args.lanes < 1:
+            ap.error(f"--lanes={args.lanes} must be >= 1")
         from rrt_pin.compiled import _jit_batch
 
         _jit_batch.LANES = args.lanes

@@ -309,9 +309,9 @@ def integrate_lanes(
     are copied from it when a variant ends.
     """
     B = y0.shape[0]
-    L = min(lanes, B)
-    if L <= 0:
+    if B == 0:
         return
+    L = max(1, min(lanes, B))
     T = t_eval.shape[0]
     dense = keep != KEEP_FINAL  # the states at every output time, into rows (6+, T) a lane
     dop853, n_stages, exponent, order, A = tableau(method)
