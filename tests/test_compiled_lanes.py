@@ -189,3 +189,26 @@ def test_long_output_grids_use_fewer_lanes_and_keep_the_bits(compiled, lanes):
     np.testing.assert_array_equal(got[0].q, got[1].q)
     np.testing.assert_array_equal(got[0].qd, got[1].qd)
     np.testing.assert_array_equal(got[0].tau, got[1].tau)
+
+
+@pytest.mark.parametrize("keep", ["trajectories", "final", "metrics"])
+def test_a_spent_step_budget_is_the_single_runs_failure(compiled, lanes, keep):
+    """Every lane stops at its budget at the same time and coordinate as its single run."""
+    from rrt_pin.compiled.integrate import _batch_arrays, failure, integrate_arrays
+
+    plants, controllers, q0s, qd0s = _mixed(6, seed=13)
+    controllers[0] = controllers[1]  # metrics need a target: no passive variant
+    P, kinds, C = _batch_arrays(plants, controllers)[:3]
+    lanes(4)
+    _, _, _, info, t_reached, _ = integrate_arrays(
+        P, kinds, C, np.hstack([q0s, qd0s]), T, "DOP853", 1e-9, 1e-11, None, max_steps=12,
+        keep=keep, detail=True, threads=1,
+    )  # fmt: skip
+    for b in range(len(plants)):
+        with pytest.raises(DivergenceError) as single:
+            compiled.simulate_compiled(
+                plants[b], controllers[b], q0s[b], qd0s[b], T, method="DOP853", rtol=1e-9,
+                atol=1e-11, max_steps=12,
+            )  # fmt: skip
+        got = failure(info[b], t_reached[b], "DOP853", None, 12)
+        assert got is not None and str(got) == str(single.value), b
