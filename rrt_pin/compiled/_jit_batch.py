@@ -53,9 +53,12 @@ from rrt_pin.compiled._jit_dynamics import (
 )
 from rrt_pin.compiled._jit_integrators import (
     D8_C,
+    D8_E3,
+    D8_E5,
     MAX_FACTOR,
     MIN_FACTOR,
     RK45_C,
+    RK45_E,
     SAFETY,
     N,
     _with_efforts,
@@ -65,8 +68,6 @@ from rrt_pin.compiled._jit_integrators import (
     fill_efforts_rows,
     first_step,
     integrate,
-    scaled_errors,
-    scaled_norm,
     tableau,
 )
 from rrt_pin.compiled._jit_metrics import variant_metrics
@@ -115,6 +116,37 @@ def _combine(Yf, Kf, A, s, H, acc, out, M):
                 acc[m] += aj * Kf[j, m]
     for m in range(M):
         out[m] = Yf[m] + acc[m] * H[m]
+
+
+@jit(None, inline=True)
+def _errors(Yf, Ynf, Kf, H, AT, rtol, dop853, n_stages, E, E3, M):
+    """Every lane's error estimate divided by its scale, into E (and E3), ``adaptive``'s order.
+
+    DOP853: E = Σ K·E5 / scale, E3 = Σ K·E3 / scale; RK45: E = Σ K·E · h / scale; the
+    scale is atol + max(|y|, |y_new|)·rtol.
+    """
+    for m in range(M):
+        E[m] = 0.0
+        E3[m] = 0.0
+    if dop853:
+        for j in range(n_stages + 1):
+            e5j = D8_E5[j]
+            e3j = D8_E3[j]
+            for m in range(M):
+                E[m] += Kf[j, m] * e5j
+                E3[m] += Kf[j, m] * e3j
+        for m in range(M):
+            scale = AT[m] + max(abs(Yf[m]), abs(Ynf[m])) * rtol
+            E[m] = E[m] / scale
+            E3[m] = E3[m] / scale
+    else:
+        for j in range(n_stages + 1):
+            ej = RK45_E[j]
+            for m in range(M):
+                E[m] += Kf[j, m] * ej
+        for m in range(M):
+            scale = AT[m] + max(abs(Yf[m]), abs(Ynf[m])) * rtol
+            E[m] = E[m] * H[m] / scale
 
 
 @jit(None, inline=True)
@@ -411,7 +443,7 @@ def integrate_lanes(
                         fail_k[ln] = bad[ln] - 1
             if phase == 1:
                 break
-            scaled_errors(Yf, Ynf, Kf, H, AT, rtol, dop853, n_stages, E, E3, M)
+            _errors(Yf, Ynf, Kf, H, AT, rtol, dop853, n_stages, E, E3, M)
             for ln in range(L):
                 need[ln] = False
                 if not go[ln]:
@@ -429,7 +461,24 @@ def integrate_lanes(
                     go[ln] = False
                     continue
                 n_evals[ln] += n_stages
-                error_norm = scaled_norm(E, E3, ln, L, h[ln], dop853)
+                if dop853:
+                    e5 = 0.0
+                    e3 = 0.0
+                    for i in range(N):
+                        a5 = E[i * L + ln]
+                        a3 = E3[i * L + ln]
+                        e5 += a5 * a5
+                        e3 += a3 * a3
+                    if e5 == 0.0 and e3 == 0.0:
+                        error_norm = 0.0
+                    else:
+                        error_norm = abs(h[ln]) * e5 / math.sqrt((e5 + 0.01 * e3) * N)
+                else:
+                    e = 0.0
+                    for i in range(N):
+                        a = E[i * L + ln]
+                        e += a * a
+                    error_norm = math.sqrt(e / N)
                 k = -1
                 for i in range(N):
                     if not math.isfinite(Yn[i, ln]):

@@ -407,59 +407,6 @@ def dense_coefficients(Yf, Ynf, Kf, H, dop853, n_stages, FLf, M):
 
 
 @jit(None, inline=True)
-def scaled_errors(Yf, Ynf, Kf, H, AT, rtol, dop853, n_stages, E, E3, M):
-    """A step's error estimate divided by its scale, into E (and E3), SciPy's order.
-
-    DOP853: E = Σ K·E5 / scale, E3 = Σ K·E3 / scale; RK45: E = Σ K·E · h / scale; the
-    scale is atol + max(|y|, |y_new|)·rtol. M values a row, as ``dense_coefficients``'s
-    (AT: atol, H: h, at each value).
-    """
-    for m in range(M):
-        E[m] = 0.0
-        E3[m] = 0.0
-    if dop853:
-        for j in range(n_stages + 1):
-            e5j = D8_E5[j]
-            e3j = D8_E3[j]
-            for m in range(M):
-                E[m] += Kf[j, m] * e5j
-                E3[m] += Kf[j, m] * e3j
-        for m in range(M):
-            scale = AT[m] + max(abs(Yf[m]), abs(Ynf[m])) * rtol
-            E[m] = E[m] / scale
-            E3[m] = E3[m] / scale
-    else:
-        for j in range(n_stages + 1):
-            ej = RK45_E[j]
-            for m in range(M):
-                E[m] += Kf[j, m] * ej
-        for m in range(M):
-            scale = AT[m] + max(abs(Yf[m]), abs(Ynf[m])) * rtol
-            E[m] = E[m] * H[m] / scale
-
-
-@jit(None, inline=True)
-def scaled_norm(E, E3, base, stride, h, dop853):
-    """SciPy's error norm of one run's scaled estimates E[base + i·stride] (and E3), i < N."""
-    if dop853:
-        e5 = 0.0
-        e3 = 0.0
-        for i in range(N):
-            a5 = E[base + i * stride]
-            a3 = E3[base + i * stride]
-            e5 += a5 * a5
-            e3 += a3 * a3
-        if e5 == 0.0 and e3 == 0.0:
-            return 0.0
-        return abs(h) * e5 / math.sqrt((e5 + 0.01 * e3) * N)
-    e = 0.0
-    for i in range(N):
-        a = E[base + i * stride]
-        e += a * a
-    return math.sqrt(e / N)
-
-
-@jit(None, inline=True)
 def tableau(method):
     """(dop853, stages, step-size exponent, order, A with B as its last row) of RK45 or DOP853."""
     if method == METHOD_DOP853:
@@ -580,9 +527,42 @@ def adaptive(method, y0, t_eval, atol, rtol, max_step, max_steps, p_arr, kind, c
             n_evals += n_stages
 
             for i in range(N):
-                H[i] = h
-            scaled_errors(y, y_new, K, H, atol, rtol, dop853, n_stages, err, err3, N)
-            error_norm = scaled_norm(err, err3, 0, 1, h, dop853)
+                scale[i] = atol[i] + max(abs(y[i]), abs(y_new[i])) * rtol
+            if dop853:
+                for i in range(N):
+                    err[i] = 0.0
+                    err3[i] = 0.0
+                for j in range(n_stages + 1):
+                    e5j = D8_E5[j]
+                    e3j = D8_E3[j]
+                    for i in range(N):
+                        err[i] += K[j, i] * e5j
+                        err3[i] += K[j, i] * e3j
+                e5 = 0.0
+                e3 = 0.0
+                for i in range(N):
+                    a5 = err[i] / scale[i]
+                    a3 = err3[i] / scale[i]
+                    err[i] = a5
+                    e5 += a5 * a5
+                    e3 += a3 * a3
+                if e5 == 0.0 and e3 == 0.0:
+                    error_norm = 0.0
+                else:
+                    error_norm = abs(h) * e5 / math.sqrt((e5 + 0.01 * e3) * N)
+            else:
+                for i in range(N):
+                    err[i] = 0.0
+                for j in range(n_stages + 1):
+                    ej = RK45_E[j]
+                    for i in range(N):
+                        err[i] += K[j, i] * ej
+                e = 0.0
+                for i in range(N):
+                    a = err[i] * h / scale[i]
+                    err[i] = a
+                    e += a * a
+                error_norm = math.sqrt(e / N)
             k = first_nonfinite(y_new)
             if k < 0:
                 k = first_nonfinite(K[n_stages])
@@ -630,7 +610,9 @@ def adaptive(method, y0, t_eval, atol, rtol, max_step, max_steps, p_arr, kind, c
                             t + D8_C[s] * h,
                         )  # fmt: skip
                 n_evals += 16 - (n_stages + 1)
-            dense_coefficients(y, y_new, K, H, dop853, n_stages, F, N)  # H: h, as set above
+            for i in range(N):
+                H[i] = h
+            dense_coefficients(y, y_new, K, H, dop853, n_stages, F, N)
             end = i_out
             while end < n_out and t_eval[end] <= t_new:
                 end += 1
