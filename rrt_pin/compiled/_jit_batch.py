@@ -53,16 +53,17 @@ from rrt_pin.compiled._jit_dynamics import (
 )
 from rrt_pin.compiled._jit_integrators import (
     D8_C,
+    D8_D,
     D8_E3,
     D8_E5,
     MAX_FACTOR,
     MIN_FACTOR,
     RK45_C,
     RK45_E,
+    RK45_P,
     SAFETY,
     N,
     _with_efforts,
-    dense_coefficients,
     dense_dop853_rows,
     dense_rk45_rows,
     fill_efforts_rows,
@@ -147,6 +148,40 @@ def _errors(Yf, Ynf, Kf, H, AT, rtol, dop853, n_stages, E, E3, M):
         for m in range(M):
             scale = AT[m] + max(abs(Yf[m]), abs(Ynf[m])) * rtol
             E[m] = E[m] * H[m] / scale
+
+
+@jit(None, inline=True)
+def _dense_coefficients(Yf, Ynf, Kf, H, dop853, n_stages, FLf, M):
+    """Every lane's dense-output coefficients FLf (7, N·L) of its step (``adaptive``'s order).
+
+    DOP853: F0..F2 from the step's ends, F3..F6 from its 16 stages; RK45: the four
+    columns of K·P. H holds each lane's step h at every component of the lane.
+    """
+    if dop853:
+        for m in range(M):
+            dy = Ynf[m] - Yf[m]
+            FLf[0, m] = dy
+            FLf[1, m] = H[m] * Kf[0, m] - dy
+            FLf[2, m] = 2.0 * dy - H[m] * (Kf[n_stages, m] + Kf[0, m])
+        for r in range(4):
+            for m in range(M):
+                FLf[3 + r, m] = 0.0
+            for j in range(n_stages + 4):  # the 16 stages (a run-time count: not unrolled)
+                drj = D8_D[r, j]
+                if drj != 0.0:
+                    for m in range(M):
+                        FLf[3 + r, m] += drj * Kf[j, m]
+            for m in range(M):
+                FLf[3 + r, m] *= H[m]
+    else:
+        for r in range(4):
+            for m in range(M):
+                FLf[r, m] = 0.0
+            for j in range(n_stages + 1):
+                pjr = RK45_P[j, r]
+                if pjr != 0.0:
+                    for m in range(M):
+                        FLf[r, m] += Kf[j, m] * pjr
 
 
 @jit(None, inline=True)
@@ -530,7 +565,7 @@ def integrate_lanes(
 
         # 5. Dense output and the end of each accepted step.
         if any_dense:
-            dense_coefficients(Yf, Ynf, Kf, H, dop853, n_stages, FLf, M)
+            _dense_coefficients(Yf, Ynf, Kf, H, dop853, n_stages, FLf, M)
         for ln in range(L):
             if not go[ln]:
                 continue

@@ -371,42 +371,6 @@ def dense_rk45_rows(F, y, t_eval, t, h, start, end, rows, xs):
 
 
 @jit(None, inline=True)
-def dense_coefficients(Yf, Ynf, Kf, H, dop853, n_stages, FLf, M):
-    """The dense-output coefficients FLf (7, M) of a step from y (Yf), y_new (Ynf), K (16, M).
-
-    DOP853: F0..F2 from the step's ends, F3..F6 from its 16 stages; RK45: the four
-    columns of K·P. M values a row: one run's N components (``adaptive``), or the
-    flat (N, L) block of the lanes of :mod:`rrt_pin.compiled._jit_batch`; H holds
-    the step h of each value's run.
-    """
-    if dop853:
-        for m in range(M):
-            dy = Ynf[m] - Yf[m]
-            FLf[0, m] = dy
-            FLf[1, m] = H[m] * Kf[0, m] - dy
-            FLf[2, m] = 2.0 * dy - H[m] * (Kf[n_stages, m] + Kf[0, m])
-        for r in range(4):
-            for m in range(M):
-                FLf[3 + r, m] = 0.0
-            for j in range(n_stages + 4):  # the 16 stages (a run-time count: not unrolled)
-                drj = D8_D[r, j]
-                if drj != 0.0:
-                    for m in range(M):
-                        FLf[3 + r, m] += drj * Kf[j, m]
-            for m in range(M):
-                FLf[3 + r, m] *= H[m]
-    else:
-        for r in range(4):
-            for m in range(M):
-                FLf[r, m] = 0.0
-            for j in range(n_stages + 1):
-                pjr = RK45_P[j, r]
-                if pjr != 0.0:
-                    for m in range(M):
-                        FLf[r, m] += Kf[j, m] * pjr
-
-
-@jit(None, inline=True)
 def tableau(method):
     """(dop853, stages, step-size exponent, order, A with B as its last row) of RK45 or DOP853."""
     if method == METHOD_DOP853:
@@ -469,7 +433,6 @@ def adaptive(method, y0, t_eval, atol, rtol, max_step, max_steps, p_arr, kind, c
     n_out = t_eval.shape[0]
     K = np.empty((16, N))
     F = np.empty((7, N))
-    H = np.empty(N)  # h at every component (dense_coefficients)
     y = y0.copy()
     y_new = np.empty(N)
     ytmp = np.empty(N)
@@ -610,9 +573,30 @@ def adaptive(method, y0, t_eval, atol, rtol, max_step, max_steps, p_arr, kind, c
                             t + D8_C[s] * h,
                         )  # fmt: skip
                 n_evals += 16 - (n_stages + 1)
-            for i in range(N):
-                H[i] = h
-            dense_coefficients(y, y_new, K, H, dop853, n_stages, F, N)
+                for i in range(N):
+                    dy = y_new[i] - y[i]
+                    F[0, i] = dy
+                    F[1, i] = h * K[0, i] - dy
+                    F[2, i] = 2.0 * dy - h * (K[n_stages, i] + K[0, i])
+                for r in range(4):
+                    for i in range(N):
+                        F[3 + r, i] = 0.0
+                    for j in range(16):
+                        drj = D8_D[r, j]
+                        if drj != 0.0:
+                            for i in range(N):
+                                F[3 + r, i] += drj * K[j, i]
+                    for i in range(N):
+                        F[3 + r, i] *= h
+            else:
+                for r in range(4):
+                    for i in range(N):
+                        F[r, i] = 0.0
+                    for j in range(n_stages + 1):
+                        pjr = RK45_P[j, r]
+                        if pjr != 0.0:
+                            for i in range(N):
+                                F[r, i] += K[j, i] * pjr
             end = i_out
             while end < n_out and t_eval[end] <= t_new:
                 end += 1
