@@ -270,7 +270,7 @@ def control_sc(kind, c, q1, q2, q3, qd1, qd2, qd3, s2, c2, G2, G3):
 
     The same operations as ``control`` for every kind (the same bits), all of them
     computed and the kind's chosen: no call and no branch, so that a loop over
-    variants of different kinds vectorizes (:mod:`rrt_pin.compiled._jit_lanes`).
+    variants of different kinds vectorizes (:mod:`rrt_pin.compiled._jit_batch`).
     """
     u1 = -c[3] * qd1 - c[0] * (q1 - c[6])
     u2 = -c[4] * qd2 - c[1] * (q2 - c[7])
@@ -290,7 +290,7 @@ def accelerations(kind, c, k, q1, q2, q3, qd1, qd2, qd3, s2, c2):
     """``closed_loop`` given (s2, c2) = ``sincos(q2)`` and k = ``inverse_constants(*p)``.
 
     No call and no branch (selects): the body of the variants' loop of
-    :mod:`rrt_pin.compiled._jit_lanes`, and of ``closed_loop`` (one definition).
+    :mod:`rrt_pin.compiled._jit_batch`, and of ``closed_loop`` (one definition).
     """
     k0, k1, k2, k3, k4, k5, k6, k7, k8, k9 = k
     M11, M22, n1, n2, n3, G2, G3 = forward_terms(
