@@ -39,8 +39,12 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from llvmlite import ir
 from numba import float64, int64, types
+from numba.core import cgutils
+from numba.extending import intrinsic
 
+from rrt_pin.compiled._jit import borrow, jit, keep_alive
 from rrt_pin.compiled._jit_dynamics import (
     SINCOS_LIMIT,
     accelerations,
@@ -48,7 +52,6 @@ from rrt_pin.compiled._jit_dynamics import (
     as_tuple_p,
     closed_loop,
     inverse_constants,
-    jit,
     vsincos,
 )
 from rrt_pin.compiled._jit_integrators import (
@@ -71,7 +74,7 @@ from rrt_pin.compiled._jit_integrators import (
     integrate,
     tableau,
 )
-from rrt_pin.compiled._jit_metrics import variant_metrics
+from rrt_pin.compiled._jit_metrics import as_rows, variant_metrics
 from rrt_pin.compiled.codes import (
     KEEP_FINAL,
     KEEP_METRICS,
@@ -97,6 +100,27 @@ _cube = float64[:, :, ::1]
 _rvec = types.Array(float64, 1, "C", readonly=True)
 _rmat = types.Array(float64, 2, "C", readonly=True)
 _rivec = types.Array(int64, 1, "C", readonly=True)
+_ivec = int64[::1]
+
+
+@intrinsic
+def _take(typingctx, counter):
+    """counter[0]++, atomically, returning its value before: the next variant of a shared batch.
+
+    Every thread's call over a batch takes its variants from one counter, one at a
+    time, as its lanes fall free: no slices, no thread left idle while another
+    still has variants to start (the same bits: each variant's run is its own).
+    """
+    sig = int64(counter)
+
+    def codegen(context, builder, signature, args):
+        array = context.make_array(signature.args[0])(context, builder, args[0])
+        ptr = cgutils.get_item_pointer(
+            context, builder, signature.args[0], array, [context.get_constant(types.intp, 0)]
+        )
+        return builder.atomic_rmw("add", ptr, ir.Constant(ir.IntType(64), 1), "monotonic")
+
+    return sig, codegen
 
 
 # The lanes' arrays are laid out (…, N, L), lanes last, and the loops below run over
@@ -278,7 +302,7 @@ def _finish(b, ln, r, keep, t_eval, p, kind, cvec, qf, band, out_y, out_tau, out
                 out_y[b, 0, i] = lr[i, T - 1]
             for k in range(3):
                 out_tau[b, 0, k] = lr[6 + k, T - 1]
-            variant_metrics(t_eval, lr[0:3].T, lr[3:6].T, lr[6:9].T, qf[b], band, out_m[b])
+            variant_metrics(t_eval, lr, qf[b], band, out_m[b])
     else:
         if keep == KEEP_TRAJECTORIES:  # the rows the dense output filled, as (T, 6)
             oy = out_y[b]
@@ -294,17 +318,19 @@ def _finish(b, ln, r, keep, t_eval, p, kind, cvec, qf, band, out_y, out_tau, out
 @jit(
     types.void(
         int64, _rmat, _rvec, _rvec, float64, float64, int64, _rmat, _rivec, _rmat, int64,
-        _rmat, float64, _cube, _cube, _mat, int64[:, ::1], _vec, int64,
+        _rmat, float64, _cube, _cube, _mat, int64[:, ::1], _vec, int64, _ivec,
     )
 )  # fmt: skip
 def integrate_lanes(
     method, y0, t_eval, atol, rtol, max_step, max_steps, p, kind, cvec, keep, qf, band,
-    out_y, out_tau, out_m, info, t_reached, lanes,
+    out_y, out_tau, out_m, info, t_reached, lanes, counter,
 ):  # fmt: skip
     """RK45 or DOP853 (``method``) over every variant b, up to ``lanes`` at once.
 
     The arguments are ``adaptive``'s, a row per variant, and the outputs of the
-    module's docstring (needs len(t_eval) >= 2). The dense output goes to a scratch
+    module's docstring (needs len(t_eval) >= 2). The variants are taken from
+    ``counter`` (:func:`_take`; 0 for a batch of its own, shared by the threads
+    that run one batch together). The dense output goes to a scratch
     run by rows (9, T) a lane (states, then efforts for the metrics); trajectories
     are copied from it when a variant ends.
     """
@@ -319,55 +345,55 @@ def integrate_lanes(
     t_bound = t_eval[T - 1]
     interval = t_bound - t_start
 
+    # The arguments and the scratch below are used through borrowed views (no reference
+    # counting in the loops; see rrt_pin.compiled._jit.borrow): the caller holds the
+    # arguments, and keep_alive at the end holds the eight scratch arrays.
+    y0, t_eval, atol, p, kind, cvec = borrow(y0), borrow(t_eval), borrow(atol), borrow(p), borrow(kind), borrow(cvec)  # fmt: skip
+    qf, out_y, out_tau, out_m = borrow(qf), borrow(out_y), borrow(out_tau), borrow(out_m)
+    info, t_reached, counter = borrow(info), borrow(t_reached), borrow(counter)
+
     # The lanes: variant, time, step and counters of each; states and stages by lane (last axis).
-    var = np.full(L, -1, np.int64)
-    t = np.zeros(L)
-    h = np.zeros(L)
-    h_abs = np.zeros(L)
-    t_new = np.zeros(L)
-    min_step = np.zeros(L)
-    n_evals = np.zeros(L, np.int64)
-    n_steps = np.zeros(L, np.int64)
-    n_rejected = np.zeros(L, np.int64)
-    i_out = np.zeros(L, np.int64)
-    limiting = np.zeros(L, np.int64)
-    rejected = np.zeros(L, np.bool_)
-    fresh = np.zeros(L, np.bool_)  # a new step starts: clamp the step size
-    go = np.zeros(L, np.bool_)  # the lane attempts a step this round
-    need = np.zeros(L, np.bool_)  # the lane's accepted step covers output times
-    fail_s = np.zeros(L, np.int64)  # stage of the first singular mass matrix, or 0
-    fail_k = np.zeros(L, np.int64)  # its pivot
-    bad = np.zeros(L, np.int64)
+    own_lf = np.zeros((5, L))
+    lf = borrow(own_lf)
+    t, h, h_abs, t_new, min_step = lf[0], lf[1], lf[2], lf[3], lf[4]
+    own_li = np.zeros((10, L), np.int64)
+    li = borrow(own_li)
+    var, n_evals, n_steps, n_rejected, i_out = li[0], li[1], li[2], li[3], li[4]
+    limiting, fail_s, fail_k, bad, kinds = li[5], li[6], li[7], li[8], li[9]
+    # fail_s: stage of the first singular mass matrix, or 0; fail_k: its pivot
+    var[:] = -1
+    own_lb = np.zeros((4, L), np.bool_)
+    # fresh: a new step starts (clamp the step size); go: the lane attempts a step this
+    # round; need: the lane's accepted step covers output times
+    lb = borrow(own_lb)
+    rejected, fresh, go, need = lb[0], lb[1], lb[2], lb[3]
     M = N * L  # a flat (N, L) block
-    acc = np.zeros(M)
-    H = np.zeros(M)  # h of each lane at each of its components
-    AT = np.empty(M)  # atol of each component at each lane
+    own_flat = np.zeros((5, M))
+    # H: h of each lane at each of its components; AT: atol of each component at each
+    # lane; E: every lane's scaled error estimate (DOP853: its 5th-order part), E3: the 3rd
+    flat = borrow(own_flat)
+    acc, H, AT, E, E3 = flat[0], flat[1], flat[2], flat[3], flat[4]
     for m in range(M):
         AT[m] = atol[m // L]
-    E = np.zeros(M)  # every lane's scaled error estimate (DOP853: its 5th-order part)
-    E3 = np.zeros(M)  # DOP853's 3rd-order part
-    Y = np.zeros((N, L))
-    Yn = np.zeros((N, L))
-    Yt = np.zeros((N, L))
-    K = np.zeros((16, N, L))
+    own_states = np.zeros((3 + 16 + 7, N, L))  # Y, Yn, Yt, the 16 stages K, coefficients FL
+    states = borrow(own_states)
+    Y, Yn, Yt, K, FL = states[0], states[1], states[2], states[3:19], states[19:26]
     Yf = Y.reshape(M)
     Ynf = Yn.reshape(M)
     Ytf = Yt.reshape(M)
     Kf = K.reshape((16, M))
-    KC = np.zeros((10, L))
-    PL = np.zeros((15, L))
-    CL = np.zeros((NC, L))
-    kinds = np.zeros(L, np.int64)
-    rows = np.empty((L, 9, T if dense else 0))
-    xs = np.empty(T if dense else 0)
-    FL = np.empty((7, N, L))  # the dense output's coefficients, by lane
-    FLf = FL.reshape((7, M))
-    y = np.empty(N)
-    f = np.empty(N)
-    ytmp = np.empty(N)
-    err = np.empty(N)
-    scale = np.empty(N)
-    next_b = 0
+    FLf = FL.reshape((7, M))  # the dense output's coefficients, by lane
+    own_lanes = np.zeros((25 + NC, L))  # each lane's inverse_constants, parameters, controller
+    lanes_p = borrow(own_lanes)
+    KC, PL, CL = lanes_p[0:10], lanes_p[10:25], lanes_p[25:]
+    own_rows = np.empty((L, 9, T if dense else 0))
+    rows = borrow(own_rows)
+    own_xs = np.empty(T if dense else 0)
+    xs = borrow(own_xs)
+    own_small = np.empty((5, N))
+    small = borrow(own_small)
+    y, f, ytmp, err, scale = small[0], small[1], small[2], small[3], small[4]
+    taken = False  # the counter passed B: no variant left to start
 
     while True:
         # 1. Fill idle lanes with the next variants, then set up each lane's attempt.
@@ -375,11 +401,13 @@ def integrate_lanes(
         for ln in range(L):
             while True:
                 if var[ln] < 0:
-                    if next_b >= B:
+                    if taken:
                         break
-                    # Start variant next_b: f(t0, y0), then SciPy's select_initial_step.
-                    b = next_b
-                    next_b += 1
+                    b = _take(counter)
+                    if b >= B:
+                        taken = True
+                        break
+                    # Start variant b: f(t0, y0), then SciPy's select_initial_step.
                     pt = as_tuple_p(p[b])
                     ct = as_tuple_c(cvec[b])
                     kd = kind[b]
@@ -452,7 +480,7 @@ def integrate_lanes(
             go[ln] = var[ln] >= 0
             active += go[ln]
         if active == 0:
-            return
+            break
 
         # 2. The stages of every lane's attempt (idle lanes compute on stale values),
         # 3. each lane's error estimate and step-size control (``adaptive``'s, per lane),
@@ -607,19 +635,24 @@ def integrate_lanes(
                 _finish(b, ln, r, keep, t_eval, p, kind, cvec, qf, band, out_y, out_tau, out_m,
                         rows, info, t_reached)  # fmt: skip
                 var[ln] = -1
+    keep_alive(
+        (own_lf, own_li, own_lb, own_flat, own_states, own_lanes, own_rows, own_xs, own_small)
+    )
 
 
 @jit(
     types.void(
         int64, _rmat, _rvec, float64, int64, _rmat, _rivec, _rmat, int64, _rmat, float64,
-        _cube, _cube, _mat, int64[:, ::1], _vec,
+        _cube, _cube, _mat, int64[:, ::1], _vec, _ivec,
     )
 )  # fmt: skip
 def integrate_fixed(
     method, y0, t_eval, dt, max_steps, p, kind, cvec, keep, qf, band, out_y, out_tau, out_m,
-    info, t_reached,
+    info, t_reached, counter,
 ):  # fmt: skip
-    """A fixed-step method over every variant b, one after the other (``integrate_lanes``'s outputs).
+    """A fixed-step method over the variants b taken from ``counter``, one after the other.
+
+    The outputs of ``integrate_lanes``.
 
     KEEP_FINAL and KEEP_METRICS fill a scratch run (T, 6) and keep its last row (and,
     for metrics, the metrics of its samples).
@@ -628,8 +661,13 @@ def integrate_fixed(
     scratch = 0 if keep == KEEP_TRAJECTORIES else T
     sy = np.empty((scratch, N))
     st = np.empty((scratch, 3))
+    rows = np.empty((9, T if keep == KEEP_METRICS else 0))  # the run by rows, for its metrics
     atol = np.zeros(N)
-    for b in range(y0.shape[0]):
+    B = y0.shape[0]
+    while True:
+        b = _take(counter)
+        if b >= B:
+            break
         r = integrate(
             method, y0[b], t_eval, dt, atol, 0.0, math.inf, max_steps, p[b], kind[b], cvec[b],
             out_y[b] if keep == KEEP_TRAJECTORIES else sy,
@@ -641,6 +679,7 @@ def integrate_fixed(
             for k in range(3):
                 out_tau[b, 0, k] = st[T - 1, k]
             if keep == KEEP_METRICS:
-                variant_metrics(t_eval, sy[:, :3], sy[:, 3:], st, qf[b], band, out_m[b])
+                as_rows(sy, st, rows, T)
+                variant_metrics(t_eval, rows, qf[b], band, out_m[b])
         _record(info[b], r)
         t_reached[b] = r[6]

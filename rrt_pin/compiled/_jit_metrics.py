@@ -16,7 +16,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from llvmlite import ir
 from numba import float64, types
+from numba.extending import intrinsic
 
 from rrt_pin.compiled._jit import jit, warn_problems
 from rrt_pin.compiled.codes import (
@@ -29,13 +31,35 @@ from rrt_pin.compiled.codes import (
     METRIC_WIDTH,
 )
 
-__all__ = ["metrics", "run", "variant_metrics"]
+__all__ = ["as_rows", "metrics", "run", "variant_metrics"]
 
 _r1 = types.Array(float64, 1, "A", readonly=True)
 _r2 = types.Array(float64, 2, "C", readonly=True)
 _r3 = types.Array(float64, 3, "A", readonly=True)
 _w2 = float64[:, ::1]
-_a2 = types.Array(float64, 2, "A", readonly=True)
+_rows = types.Array(float64, 2, "C", readonly=True)
+
+
+@intrinsic
+def _bits(typingctx, x):
+    """The bits of the double ``x`` as an int64: for x >= 0 (and +nan) they order as x does."""
+    sig = types.int64(x)
+
+    def codegen(context, builder, signature, args):
+        return builder.bitcast(args[0], ir.IntType(64))
+
+    return sig, codegen
+
+
+@intrinsic
+def _double(typingctx, n):
+    """The double whose bits are the int64 ``n`` (the inverse of :func:`_bits`)."""
+    sig = types.float64(n)
+
+    def codegen(context, builder, signature, args):
+        return builder.bitcast(args[0], ir.DoubleType())
+
+    return sig, codegen
 
 
 @jit(None, inline=True)
@@ -54,72 +78,84 @@ def _joint(out, k, t, final, last, top, when, far):
     out[METRIC_EXCURSION + k] = far
 
 
-@jit(types.void(_r1, _a2, _a2, _a2, _r1, float64, float64[::1]))
-def variant_metrics(t, q, qd, tau, qf, band, out):
-    """One run's metrics into ``out`` (METRIC_WIDTH,): q, qd, tau (T, 3) sampled at t (T,), target qf (3,).
+@jit(types.void(_r1, _rows, _r1, float64, float64[::1]))
+def variant_metrics(t, rows, qf, band, out):
+    """One run's metrics into ``out`` (METRIC_WIDTH,): rows (9, T) q, q̇, τ sampled at t (T,), target qf (3,).
 
-    One pass over the samples, the three joints side by side (a row of q, qd and
-    tau is read once); the same operations in the same order as a pass per joint.
-    Compiled once for every caller (any layout of q, qd, tau: columns of stored runs,
-    transposed rows of a scratch run), not inlined into each.
+    A pass per joint and quantity over contiguous rows, each a loop LLVM vectorizes:
+    the last sample outside the band is the largest index that is (a max of integers),
+    the largest |q − q(t0)| and |τ| are maxima of non-negative doubles taken on their
+    bits (which order as the values do, and a nan as the largest, as numpy's max
+    does), the time of the peak its first sample. The energy's trapezoids are summed
+    in four interleaved partial sums (numpy's pairwise sum is another order; they
+    agree to round-off). Compiled once for every caller, not inlined into each.
     """
-    T = q.shape[0]
-    f0, f1, f2 = qf[0], qf[1], qf[2]
-    a0, a1, a2 = q[0, 0], q[0, 1], q[0, 2]
-    s0, s1, s2 = abs(a0 - f0), abs(a1 - f1), abs(a2 - f2)
-    if s0 == 0.0 or s1 == 0.0 or s2 == 0.0:  # starts on target: scale by the largest distance
-        z0, z1, z2 = s0 == 0.0, s1 == 0.0, s2 == 0.0
+    T = rows.shape[1]
+    for k in range(3):
+        x, e = rows[k], rows[6 + k]
+        f, a = qf[k], rows[k, 0]
+        s = abs(a - f)
+        if s == 0.0:  # starts on target: scale by the largest distance
+            for i in range(T):
+                s = max(s, abs(x[i] - f))
+        h = band * s
+        last = -1
+        far = 0
         for i in range(T):
-            if z0:
-                s0 = max(s0, abs(q[i, 0] - f0))
-            if z1:
-                s1 = max(s1, abs(q[i, 1] - f1))
-            if z2:
-                s2 = max(s2, abs(q[i, 2] - f2))
-    h0, h1, h2 = band * s0, band * s1, band * s2
-    last0 = last1 = last2 = -1
-    far0 = far1 = far2 = 0.0
-    top0 = top1 = top2 = -1.0
-    when0 = when1 = when2 = 0
-    total = 0.0
-    before = 0.0
-    for i in range(T):
-        x0, x1, x2 = q[i, 0], q[i, 1], q[i, 2]
-        if abs(x0 - f0) > h0:
-            last0 = i
-        if abs(x1 - f1) > h1:
-            last1 = i
-        if abs(x2 - f2) > h2:
-            last2 = i
-        far0 = max(far0, abs(x0 - a0))
-        far1 = max(far1, abs(x1 - a1))
-        far2 = max(far2, abs(x2 - a2))
-        e0, e1, e2 = tau[i, 0], tau[i, 1], tau[i, 2]
-        m0, m1, m2 = abs(e0), abs(e1), abs(e2)
-        if m0 > top0:
-            top0 = m0
-            when0 = i
-        if m1 > top1:
-            top1 = m1
-            when1 = i
-        if m2 > top2:
-            top2 = m2
-            when2 = i
-        power = abs(e0 * qd[i, 0]) + abs(e1 * qd[i, 1]) + abs(e2 * qd[i, 2])
-        if i > 0:
-            total += 0.5 * (power + before) * (t[i] - t[i - 1])
+            last = max(last, i if abs(x[i] - f) > h else -1)
+            far = max(far, _bits(abs(x[i] - a)))
+        top = 0
+        for i in range(T):
+            top = max(top, _bits(abs(e[i])))
+        when = T - 1
+        for i in range(T):
+            when = min(when, i if _bits(abs(e[i])) == top else T - 1)
+        _joint(out, k, t, abs(x[T - 1] - f), last, _double(top), when, _double(far))
+    qd1, qd2, qd3, e1, e2, e3 = rows[3], rows[4], rows[5], rows[6], rows[7], rows[8]
+    s0 = s1 = s2 = s3 = 0.0
+    before = abs(e1[0] * qd1[0]) + abs(e2[0] * qd2[0]) + abs(e3[0] * qd3[0])
+    i = 1
+    while i + 4 <= T:
+        p0 = abs(e1[i] * qd1[i]) + abs(e2[i] * qd2[i]) + abs(e3[i] * qd3[i])
+        p1 = abs(e1[i + 1] * qd1[i + 1]) + abs(e2[i + 1] * qd2[i + 1]) + abs(e3[i + 1] * qd3[i + 1])
+        p2 = abs(e1[i + 2] * qd1[i + 2]) + abs(e2[i + 2] * qd2[i + 2]) + abs(e3[i + 2] * qd3[i + 2])
+        p3 = abs(e1[i + 3] * qd1[i + 3]) + abs(e2[i + 3] * qd2[i + 3]) + abs(e3[i + 3] * qd3[i + 3])
+        s0 += 0.5 * (p0 + before) * (t[i] - t[i - 1])
+        s1 += 0.5 * (p1 + p0) * (t[i + 1] - t[i])
+        s2 += 0.5 * (p2 + p1) * (t[i + 2] - t[i + 1])
+        s3 += 0.5 * (p3 + p2) * (t[i + 3] - t[i + 2])
+        before = p3
+        i += 4
+    while i < T:
+        power = abs(e1[i] * qd1[i]) + abs(e2[i] * qd2[i]) + abs(e3[i] * qd3[i])
+        s0 += 0.5 * (power + before) * (t[i] - t[i - 1])
         before = power
-    _joint(out, 0, t, abs(q[T - 1, 0] - f0), last0, top0, when0, far0)
-    _joint(out, 1, t, abs(q[T - 1, 1] - f1), last1, top1, when1, far1)
-    _joint(out, 2, t, abs(q[T - 1, 2] - f2), last2, top2, when2, far2)
-    out[METRIC_ENERGY] = total
+        i += 1
+    out[METRIC_ENERGY] = (s0 + s1) + (s2 + s3)
+
+
+@jit(None, inline=True)
+def as_rows(y, tau, rows, n):
+    """rows[0:6, :n] = y[:n].T and rows[6:9, :n] = tau[:n].T: a run (T, 6), (T, 3) by rows (9, T)."""
+    for m in range(n):
+        for i in range(6):
+            rows[i, m] = y[m, i]
+        for k in range(3):
+            rows[6 + k, m] = tau[m, k]
 
 
 @jit(types.void(_r1, _r3, _r3, _r3, _r2, float64, _w2))
 def metrics(t, q, qd, tau, qf, band, out):  # noqa: ANN001, ANN201
     """Fill ``out`` (B, METRIC_WIDTH) from runs (B, T, 3) sampled at t (T,), targets qf (B, 3)."""
+    T = t.shape[0]
+    rows = np.empty((9, T))
     for b in range(q.shape[0]):
-        variant_metrics(t, q[b], qd[b], tau[b], qf[b], band, out[b])
+        for m in range(T):
+            for k in range(3):
+                rows[k, m] = q[b, m, k]
+                rows[3 + k, m] = qd[b, m, k]
+                rows[6 + k, m] = tau[b, m, k]
+        variant_metrics(t, rows, qf[b], band, out[b])
 
 
 def run(t: np.ndarray, q: np.ndarray, qd: np.ndarray, tau: np.ndarray, qf: np.ndarray, band: float):

@@ -39,6 +39,7 @@ import functools
 import itertools
 import math
 import operator
+import threading
 import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
@@ -503,20 +504,26 @@ def run_batch(
     max_steps = _max_steps(max_steps)
     plants = [_params(v) for v in _per_variant("params", params, count)]
     laws = _per_variant("controllers", controllers, count)
-    P, kinds, C = _batch_arrays(plants, laws)
-    qf = None
-    if keep == "metrics":
-        if any(law is None for law in laws):
-            raise InputError(
-                "keep='metrics' measures each variant against its controller's target qf: "
-                "give every variant a controller (or keep='final')"
-            )
-        qf = C[:, 6:9]
+    if keep == "metrics" and any(law is None for law in laws):
+        raise InputError(
+            "keep='metrics' measures each variant against its controller's target qf: "
+            "give every variant a controller (or keep='final')"
+        )
+    # The variants' arrays, filled by integrate_arrays as it goes (the first rows
+    # integrate on other threads while the rest are laid out).
+    P, kinds, C = np.empty((count, 15)), np.empty(count, dtype=np.int64), np.empty((count, 24))
+    qf = np.empty((count, 3)) if keep == "metrics" else None
+
+    def fill(a: int, b: int) -> None:
+        _fill_rows(plants, laws, P, kinds, C, a, b)
+        if qf is not None:
+            qf[a:b] = C[a:b, 6:9]
+
     Y0 = np.concatenate((q0s, qd0s), axis=1)
     method, rtol, atol, step = options.method.name, options.rtol, options.atol, options.step
     y, tau, metrics, info, t_reached, used = integrate_arrays(
         P, kinds, C, Y0, t, method, rtol, atol, step, max_steps,
-        keep=keep, qf=qf, band=band, threads=threads, detail=True,
+        keep=keep, qf=qf, band=band, threads=threads, detail=True, fill=fill,
     )  # fmt: skip
     failed = np.flatnonzero(info[:, 0] != codes.STATUS_OK)
     if failed.size:
@@ -546,30 +553,39 @@ def run_batch(
 
 
 def _batch_arrays(plants: list[Params], laws: list[Any]) -> tuple[np.ndarray, ...]:
-    """(P (B, 15), kinds (B,), C (B, 24)) of the variants, as :func:`_law` makes them one by one.
+    """(P (B, 15), kinds (B,), C (B, 24)) of the variants, as :func:`_law` makes them one by one."""
+    count = len(laws)
+    P, kinds, C = np.empty((count, 15)), np.empty(count, dtype=np.int64), np.empty((count, 24))
+    _fill_rows(plants, laws, P, kinds, C, 0, count)
+    return P, kinds, C
+
+
+def _fill_rows(
+    plants: list[Params], laws: list[Any], P: np.ndarray, kinds: np.ndarray, C: np.ndarray,
+    a: int, b: int,
+) -> None:  # fmt: skip
+    """Rows a..b of P (B, 15), kinds (B,) and C (B, 24), as :func:`_law` makes them one by one.
 
     Chapter laws are laid out column by column (the batch's preparation is serial
-    work beside the threads); other laws go through :func:`_law` one by one.
+    work, done while other threads integrate the rows before; see
+    :func:`integrate_arrays`); other laws go through :func:`_law` one by one.
     """
     from rrt_pin.control import ChapterController
     from rrt_pin.kernel import PARAM_ORDER
 
-    count = len(laws)
+    plants, laws, count = plants[a:b], laws[a:b], b - a
     if not all(type(law) is ChapterController for law in laws):
-        P = np.empty((count, 15))
-        C = np.empty((count, 24))
-        kinds = np.empty(count, dtype=np.int64)
-        for b, (plant, law) in enumerate(zip(plants, laws, strict=True)):
+        for i, (plant, law) in enumerate(zip(plants, laws, strict=True)):
             try:
-                kinds[b], C[b], P[b] = _law(law, plant)
+                kinds[a + i], C[a + i], P[a + i] = _law(law, plant)
             except InputError as e:
-                raise InputError(f"controllers[{b}]: {e}") from e
-        return P, kinds, C
+                raise InputError(f"controllers[{a + i}]: {e}") from e
+        return
     rows: dict[int, int] = {}
     unique: list[Params] = []
     which: list[int] = []
     unfolded: list[int] = []  # eq. (31) with another arm's gravity terms (see _law)
-    for b, (plant, law) in enumerate(zip(plants, laws, strict=True)):
+    for i, (plant, law) in enumerate(zip(plants, laws, strict=True)):
         k = rows.get(id(plant))
         if k is None:
             k = rows[id(plant)] = len(unique)
@@ -579,18 +595,18 @@ def _batch_arrays(plants: list[Params], laws: list[Any]) -> tuple[np.ndarray, ..
         if own is not plant and (own.g, own.m2, own.m3, own.L2) != (
             plant.g, plant.m2, plant.m3, plant.L2,
         ):  # fmt: skip
-            unfolded.append(b)
-    P = _table(map(operator.attrgetter(*PARAM_ORDER), unique), len(unique), 15)[which]
-    C = np.empty((count, 24))
-    C[:, 0:3] = _table((law.kp for law in laws), count, 3)
-    C[:, 3:6] = _table((law.kd for law in laws), count, 3)
-    C[:, 6:9] = _table((law.qf for law in laws), count, 3)
-    C[:, 9:] = P
-    kinds = np.full(count, codes.KIND_CHAPTER_FOLDED, dtype=np.int64)
-    for b in unfolded:
-        kinds[b] = codes.KIND_CHAPTER
-        C[b, 9:] = param_array(laws[b].params)
-    return P, kinds, C
+            unfolded.append(i)
+    table = _table(map(operator.attrgetter(*PARAM_ORDER), unique), len(unique), 15)
+    P[a:b] = table if len(unique) == count else table[which]
+    c = C[a:b]
+    c[:, 0:3] = _table((law.kp for law in laws), count, 3)
+    c[:, 3:6] = _table((law.kd for law in laws), count, 3)
+    c[:, 6:9] = _table((law.qf for law in laws), count, 3)
+    c[:, 9:] = P[a:b]
+    kinds[a:b] = codes.KIND_CHAPTER_FOLDED
+    for i in unfolded:
+        kinds[a + i] = codes.KIND_CHAPTER
+        c[i, 9:] = param_array(laws[i].params)
 
 
 def _table(rows: Any, count: int, width: int) -> np.ndarray:
@@ -634,6 +650,7 @@ def integrate_arrays(
     band: float = SETTLING_BAND,
     threads: int | None = 1,
     detail: bool = False,
+    fill: Callable[[int, int], None] | None = None,
 ) -> Any:
     """Run B prepared variants in machine code; failures are reported per variant, not raised.
 
@@ -657,6 +674,11 @@ def integrate_arrays(
         band: settling band of ``keep="metrics"`` (share of |q0 − qf|).
         threads: threads running slices of the batch (None: :func:`rrt_pin.cpus.threads_for`).
         detail: also return the metrics rows and the threads used.
+        fill: ``fill(a, b)`` writes rows a..b of P, kinds, C (and qf) before they are
+            integrated (then these are C-contiguous arrays of float64, int64, float64,
+            float64, and qf is given for ``keep="metrics"``). Called on this thread:
+            the first rows, then, while other threads integrate them, the rest — a
+            batch's serial preparation overlaps its integration. None: all are ready.
 
     Returns:
         ``(y, tau, info, t_reached)``: states (B, R, 6), efforts (B, R, 3), per-variant
@@ -694,57 +716,121 @@ def integrate_arrays(
 
     lanes = lanes_for(t.size, code, jit.LANES) if method_code < codes.FIXED_STEP_FROM else 1
 
-    def run(a: int, b: int) -> None:
+    def run(a: int, b: int, counter: np.ndarray) -> None:
         q = qf[a:b] if qf.shape[0] else qf
         m = metrics[a:b] if metrics.shape[0] else metrics
         if method_code < codes.FIXED_STEP_FROM:
             jit.integrate_lanes(
                 method_code, Y0[a:b], t, atol_v, rtol_v, math.inf, max_steps, P[a:b],
                 kinds[a:b], C[a:b], code, q, float(band), out_y[a:b], out_tau[a:b], m,
-                info[a:b], t_reached[a:b], lanes,
+                info[a:b], t_reached[a:b], lanes, counter,
             )  # fmt: skip
         else:
             jit.integrate_fixed(
                 method_code, Y0[a:b], t, dt, max_steps, P[a:b], kinds[a:b], C[a:b], code, q,
-                float(band), out_y[a:b], out_tau[a:b], m, info[a:b], t_reached[a:b],
+                float(band), out_y[a:b], out_tau[a:b], m, info[a:b], t_reached[a:b], counter,
             )  # fmt: skip
 
     if threads is None:
         from rrt_pin import cpus
 
         threads = cpus.threads_for(count, MIN_PER_THREAD)
-    used = _in_slices(run, count, threads, min_size=_VARIANTS_PER_LANE * lanes)
+    used = _together(run, count, threads, fill)
     if detail:
         return out_y, out_tau, (metrics if metrics.shape[0] else None), info, t_reached, used
     return out_y, out_tau, info, t_reached
 
 
-#: Slices a thread takes at a time: enough that a thread slowed by another process's
-#: work on its core hands the rest of the batch to the others, few enough that the
-#: calls (a few microseconds each) do not count.
-_SLICES_PER_THREAD = 8
-#: Variants a lane gets in a slice at least: a slice's lanes fall idle one by one as
-#: its last variants end (their vectorized loops still run), ~half a variant's time
-#: each, so a slice of 32 variants a lane wastes ~1.5 % and one of 8 ~6 %.
-_VARIANTS_PER_LANE = 32
+#: Share of a batch laid out before the other threads start (they integrate it while
+#: this thread lays out the rest): 1/8 keeps them busy while a variant's layout
+#: (~2 µs) is a tenth of its integration or less.
+_HEAD_SHARE = 8
+
+
+def _together(
+    run: Callable[[int, int, np.ndarray], None],
+    count: int,
+    threads: int,
+    fill: Callable[[int, int], None] | None = None,
+) -> int:
+    """``run(a, b, counter)`` on up to ``threads`` threads that share the items a..b.
+
+    Every thread's ``run`` takes its items from one counter (an int64 array of one
+    element), one at a time, until none is left: a thread slowed by other work on
+    its core leaves more to the others. With ``fill``, this thread calls
+    ``fill(0, head)``, lets the other threads run the head, calls ``fill(head,
+    count)`` meanwhile, then joins them on the rest. Returns the threads used.
+    """
+    threads = max(1, min(threads, count))
+    if threads == 1:
+        if fill is not None:
+            fill(0, count)
+        run(0, count, np.zeros(1, np.int64))
+        return 1
+    head = count // _HEAD_SHARE if fill is not None else 0
+    if fill is not None:
+        fill(0, head)
+    first, rest = np.zeros(1, np.int64), np.zeros(1, np.int64)
+    ready = threading.Event()
+    failed = threading.Event()
+
+    def helper() -> None:
+        if head:
+            run(0, head, first)
+        ready.wait()
+        if not failed.is_set():
+            run(head, count, rest)
+
+    helpers = [_pool(threads - 1).submit(helper) for _ in range(threads - 1)]
+    try:
+        if fill is not None:
+            fill(head, count)
+    except BaseException:
+        failed.set()
+        raise
+    finally:
+        ready.set()
+        if failed.is_set():
+            for h in helpers:
+                h.result()
+    run(head, count, rest)
+    for h in helpers:
+        h.result()
+    return threads
+
+
 _POOL: ThreadPoolExecutor | None = None
 _POOL_SIZE = 0
 
 
-def _in_slices(run: Callable[[int, int], None], count: int, threads: int, min_size: int = 1) -> int:
+def _pool(size: int) -> ThreadPoolExecutor:
+    """The batches' helper threads (at least ``size``), kept across calls."""
+    global _POOL, _POOL_SIZE
+    if _POOL is None or _POOL_SIZE < size:
+        if _POOL is not None:
+            _POOL.shutdown(wait=False)
+        _POOL = ThreadPoolExecutor(max_workers=size, thread_name_prefix="rrt-pin-batch")
+        _POOL_SIZE = size
+    return _POOL
+
+
+#: Slices a thread takes at a time in :func:`_in_slices`: enough that a thread slowed
+#: by another process's work on its core hands the rest to the others, few enough
+#: that the calls (a few microseconds each) do not count.
+_SLICES_PER_THREAD = 8
+
+
+def _in_slices(run: Callable[[int, int], None], count: int, threads: int) -> int:
     """Call ``run(a, b)`` over slices covering range(count), on up to ``threads`` threads.
 
     Threads take the next slice when done with theirs (a shared counter), so the
-    slices of a thread slowed by other work go to the others; a slice holds
-    ``min_size`` items at least (but each thread gets one). Returns the threads used.
+    slices of a thread slowed by other work go to the others. Returns the threads used.
     """
-    global _POOL, _POOL_SIZE
     threads = max(1, min(threads, count))
     if threads == 1:
         run(0, count)
         return 1
     size = max(1, -(-count // (threads * _SLICES_PER_THREAD)))
-    size = max(size, min(min_size, -(-count // threads)))
     edges = list(range(0, count, size)) + [count]
     taken = itertools.count()  # next() is atomic under the GIL: each slice runs once
 
@@ -752,12 +838,7 @@ def _in_slices(run: Callable[[int, int], None], count: int, threads: int, min_si
         while (i := next(taken)) < len(edges) - 1:
             run(edges[i], edges[i + 1])
 
-    if _POOL is None or _POOL_SIZE < threads - 1:
-        if _POOL is not None:
-            _POOL.shutdown(wait=False)
-        _POOL = ThreadPoolExecutor(max_workers=threads - 1, thread_name_prefix="rrt-pin-batch")
-        _POOL_SIZE = threads - 1
-    helpers = [_POOL.submit(worker) for _ in range(threads - 1)]
+    helpers = [_pool(threads - 1).submit(worker) for _ in range(threads - 1)]
     worker()
     for h in helpers:
         h.result()
