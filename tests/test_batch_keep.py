@@ -160,6 +160,50 @@ def test_threads_give_the_same_bits_and_are_kept(compiled):
     assert _batch(compiled, _variants(2), GRID[:51], threads=8).threads == 2
 
 
+@pytest.mark.parametrize("method", ["DOP853", "rk4"])
+def test_threads_share_a_batch_laid_out_while_it_runs(compiled, method):
+    # More variants than the first parts laid out (64, then 256 at a time): the
+    # helpers start on the first part and take the others as they are laid out.
+    from rrt_pin.compiled import integrate
+
+    count = integrate._FIRST_PART + 2 * integrate._PART + 5
+    variants = _variants(count, seed=5)
+    step = {"step": 0.01} if method == "rk4" else {}
+    runs = [
+        _batch(compiled, variants, GRID[:101], keep="metrics", method=method, threads=n, **step)
+        for n in (1, 2, 3)
+    ]
+    for r in runs[1:]:
+        np.testing.assert_array_equal(r.q, runs[0].q)
+        np.testing.assert_array_equal(r.tau, runs[0].tau)
+        for name, value in runs[0].metrics.items():
+            np.testing.assert_array_equal(r.metrics[name], value)
+    # each variant is its own single run, whichever thread took it
+    for i in (0, integrate._FIRST_PART, count - 1):
+        one = _batch(
+            compiled, tuple(v[i : i + 1] for v in variants), GRID[:101], keep="metrics",
+            method=method, threads=1, **step,
+        )  # fmt: skip
+        np.testing.assert_array_equal(one.q[0], runs[1].q[i])
+
+
+def test_a_bad_controller_laid_out_late_stops_the_threads(compiled):
+    # The third part holds a bad controller: the helpers, already running the first
+    # parts, stop; the call says which variant, and the next batch runs as usual.
+    from rrt_pin.compiled import integrate
+
+    count = integrate._FIRST_PART + 2 * integrate._PART
+    plants, laws, q0s, qd0s = _variants(count, seed=6)
+    bad = count - 3
+    laws = [*laws[:bad], object(), *laws[bad + 1 :]]
+    with pytest.raises(InputError, match=rf"^controllers\[{bad}\]: backend 'compiled' runs"):
+        compiled.simulate_batch_compiled(plants, laws, q0s, qd0s, GRID[:101], threads=2)
+    again = compiled.simulate_batch_compiled(
+        plants[:40], laws[:40], q0s[:40], qd0s[:40], GRID[:101], threads=2
+    )
+    assert again.threads == 2 and np.isfinite(again.q).all()
+
+
 @pytest.mark.parametrize(
     ("cpus", "busy", "count", "threads"),
     [(2, 0, 64, 2), (2, 1, 64, 1), (4, 1, 64, 3), (1, 0, 64, 1), (2, 0, 20, 1)],

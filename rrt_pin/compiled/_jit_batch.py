@@ -39,7 +39,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from llvmlite import ir
 from numba import float64, int64, types
 from numba.core import cgutils
 from numba.extending import intrinsic
@@ -103,24 +102,54 @@ _rivec = types.Array(int64, 1, "C", readonly=True)
 _ivec = int64[::1]
 
 
-@intrinsic
-def _take(typingctx, counter):
-    """counter[0]++, atomically, returning its value before: the next variant of a shared batch.
+def _item(context, builder, signature, args):
+    """A pointer to counter[i] (the arguments of the intrinsics below: counter, i)."""
+    array = context.make_array(signature.args[0])(context, builder, args[0])
+    return cgutils.get_item_pointer(context, builder, signature.args[0], array, [args[1]])
 
-    Every thread's call over a batch takes its variants from one counter, one at a
-    time, as its lanes fall free: no slices, no thread left idle while another
-    still has variants to start (the same bits: each variant's run is its own).
-    """
-    sig = int64(counter)
+
+@intrinsic
+def _load(typingctx, counter, i):
+    """counter[i], read anew at every call (an atomic load: never kept from a previous one)."""
+    sig = int64(counter, i)
 
     def codegen(context, builder, signature, args):
-        array = context.make_array(signature.args[0])(context, builder, args[0])
-        ptr = cgutils.get_item_pointer(
-            context, builder, signature.args[0], array, [context.get_constant(types.intp, 0)]
-        )
-        return builder.atomic_rmw("add", ptr, ir.Constant(ir.IntType(64), 1), "monotonic")
+        return builder.load_atomic(_item(context, builder, signature, args), "acquire", 8)
 
     return sig, codegen
+
+
+@intrinsic
+def _swap(typingctx, counter, i, old, new):
+    """counter[i] = new if it still holds old, atomically; whether it did."""
+    sig = types.boolean(counter, i, old, new)
+
+    def codegen(context, builder, signature, args):
+        ptr = _item(context, builder, signature, args)
+        pair = builder.cmpxchg(ptr, args[2], args[3], "acq_rel", "acquire")
+        return builder.extract_value(pair, 1)
+
+    return sig, codegen
+
+
+@jit(None, inline=True)
+def _take(counter, B):
+    """The next variant of a shared batch: b < B, or B when all are taken, -1 when none is ready.
+
+    ``counter``: [next variant, variants laid out]. Every thread's call over a batch
+    takes its variants from it, one at a time, as its lanes fall free: no slices, no
+    thread idle while another still has variants to start (the same bits: each
+    variant's run is its own). The caller lays the variants out as the threads run
+    and raises counter[1] after each part (or sets counter[0] = B to stop them).
+    """
+    while True:
+        b = _load(counter, 0)
+        if b >= B:
+            return B
+        if b >= _load(counter, 1):
+            return -1
+        if _swap(counter, 0, b, b + 1):
+            return b
 
 
 # The lanes' arrays are laid out (…, N, L), lanes last, and the loops below run over
@@ -329,8 +358,8 @@ def integrate_lanes(
 
     The arguments are ``adaptive``'s, a row per variant, and the outputs of the
     module's docstring (needs len(t_eval) >= 2). The variants are taken from
-    ``counter`` (:func:`_take`; 0 for a batch of its own, shared by the threads
-    that run one batch together). The dense output goes to a scratch
+    ``counter`` (:func:`_take`; [0, B] for a batch of its own, shared by the
+    threads that run one batch together). The dense output goes to a scratch
     run by rows (9, T) a lane (states, then efforts for the metrics); trajectories
     are copied from it when a variant ends.
     """
@@ -403,7 +432,9 @@ def integrate_lanes(
                 if var[ln] < 0:
                     if taken:
                         break
-                    b = _take(counter)
+                    b = _take(counter, B)
+                    if b < 0:  # none laid out yet: the lane waits a round
+                        break
                     if b >= B:
                         taken = True
                         break
@@ -480,7 +511,9 @@ def integrate_lanes(
             go[ln] = var[ln] >= 0
             active += go[ln]
         if active == 0:
-            break
+            if taken:
+                break
+            continue  # the variants left are being laid out: wait for them
 
         # 2. The stages of every lane's attempt (idle lanes compute on stale values),
         # 3. each lane's error estimate and step-size control (``adaptive``'s, per lane),
@@ -650,7 +683,7 @@ def integrate_fixed(
     method, y0, t_eval, dt, max_steps, p, kind, cvec, keep, qf, band, out_y, out_tau, out_m,
     info, t_reached, counter,
 ):  # fmt: skip
-    """A fixed-step method over the variants b taken from ``counter``, one after the other.
+    """A fixed-step method over the variants b taken from ``counter`` (see :func:`_take`), in turn.
 
     The outputs of ``integrate_lanes``.
 
@@ -665,9 +698,11 @@ def integrate_fixed(
     atol = np.zeros(N)
     B = y0.shape[0]
     while True:
-        b = _take(counter)
+        b = _take(counter, B)
         if b >= B:
             break
+        if b < 0:  # being laid out: wait
+            continue
         r = integrate(
             method, y0[b], t_eval, dt, atol, 0.0, math.inf, max_steps, p[b], kind[b], cvec[b],
             out_y[b] if keep == KEEP_TRAJECTORIES else sy,

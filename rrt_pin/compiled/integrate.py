@@ -716,19 +716,16 @@ def integrate_arrays(
 
     lanes = lanes_for(t.size, code, jit.LANES) if method_code < codes.FIXED_STEP_FROM else 1
 
-    def run(a: int, b: int, counter: np.ndarray) -> None:
-        q = qf[a:b] if qf.shape[0] else qf
-        m = metrics[a:b] if metrics.shape[0] else metrics
+    def run(counter: np.ndarray) -> None:
         if method_code < codes.FIXED_STEP_FROM:
             jit.integrate_lanes(
-                method_code, Y0[a:b], t, atol_v, rtol_v, math.inf, max_steps, P[a:b],
-                kinds[a:b], C[a:b], code, q, float(band), out_y[a:b], out_tau[a:b], m,
-                info[a:b], t_reached[a:b], lanes, counter,
+                method_code, Y0, t, atol_v, rtol_v, math.inf, max_steps, P, kinds, C, code, qf,
+                float(band), out_y, out_tau, metrics, info, t_reached, lanes, counter,
             )  # fmt: skip
         else:
             jit.integrate_fixed(
-                method_code, Y0[a:b], t, dt, max_steps, P[a:b], kinds[a:b], C[a:b], code, q,
-                float(band), out_y[a:b], out_tau[a:b], m, info[a:b], t_reached[a:b], counter,
+                method_code, Y0, t, dt, max_steps, P, kinds, C, code, qf, float(band), out_y,
+                out_tau, metrics, info, t_reached, counter,
             )  # fmt: skip
 
     if threads is None:
@@ -741,59 +738,64 @@ def integrate_arrays(
     return out_y, out_tau, info, t_reached
 
 
-#: Share of a batch laid out before the other threads start (they integrate it while
-#: this thread lays out the rest): 1/8 keeps them busy while a variant's layout
-#: (~2 µs) is a tenth of its integration or less.
-_HEAD_SHARE = 8
+#: Variants laid out before the other threads start, then at a time while they
+#: integrate those before: a part's layout (~1.5 µs a variant, and ~15 µs a part)
+#: is short beside its integration (≥ ~18 µs a variant), so they never wait after
+#: the first part, which is small so that they start at once.
+_FIRST_PART = 64
+_PART = 256
 
 
 def _together(
-    run: Callable[[int, int, np.ndarray], None],
+    run: Callable[[np.ndarray], None],
     count: int,
     threads: int,
     fill: Callable[[int, int], None] | None = None,
 ) -> int:
-    """``run(a, b, counter)`` on up to ``threads`` threads that share the items a..b.
+    """``run(counter)`` on up to ``threads`` threads that share the items 0..count.
 
-    Every thread's ``run`` takes its items from one counter (an int64 array of one
-    element), one at a time, until none is left: a thread slowed by other work on
-    its core leaves more to the others. With ``fill``, this thread calls
-    ``fill(0, head)``, lets the other threads run the head, calls ``fill(head,
-    count)`` meanwhile, then joins them on the rest. Returns the threads used.
+    Every thread's ``run`` takes its items from one counter (an int64 array: [next
+    item, items ready], see ``_take`` of :mod:`rrt_pin.compiled._jit_batch`), one at
+    a time, until none is left: a thread slowed by other work on its core leaves
+    more to the others. With ``fill``, this thread lays the items out part by part
+    (``fill(a, b)``), raising the count of those ready as the others run them, then
+    joins them. Returns the threads used.
     """
     threads = max(1, min(threads, count))
+    counter = np.array([0, 0 if fill is not None else count], dtype=np.int64)
     if threads == 1:
         if fill is not None:
             fill(0, count)
-        run(0, count, np.zeros(1, np.int64))
+            counter[1] = count
+        run(counter)
         return 1
-    head = count // _HEAD_SHARE if fill is not None else 0
-    if fill is not None:
-        fill(0, head)
-    first, rest = np.zeros(1, np.int64), np.zeros(1, np.int64)
-    ready = threading.Event()
-    failed = threading.Event()
+    started = threading.Event()
 
     def helper() -> None:
-        if head:
-            run(0, head, first)
-        ready.wait()
-        if not failed.is_set():
-            run(head, count, rest)
+        started.set()
+        run(counter)
 
+    done = 0
+    if fill is not None:
+        done = min(count, _FIRST_PART)
+        fill(0, done)
+        counter[1] = done
     helpers = [_pool(threads - 1).submit(helper) for _ in range(threads - 1)]
     try:
         if fill is not None:
-            fill(head, count)
+            # Let a helper take the GIL and enter the machine code (which releases it)
+            # before laying out the rest: else it waits for the GIL's switch interval.
+            started.wait()
+            while done < count:
+                end = min(count, done + _PART)
+                fill(done, end)
+                counter[1] = done = end
     except BaseException:
-        failed.set()
+        counter[0] = count  # the helpers stop taking variants
+        for h in helpers:
+            h.result()
         raise
-    finally:
-        ready.set()
-        if failed.is_set():
-            for h in helpers:
-                h.result()
-    run(head, count, rest)
+    run(counter)
     for h in helpers:
         h.result()
     return threads
