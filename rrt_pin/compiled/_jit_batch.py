@@ -31,7 +31,7 @@ What is written for variant b (``keep``, a ``KEEP_*`` code):
 
 ``info[b]`` receives (status, coordinate, n_evals, n_steps, n_rejected, n_out) and
 ``t_reached[b]`` the time reached [s]. Both functions release the GIL: threads may
-run disjoint slices of a batch at once.
+run one batch at once, taking its variants from one counter (:func:`_take`).
 """
 
 from __future__ import annotations

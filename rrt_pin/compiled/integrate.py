@@ -441,8 +441,8 @@ def simulate_batch_compiled(
               samples at every output time, computed as they are made and not kept.
               The target is each controller's ``qf`` (a controller is required).
 
-        threads: threads running slices of the batch at once (the loop releases
-            the GIL); default :func:`rrt_pin.cpus.threads_for` (the CPUs free now,
+        threads: threads sharing the batch's variants (the loop releases the GIL;
+            each takes the next variant when a lane falls free); default :func:`rrt_pin.cpus.threads_for` (the CPUs free now,
             no thread with fewer than :data:`MIN_PER_THREAD` variants). The results
             do not depend on it, bit for bit.
         band: the settling band of ``keep="metrics"`` (share of |q0 − qf|).
@@ -672,7 +672,7 @@ def integrate_arrays(
             :func:`simulate_batch_compiled`; unchecked here).
         qf: targets (B, 3) of ``keep="metrics"`` [rad, rad, m]; default C[:, 6:9].
         band: settling band of ``keep="metrics"`` (share of |q0 − qf|).
-        threads: threads running slices of the batch (None: :func:`rrt_pin.cpus.threads_for`).
+        threads: threads sharing the batch (None: :func:`rrt_pin.cpus.threads_for`).
         detail: also return the metrics rows and the threads used.
         fill: ``fill(a, b)`` writes rows a..b of P, kinds, C (and qf) before they are
             integrated (then these are C-contiguous arrays of float64, int64, float64,

@@ -312,8 +312,8 @@ def simulate_batch(
             little work, capped by ``OMP_NUM_THREADS`` (:mod:`rrt_pin.cpus`); the numbers
             do not depend on it. Pinocchio backend: OpenMP threads of
             ``pin.abaInParallel``, the free CPUs looked up again every 50 ms of the run,
-            at least 32 variants a thread; compiled backend: threads each running
-            slices of the variants.
+            at least 32 variants a thread; compiled backend: threads sharing the
+            variants, each taking the next one when it has room.
         efforts: also return the applied efforts at every output time.
         params: the arm's Params for the compiled backend: one, or one per variant.
         estimate_error: also estimate the global error of q, per variant and over
