@@ -304,6 +304,32 @@ def test_integrate_arrays_lean_rows(compiled):
     np.testing.assert_array_equal(m[:, codes.METRIC_SETTLE + 2], want["settling_time_q3"])
 
 
+def test_integrate_arrays_fills_its_rows_as_it_goes(compiled):
+    """``fill`` lays rows out during the call: the metrics' targets follow C's rows."""
+    from rrt_pin.compiled.integrate import _batch_arrays, integrate_arrays
+
+    count = 100
+    plants, laws, q0s, qd0s = _variants(count, seed=7)
+    ready = _batch_arrays(plants, laws)
+    Y0 = np.column_stack([q0s, qd0s])
+    rest = (Y0, GRID[:201], "DOP853", 1e-9, 1e-11, None)
+    want = integrate_arrays(*ready, *rest, keep="metrics", threads=2, detail=True)
+    P, kinds, C = (np.empty_like(a) for a in ready)
+    calls = []
+
+    def fill(a, b):
+        calls.append((a, b))
+        for dst, src in zip((P, kinds, C), ready, strict=True):
+            dst[a:b] = src[a:b]
+
+    got = integrate_arrays(P, kinds, C, *rest, keep="metrics", threads=2, detail=True, fill=fill)
+    assert calls[0] == (0, 64) and calls[-1][1] == count  # the first part, then the rest
+    for g, w in zip(got[:5], want[:5], strict=True):
+        np.testing.assert_array_equal(g, w)
+    with pytest.raises(ValueError, match="in place"):  # a copy would not see the rows
+        integrate_arrays(P[:, ::-1], kinds, C, *rest, threads=2, fill=fill)
+
+
 def test_batch_laws_of_another_arm_equal_single_runs(compiled):
     """The batch's column-wise preparation: folded and unfolded eq. (31) as in single runs."""
     plants, laws, q0s, qd0s = _variants(4)

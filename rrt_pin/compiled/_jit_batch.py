@@ -377,7 +377,8 @@ def integrate_lanes(
     # The arguments and the scratch below are used through borrowed views (no reference
     # counting in the loops; see rrt_pin.compiled._jit.borrow): the caller holds the
     # arguments, and keep_alive at the end holds the eight scratch arrays.
-    y0, t_eval, atol, p, kind, cvec = borrow(y0), borrow(t_eval), borrow(atol), borrow(p), borrow(kind), borrow(cvec)  # fmt: skip
+    y0, t_eval, atol = borrow(y0), borrow(t_eval), borrow(atol)
+    p, kind, cvec = borrow(p), borrow(kind), borrow(cvec)
     qf, out_y, out_tau, out_m = borrow(qf), borrow(out_y), borrow(out_tau), borrow(out_m)
     info, t_reached, counter = borrow(info), borrow(t_reached), borrow(counter)
 

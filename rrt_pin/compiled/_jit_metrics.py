@@ -80,7 +80,9 @@ def _joint(out, k, t, final, last, top, when, far):
 
 @jit(types.void(_r1, _rows, _r1, float64, float64[::1]))
 def variant_metrics(t, rows, qf, band, out):
-    """One run's metrics into ``out`` (METRIC_WIDTH,): rows (9, T) q, q̇, τ sampled at t (T,), target qf (3,).
+    """One run's metrics into ``out`` (METRIC_WIDTH,) from its rows (9, T): q, q̇, τ at t (T,).
+
+    ``qf`` (3,) is the target, ``band`` the settling band (share of |q0 − qf|).
 
     A pass per joint and quantity over contiguous rows, each a loop LLVM vectorizes:
     the last sample outside the band is the largest index that is (a max of integers),
@@ -136,7 +138,7 @@ def variant_metrics(t, rows, qf, band, out):
 
 @jit(None, inline=True)
 def as_rows(y, tau, rows, n):
-    """rows[0:6, :n] = y[:n].T and rows[6:9, :n] = tau[:n].T: a run (T, 6), (T, 3) by rows (9, T)."""
+    """rows[0:6, :n] = y[:n].T, rows[6:9, :n] = tau[:n].T: a run (T, 6), (T, 3) by rows (9, T)."""
     for m in range(n):
         for i in range(6):
             rows[i, m] = y[m, i]

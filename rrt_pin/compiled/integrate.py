@@ -442,8 +442,9 @@ def simulate_batch_compiled(
               The target is each controller's ``qf`` (a controller is required).
 
         threads: threads sharing the batch's variants (the loop releases the GIL;
-            each takes the next variant when a lane falls free); default :func:`rrt_pin.cpus.threads_for` (the CPUs free now,
-            no thread with fewer than :data:`MIN_PER_THREAD` variants). The results
+            each takes the next variant when a lane falls free); default
+            :func:`rrt_pin.cpus.threads_for` (the CPUs free now, no thread with fewer
+            than :data:`MIN_PER_THREAD` variants). The results
             do not depend on it, bit for bit.
         band: the settling band of ``keep="metrics"`` (share of |q0 − qf|).
         max_steps: step budget of each variant.
@@ -512,18 +513,12 @@ def run_batch(
     # The variants' arrays, filled by integrate_arrays as it goes (the first rows
     # integrate on other threads while the rest are laid out).
     P, kinds, C = np.empty((count, 15)), np.empty(count, dtype=np.int64), np.empty((count, 24))
-    qf = np.empty((count, 3)) if keep == "metrics" else None
-
-    def fill(a: int, b: int) -> None:
-        _fill_rows(plants, laws, P, kinds, C, a, b)
-        if qf is not None:
-            qf[a:b] = C[a:b, 6:9]
-
+    fill = functools.partial(_fill_rows, plants, laws, P, kinds, C)
     Y0 = np.concatenate((q0s, qd0s), axis=1)
     method, rtol, atol, step = options.method.name, options.rtol, options.atol, options.step
     y, tau, metrics, info, t_reached, used = integrate_arrays(
         P, kinds, C, Y0, t, method, rtol, atol, step, max_steps,
-        keep=keep, qf=qf, band=band, threads=threads, detail=True, fill=fill,
+        keep=keep, band=band, threads=threads, detail=True, fill=fill,
     )  # fmt: skip
     failed = np.flatnonzero(info[:, 0] != codes.STATUS_OK)
     if failed.size:
@@ -674,9 +669,9 @@ def integrate_arrays(
         band: settling band of ``keep="metrics"`` (share of |q0 − qf|).
         threads: threads sharing the batch (None: :func:`rrt_pin.cpus.threads_for`).
         detail: also return the metrics rows and the threads used.
-        fill: ``fill(a, b)`` writes rows a..b of P, kinds, C (and qf) before they are
-            integrated (then these are C-contiguous arrays of float64, int64, float64,
-            float64, and qf is given for ``keep="metrics"``). Called on this thread:
+        fill: ``fill(a, b)`` writes rows a..b of P, kinds and C before they are
+            integrated (then these are C-contiguous arrays of float64, int64 and
+            float64, and a ``qf`` given is ready at the call). Called on this thread:
             the first rows, then, while other threads integrate them, the rest — a
             batch's serial preparation overlaps its integration. None: all are ready.
 
@@ -699,16 +694,27 @@ def integrate_arrays(
     else:
         out_y, out_tau = out[0][:count, :rows], out[1][:count, :rows]
     metrics = np.empty((count if code == codes.KEEP_METRICS else 0, codes.METRIC_WIDTH))
-    if qf is None:
-        qf = C[:, 6:9] if code == codes.KEEP_METRICS else np.empty((0, 3))
     info = np.zeros((count, 6), dtype=np.int64)
     t_reached = np.zeros(count)
     f8 = np.float64
     Y0 = np.ascontiguousarray(Y0, dtype=f8)
+    given = (P, kinds, C)
     P = np.ascontiguousarray(P, dtype=f8)
     kinds = np.ascontiguousarray(kinds, dtype=np.int64)
     C = np.ascontiguousarray(C, dtype=f8)
-    qf = np.ascontiguousarray(qf, dtype=f8)
+    if fill is not None and any(a is not b for a, b in zip(given, (P, kinds, C), strict=True)):
+        raise ValueError("fill writes P, kinds, C in place: give C-contiguous float64/int64 arrays")
+    if qf is None and code == codes.KEEP_METRICS:
+        if fill is not None:  # the targets are C's columns 6:9, copied as they are laid out
+            qf, lay_out = np.empty((count, 3)), fill
+
+            def fill(a: int, b: int) -> None:
+                lay_out(a, b)
+                qf[a:b] = C[a:b, 6:9]
+
+        else:
+            qf = C[:, 6:9]
+    qf = np.ascontiguousarray(qf if qf is not None else np.empty((0, 3)), dtype=f8)
     method_code = methods.get(method).code
     dt = step if step is not None else 0.0
     atol_v = _atol_vector(atol)
