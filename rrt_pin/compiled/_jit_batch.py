@@ -43,7 +43,7 @@ from numba import float64, int64, types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
-from rrt_pin.compiled._jit import borrow, jit, keep_alive
+from rrt_pin.compiled._jit import borrow, jit, keep_alive, wide_vectors
 from rrt_pin.compiled._jit_dynamics import (
     SINCOS_LIMIT,
     accelerations,
@@ -319,6 +319,7 @@ def _finish(b, ln, r, keep, t_eval, p, kind, cvec, qf, band, out_y, out_tau, out
     Compiled on its own (a variant ends at one of five places). Trajectories
     are copied from the lane's rows; metrics come from its rows (efforts added).
     """
+    wide_vectors()
     T = t_eval.shape[0]
     if keep == KEEP_METRICS:
         if r[0] == STATUS_OK:
@@ -363,6 +364,7 @@ def integrate_lanes(
     run by rows (9, T) a lane (states, then efforts for the metrics); trajectories
     are copied from it when a variant ends.
     """
+    wide_vectors()
     B = y0.shape[0]
     if B == 0:
         return

@@ -20,7 +20,7 @@ from llvmlite import ir
 from numba import float64, types
 from numba.extending import intrinsic
 
-from rrt_pin.compiled._jit import jit, warn_problems
+from rrt_pin.compiled._jit import jit, warn_problems, wide_vectors
 from rrt_pin.compiled.codes import (
     METRIC_ENERGY,
     METRIC_EXCURSION,
@@ -33,7 +33,7 @@ from rrt_pin.compiled.codes import (
 
 __all__ = ["as_rows", "metrics", "run", "variant_metrics"]
 
-_r1 = types.Array(float64, 1, "A", readonly=True)
+_c1 = types.Array(float64, 1, "C", readonly=True)
 _r2 = types.Array(float64, 2, "C", readonly=True)
 _r3 = types.Array(float64, 3, "A", readonly=True)
 _w2 = float64[:, ::1]
@@ -78,62 +78,84 @@ def _joint(out, k, t, final, last, top, when, far):
     out[METRIC_EXCURSION + k] = far
 
 
-@jit(types.void(_r1, _rows, _r1, float64, float64[::1]))
+#: Partial sums of the energy's trapezoids (two vectors of 8 doubles: independent chains).
+_SUMS = 16
+
+
+@jit(types.void(_c1, _rows, _c1, float64, float64[::1]))
 def variant_metrics(t, rows, qf, band, out):
     """One run's metrics into ``out`` (METRIC_WIDTH,) from its rows (9, T): q, q̇, τ at t (T,).
 
     ``qf`` (3,) is the target, ``band`` the settling band (share of |q0 − qf|).
 
-    A pass per joint and quantity over contiguous rows, each a loop LLVM vectorizes:
-    the last sample outside the band is the largest index that is (a max of integers),
-    the largest |q − q(t0)| and |τ| are maxima of non-negative doubles taken on their
-    bits (which order as the values do, and a nan as the largest, as numpy's max
-    does), the time of the peak its first sample. The energy's trapezoids are summed
-    in four interleaved partial sums (numpy's pairwise sum is another order; they
-    agree to round-off). Compiled once for every caller, not inlined into each.
+    One pass over the nine rows (they are read from the L2 cache once, not a pass
+    per quantity) in a loop LLVM vectorizes: the last sample outside the band is
+    the largest index that is (a max of integers), the largest |q − q(t0)| and |τ|
+    are maxima of non-negative doubles taken on their bits (which order as the
+    values do, and a nan as the largest, as numpy's max does), and the power
+    |τ·q̇| of each sample goes to a scratch row; then the time of each peak (its
+    first sample) and the energy's trapezoids, summed in 16 interleaved partial
+    sums (numpy's pairwise sum is another order; they agree to round-off).
+    Compiled once for every caller, not inlined into each.
     """
+    wide_vectors()
     T = rows.shape[1]
-    for k in range(3):
-        x, e = rows[k], rows[6 + k]
-        f, a = qf[k], rows[k, 0]
-        s = abs(a - f)
-        if s == 0.0:  # starts on target: scale by the largest distance
-            for i in range(T):
-                s = max(s, abs(x[i] - f))
-        h = band * s
-        last = -1
-        far = 0
+    x1, x2, x3, v1, v2, v3 = rows[0], rows[1], rows[2], rows[3], rows[4], rows[5]
+    e1, e2, e3 = rows[6], rows[7], rows[8]
+    f1, f2, f3 = qf[0], qf[1], qf[2]
+    a1, a2, a3 = x1[0], x2[0], x3[0]
+    s1, s2, s3 = abs(a1 - f1), abs(a2 - f2), abs(a3 - f3)
+    if s1 == 0.0 or s2 == 0.0 or s3 == 0.0:  # starts on target: scale by the largest distance
+        z1 = z2 = z3 = 0.0
         for i in range(T):
-            last = max(last, i if abs(x[i] - f) > h else -1)
-            far = max(far, _bits(abs(x[i] - a)))
-        top = 0
-        for i in range(T):
-            top = max(top, _bits(abs(e[i])))
-        when = T - 1
-        for i in range(T):
-            when = min(when, i if _bits(abs(e[i])) == top else T - 1)
-        _joint(out, k, t, abs(x[T - 1] - f), last, _double(top), when, _double(far))
-    qd1, qd2, qd3, e1, e2, e3 = rows[3], rows[4], rows[5], rows[6], rows[7], rows[8]
-    s0 = s1 = s2 = s3 = 0.0
-    before = abs(e1[0] * qd1[0]) + abs(e2[0] * qd2[0]) + abs(e3[0] * qd3[0])
-    i = 1
-    while i + 4 <= T:
-        p0 = abs(e1[i] * qd1[i]) + abs(e2[i] * qd2[i]) + abs(e3[i] * qd3[i])
-        p1 = abs(e1[i + 1] * qd1[i + 1]) + abs(e2[i + 1] * qd2[i + 1]) + abs(e3[i + 1] * qd3[i + 1])
-        p2 = abs(e1[i + 2] * qd1[i + 2]) + abs(e2[i + 2] * qd2[i + 2]) + abs(e3[i + 2] * qd3[i + 2])
-        p3 = abs(e1[i + 3] * qd1[i + 3]) + abs(e2[i + 3] * qd2[i + 3]) + abs(e3[i + 3] * qd3[i + 3])
-        s0 += 0.5 * (p0 + before) * (t[i] - t[i - 1])
-        s1 += 0.5 * (p1 + p0) * (t[i + 1] - t[i])
-        s2 += 0.5 * (p2 + p1) * (t[i + 2] - t[i + 1])
-        s3 += 0.5 * (p3 + p2) * (t[i + 3] - t[i + 2])
-        before = p3
-        i += 4
-    while i < T:
-        power = abs(e1[i] * qd1[i]) + abs(e2[i] * qd2[i]) + abs(e3[i] * qd3[i])
-        s0 += 0.5 * (power + before) * (t[i] - t[i - 1])
-        before = power
+            z1 = max(z1, abs(x1[i] - f1))
+            z2 = max(z2, abs(x2[i] - f2))
+            z3 = max(z3, abs(x3[i] - f3))
+        s1 = z1 if s1 == 0.0 else s1
+        s2 = z2 if s2 == 0.0 else s2
+        s3 = z3 if s3 == 0.0 else s3
+    h1, h2, h3 = band * s1, band * s2, band * s3
+    power = np.empty(T)
+    last1 = last2 = last3 = -1
+    far1 = far2 = far3 = 0
+    top1 = top2 = top3 = 0
+    for i in range(T):
+        last1 = max(last1, i if abs(x1[i] - f1) > h1 else -1)
+        last2 = max(last2, i if abs(x2[i] - f2) > h2 else -1)
+        last3 = max(last3, i if abs(x3[i] - f3) > h3 else -1)
+        far1 = max(far1, _bits(abs(x1[i] - a1)))
+        far2 = max(far2, _bits(abs(x2[i] - a2)))
+        far3 = max(far3, _bits(abs(x3[i] - a3)))
+        top1 = max(top1, _bits(abs(e1[i])))
+        top2 = max(top2, _bits(abs(e2[i])))
+        top3 = max(top3, _bits(abs(e3[i])))
+        power[i] = abs(e1[i] * v1[i]) + abs(e2[i] * v2[i]) + abs(e3[i] * v3[i])
+    when1 = when2 = when3 = T - 1
+    for i in range(T):
+        when1 = min(when1, i if _bits(abs(e1[i])) == top1 else T - 1)
+        when2 = min(when2, i if _bits(abs(e2[i])) == top2 else T - 1)
+        when3 = min(when3, i if _bits(abs(e3[i])) == top3 else T - 1)
+    _joint(out, 0, t, abs(x1[T - 1] - f1), last1, _double(top1), when1, _double(far1))
+    _joint(out, 1, t, abs(x2[T - 1] - f2), last2, _double(top2), when2, _double(far2))
+    _joint(out, 2, t, abs(x3[T - 1] - f3), last3, _double(top3), when3, _double(far3))
+    n = T - 1  # trapezoids, in place: power[i] becomes the one of [t_i, t_i+1]
+    for i in range(n):
+        power[i] = 0.5 * (power[i + 1] + power[i]) * (t[i + 1] - t[i])
+    sums = np.zeros(_SUMS)
+    i = 0
+    while i + _SUMS <= n:
+        for j in range(_SUMS):
+            sums[j] += power[i + j]
+        i += _SUMS
+    while i < n:
+        sums[0] += power[i]
         i += 1
-    out[METRIC_ENERGY] = (s0 + s1) + (s2 + s3)
+    width = _SUMS // 2
+    while width >= 1:
+        for j in range(width):
+            sums[j] += sums[j + width]
+        width //= 2
+    out[METRIC_ENERGY] = sums[0]
 
 
 @jit(None, inline=True)
@@ -146,7 +168,7 @@ def as_rows(y, tau, rows, n):
             rows[6 + k, m] = tau[m, k]
 
 
-@jit(types.void(_r1, _r3, _r3, _r3, _r2, float64, _w2))
+@jit(types.void(_c1, _r3, _r3, _r3, _r2, float64, _w2))
 def metrics(t, q, qd, tau, qf, band, out):  # noqa: ANN001, ANN201
     """Fill ``out`` (B, METRIC_WIDTH) from runs (B, T, 3) sampled at t (T,), targets qf (B, 3)."""
     T = t.shape[0]
@@ -166,7 +188,7 @@ def run(t: np.ndarray, q: np.ndarray, qd: np.ndarray, tau: np.ndarray, qf: np.nd
     f8 = np.float64
     out = np.empty((q.shape[0], METRIC_WIDTH))
     metrics(
-        np.asarray(t, f8), np.asarray(q, f8), np.asarray(qd, f8), np.asarray(tau, f8),
+        np.ascontiguousarray(t, f8), np.asarray(q, f8), np.asarray(qd, f8), np.asarray(tau, f8),
         np.ascontiguousarray(qf, f8), float(band), out,
     )  # fmt: skip
     return out
