@@ -71,6 +71,7 @@ from rrt_pin.compiled._jit_integrators import (
     fill_efforts_rows,
     first_step,
     integrate,
+    samples_until,
     tableau,
 )
 from rrt_pin.compiled._jit_metrics import as_rows, variant_metrics
@@ -648,10 +649,7 @@ def integrate_lanes(
                 if dop853:
                     n_evals[ln] += 16 - (n_stages + 1)
                 start = i_out[ln]
-                end = start
-                tn = t_new[ln]
-                while end < T and t_eval[end] <= tn:
-                    end += 1
+                end = samples_until(t_eval, start, t_new[ln])
                 _dense_rows(
                     dop853, FL[:, :, ln], Y[:, ln], t_eval, tl, hl, start, end, rows[ln], xs
                 )

@@ -329,6 +329,25 @@ def dense_rk45(F, y, t_eval, t, h, start, end, out_y):
 
 
 @jit(None, inline=True)
+def samples_until(t_eval, start, t):
+    """The first index >= start whose time is after ``t``, or len(t_eval): the samples a step covers.
+
+    A binary search without branches on the comparisons (``t_eval`` increases): a
+    step covers tens of samples, which a scan took one mispredicted exit and a load
+    an index to find.
+    """
+    lo = start
+    n = t_eval.shape[0] - start
+    while n > 0:
+        half = n // 2
+        mid = lo + half
+        before = t_eval[mid] <= t
+        lo = mid + 1 if before else lo
+        n = n - half - 1 if before else half
+    return lo
+
+
+@jit(None, inline=True)
 def _step_fractions(t_eval, t, h, start, end, xs):
     """xs[m] = (t_eval[start + m] − t) / h, the samples' fractions of the step (views from 0)."""
     te = t_eval[start:end]
@@ -597,9 +616,7 @@ def adaptive(method, y0, t_eval, atol, rtol, max_step, max_steps, p_arr, kind, c
                         if pjr != 0.0:
                             for i in range(N):
                                 F[r, i] += K[j, i] * pjr
-            end = i_out
-            while end < n_out and t_eval[end] <= t_new:
-                end += 1
+            end = samples_until(t_eval, i_out, t_new)
             if dop853:
                 dense_dop853(F, y, t_eval, t, h, i_out, end, out_y)
             else:
