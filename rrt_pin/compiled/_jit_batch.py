@@ -58,6 +58,7 @@ from rrt_pin.compiled._jit_integrators import (
     D8_D,
     D8_E3,
     D8_E5,
+    DENSE_PAD,
     MAX_FACTOR,
     MIN_FACTOR,
     RK45_C,
@@ -419,9 +420,10 @@ def integrate_lanes(
     own_lanes = np.zeros((25 + NC, L))  # each lane's inverse_constants, parameters, controller
     lanes_p = borrow(own_lanes)
     KC, PL, CL = lanes_p[0:10], lanes_p[10:25], lanes_p[25:]
-    own_rows = np.empty((L, 9, T if dense else 0))
+    # rows: a lane's run, (9, T + DENSE_PAD): see dense_dop853_rows; xs: finite from the start
+    own_rows = np.empty((L, 9, T + DENSE_PAD if dense else 0))
     rows = borrow(own_rows)
-    own_xs = np.empty(T if dense else 0)
+    own_xs = np.zeros(T + DENSE_PAD if dense else 0)
     xs = borrow(own_xs)
     own_small = np.empty((5, N))
     small = borrow(own_small)

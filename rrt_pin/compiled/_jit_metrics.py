@@ -84,7 +84,7 @@ _SUMS = 16
 
 @jit(types.void(_c1, _rows, _c1, float64, float64[::1]))
 def variant_metrics(t, rows, qf, band, out):
-    """One run's metrics into ``out`` (METRIC_WIDTH,) from its rows (9, T): q, q̇, τ at t (T,).
+    """One run's metrics into ``out`` (METRIC_WIDTH,) from its rows (9, ≥ T): q, q̇, τ at t (T,).
 
     ``qf`` (3,) is the target, ``band`` the settling band (share of |q0 − qf|).
 
@@ -99,7 +99,7 @@ def variant_metrics(t, rows, qf, band, out):
     Compiled once for every caller, not inlined into each.
     """
     wide_vectors()
-    T = rows.shape[1]
+    T = t.shape[0]
     x1, x2, x3, v1, v2, v3 = rows[0], rows[1], rows[2], rows[3], rows[4], rows[5]
     e1, e2, e3 = rows[6], rows[7], rows[8]
     f1, f2, f3 = qf[0], qf[1], qf[2]
