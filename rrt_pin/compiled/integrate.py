@@ -611,7 +611,7 @@ def _table(rows: Any, count: int, width: int) -> np.ndarray:
 
 
 #: Bytes a thread's lanes may hold in scratch runs (9 values an output time a lane,
-#: unless only final states are kept): 16 lanes up to ~14,000 output times, fewer
+#: unless only final states are kept): 32 lanes up to ~7,000 output times, fewer
 #: beyond, one at 233,000 (one variant at a time kept 9 × T values).
 LANE_SCRATCH_BYTES = 16 * 2**20
 
