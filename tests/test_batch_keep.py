@@ -137,7 +137,7 @@ def test_compiled_metrics_treat_non_finite_samples_as_numpy_does(compiled):
     got = batch_metrics(GROUPS, t, q, qd, tau, qf, *NAMES, compiled=True)
     assert np.isnan(want["peak_effort_T12y"][0]) and np.isnan(want["excursion_q3"][1])
     for name, value in want.items():
-        if name == "control_energy":  # numpy sums pairwise, the pass in four partial sums
+        if name == "control_energy":  # numpy sums pairwise, the pass in 16 partial sums
             np.testing.assert_allclose(got[name], value, rtol=1e-14)
         else:
             np.testing.assert_array_equal(got[name], value, err_msg=name)

@@ -407,3 +407,22 @@ def test_passive_motion_keeps_its_energy(compiled, seed_params):
     energy = kinetic + potential
     assert np.ptp(energy) < 1e-8 * np.abs(energy).max()
     np.testing.assert_array_equal(res.tau, 0.0)
+
+
+def test_samples_until_is_the_scan_it_replaces(compiled):
+    # The dense output's binary search must give what the scan gave: the first
+    # index >= start whose time is after t (len when none), on any increasing grid.
+    from rrt_pin.compiled._jit_integrators import samples_until
+
+    rng = np.random.default_rng(5)
+    for size in (1, 2, 3, 8, 31, 1501):
+        grid = np.cumsum(rng.uniform(0.001, 0.1, size))
+        grid[size // 2 :] = np.round(grid[size // 2 :], 2)  # some ties with t below
+        grid = np.unique(grid)
+        for _ in range(40):
+            start = int(rng.integers(0, grid.size + 1))
+            t = float(rng.choice([*grid, *rng.uniform(grid[0] - 0.1, grid[-1] + 0.1, 3)]))
+            end = start
+            while end < grid.size and grid[end] <= t:
+                end += 1
+            assert samples_until(grid, start, t) == end, (size, start, t)
