@@ -333,8 +333,8 @@ def samples_until(t_eval, start, t):
     """The first index >= start whose time is after ``t``, or len(t_eval): the samples a step covers.
 
     A binary search without branches on the comparisons (``t_eval`` increases): a
-    step covers tens of samples, which a scan took one mispredicted exit and a load
-    an index to find.
+    step covers tens of samples, and a scan paid a load and a compare for each (in
+    the lanes' loop, also reloads of pointers spilled to the stack).
     """
     lo = start
     n = t_eval.shape[0] - start
