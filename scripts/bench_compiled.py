@@ -316,7 +316,7 @@ def seed_variants(count: int, seed: int = 7):
     return plants, controllers, q0s, np.zeros((count, 3))
 
 
-def ceiling_funcs(seconds: float = 0.02) -> dict[int, Callable[[], object]]:
+def vector_reference_funcs(seconds: float = 0.02) -> dict[int, Callable[[], object]]:
     """Pure vector arithmetic on 1 and on 2 threads (the same work): the machine's reference.
 
     A multiply-add over three arrays that stay in each core's L1 cache, compiled
@@ -380,9 +380,9 @@ def section_batch(count: int, repeat: int, lean_rtol: float, lean_atol: float) -
                 keep, threads, rtol
             )
     results = {k: f() for k, f in funcs.items()}
-    ceiling = "pure vector arithmetic (the machine's reference)"
-    for threads, f in ceiling_funcs().items():
-        funcs[(ceiling, threads)] = f
+    vector_label = "pure vector arithmetic (the machine's vector_label)"
+    for threads, f in vector_reference_funcs().items():
+        funcs[(vector_label, threads)] = f
     from rrt_pin import cpus
 
     busy_before, load_before = cpus.busy(), os.getloadavg()[0]
@@ -400,7 +400,7 @@ def section_batch(count: int, repeat: int, lean_rtol: float, lean_atol: float) -
             for i in checked}  # fmt: skip
     print(
         f"\n4. batch: {count} chapter variants (gains, q0, masses), 0..15 s, 1,501 output "
-        f"times, DOP853; error = max |q - reference| over variants {checked} "
+        f"times, DOP853; error = max |q - vector_label| over variants {checked} "
         f"(at every output time for trajectories and metrics, at 15 s for final states)"
     )
     print(
@@ -428,10 +428,10 @@ def section_batch(count: int, repeat: int, lean_rtol: float, lean_atol: float) -
             f"{label:<44} {one:>12.3f} {count / one:>8,.0f} {two:>13.3f} "
             f"{count / two / 2:>11,.0f} {efficiency[label]:>9.0%} {err:>8.1e}"
         )
-    pairs = zip(samples[(ceiling, 1)], samples[(ceiling, 2)], strict=True)
+    pairs = zip(samples[(vector_label, 1)], samples[(vector_label, 2)], strict=True)
     machine = statistics.median(a / (2 * b) for a, b in pairs)
     print(
-        f"   {ceiling}: {machine:.0%} efficiency in the same rounds (a multiply-add in each "
+        f"   {vector_label}: {machine:.0%} efficiency in the same rounds (a multiply-add in each "
         f"core's L1 cache, nothing shared: what the CPUs give two threads that fill their "
         f"vector units now)"
     )
