@@ -380,7 +380,7 @@ def section_batch(count: int, repeat: int, lean_rtol: float, lean_atol: float) -
                 keep, threads, rtol
             )
     results = {k: f() for k, f in funcs.items()}
-    vector_label = "pure vector arithmetic (the machine's vector_label)"
+    vector_label = "pure vector arithmetic (the machine's reference)"
     for threads, f in vector_reference_funcs().items():
         funcs[(vector_label, threads)] = f
     from rrt_pin import cpus
