@@ -78,7 +78,7 @@ def _joint(out, k, t, final, last, top, when, far):
     out[METRIC_EXCURSION + k] = far
 
 
-#: Partial sums of the energy's trapezoids (two vectors of 8 doubles: independent chains).
+#: Partial sums of the energy's trapezoids (independent chains of additions).
 _SUMS = 16
 
 
@@ -88,8 +88,8 @@ def variant_metrics(t, rows, qf, band, out):
 
     ``qf`` (3,) is the target, ``band`` the settling band (share of |q0 − qf|).
 
-    One pass over the nine rows (they are read from the L2 cache once, not a pass
-    per quantity) in a loop LLVM vectorizes: the last sample outside the band is
+    One pass over the nine rows (each read from the caches once, not once per
+    quantity) in a loop LLVM vectorizes: the last sample outside the band is
     the largest index that is (a max of integers), the largest |q − q(t0)| and |τ|
     are maxima of non-negative doubles taken on their bits (which order as the
     values do, and a nan as the largest, as numpy's max does), and the power
