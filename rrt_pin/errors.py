@@ -53,7 +53,9 @@ class DivergenceError(RrtPinError, ArithmeticError):
 
     The message says "diverged" for a non-finite state and "stopped" for an
     integrator that gave up (step size underflow, work budget spent, tolerances
-    float64 cannot meet).
+    float64 cannot meet). The message prints ``t`` to 6 significant digits: the
+    last digits of a time found by an integrator differ between CPUs; ``t`` holds
+    the exact value.
 
     Attributes:
         t: the time at which it happened [s].
@@ -63,7 +65,7 @@ class DivergenceError(RrtPinError, ArithmeticError):
     def __init__(self, t: float, coordinate: str, problem: str, verb: str = "diverged") -> None:
         self.t = t
         self.coordinate = coordinate
-        super().__init__(f"simulation {verb} at t={t:.9g} s in {coordinate}: {problem}")
+        super().__init__(f"simulation {verb} at t={t:.6g} s in {coordinate}: {problem}")
 
 
 class ViewerError(RrtPinError, RuntimeError):
