@@ -14,15 +14,29 @@ numbers/s), used for blocks holding a non-finite value (orjson would write
 from __future__ import annotations
 
 import io
+import re
 from collections.abc import Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from rrt_pin._read import read_text_capped
 from rrt_pin.errors import InputError
 from rrt_pin.io import atomic_write
 
-__all__ = ["ENGINES", "csv_block", "csv_bytes", "csv_engine", "csv_text", "read_csv", "write_csv"]
+__all__ = [
+    "ENGINES",
+    "MAX_CSV_BYTES",
+    "CsvTable",
+    "csv_block",
+    "csv_bytes",
+    "csv_engine",
+    "csv_text",
+    "read_csv",
+    "read_csv_table",
+    "write_csv",
+]
 
 #: The formatters, fastest first.
 ENGINES = ("orjson", "repr")
@@ -92,47 +106,166 @@ def write_csv(path: str | Path, header: Sequence[str], data: np.ndarray) -> Path
     return atomic_write(path, lambda fh: fh.write(text))
 
 
+#: The largest CSV :func:`read_csv` reads [bytes] (``/dev/zero`` fails at once).
+MAX_CSV_BYTES = 1 << 30
+
+# A number as we read it: a decimal (``1``, ``-2.5``, ``.5``, ``1e-3``), ``inf`` or ``nan``.
+_NUMBER = re.compile(
+    r"[+-]?(?:(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?|inf|infinity|nan)", re.IGNORECASE
+)
+
+
+@dataclass(frozen=True)
+class CsvTable:
+    """A CSV read by :func:`read_csv_table`: its columns, its numbers and where each row was.
+
+    Attributes:
+        path: the file, as given.
+        header: the column names (line 1).
+        data: the numbers, shape (rows, columns).
+        lines: the line of each row as a text editor numbers it (the header is
+            line 1; blank lines are skipped, so rows and lines may differ), shape (rows,).
+    """
+
+    path: str
+    header: list[str]
+    data: np.ndarray
+    lines: np.ndarray
+    _text: str = field(default="", repr=False, compare=False)
+
+    def where(self, row: int, column: int | str) -> str:
+        """``CSV 'path' line L, column 'c'`` for row ``row`` (0-based) of ``column``."""
+        name = column if isinstance(column, str) else self.header[column]
+        return f"{_name(self.path)} line {int(self.lines[row])}, column {name!r}"
+
+    def value_text(self, row: int, column: int | str) -> str:
+        """The text of a value as the file has it (stripped), for messages."""
+        index = column if isinstance(column, int) else self.header.index(column)
+        line = _line(self._text, int(self.lines[row]))
+        fields = line.split(",")
+        return fields[index].strip() if index < len(fields) else ""
+
+
+def _name(path: str) -> str:
+    return f"CSV {path!r}"
+
+
+def _shown(text: str, limit: int = 40) -> str:
+    """``text`` quoted for a message, cut to ``limit`` characters."""
+    return repr(text if len(text) <= limit else text[: limit - 1] + "…")
+
+
+def _line(text: str, number: int) -> str:
+    """Line ``number`` (1-based) of ``text`` (whose lines end in a newline)."""
+    start = 0
+    for _ in range(number - 1):
+        start = text.index("\n", start) + 1
+    end = text.find("\n", start)
+    return text[start:] if end < 0 else text[start:end]
+
+
 def read_csv(path: str | Path, required: Sequence[str] = ()) -> tuple[list[str], np.ndarray]:
-    """Read a CSV written by :func:`write_csv` (or any numeric CSV with a header).
+    """The header and numbers of a CSV (see :func:`read_csv_table`)."""
+    table = read_csv_table(path, required)
+    return table.header, table.data
+
+
+def read_csv_table(path: str | Path, required: Sequence[str] = ()) -> CsvTable:
+    """Read a CSV written by :func:`write_csv` (or any numeric CSV with a header line).
+
+    The first line names the columns; every other line holds one number per
+    column, separated by commas (``nan`` and ``inf`` are read, then refused).
+    Blank lines are skipped; Windows line ends and a UTF-8 byte-order mark
+    are accepted. Every error names the file, the line as a text editor numbers
+    it (the header is line 1), the column and the value.
+
+    Args:
+        path: the file, at most :data:`MAX_CSV_BYTES`.
+        required: columns the file must have.
 
     Raises:
-        InputError: the file cannot be read, a required column is missing, a
-            value is not a number, or a value is not finite.
+        InputError: the file cannot be read or is not UTF-8; the header is
+            empty, names a column twice or lacks a required one; a line has too
+            few or too many values; a value is missing, not a number, or not finite.
     """
-    path = Path(path)
-    try:
-        with open(path, encoding="utf-8-sig") as fh:  # a UTF-8 BOM is not part of the name
-            header = [h.strip() for h in fh.readline().strip().split(",")]
-            rows = fh.read()
-    except OSError as e:
-        raise InputError(f"cannot read CSV {str(path)!r}: {e.strerror}") from e
-    except UnicodeDecodeError as e:
-        raise InputError(f"CSV {str(path)!r} is not UTF-8 text") from e
+    name = str(path)
+    text = read_text_capped(path, cap=MAX_CSV_BYTES, what="CSV", error=InputError)
+    if "\r" in text:
+        text = text.replace("\r\n", "\n").replace("\r", "\n")
+    first, _, rows = text.partition("\n")
+    header = [h.strip() for h in first.split(",")]
+    if header == [""]:
+        raise InputError(f"{_name(name)} is empty: line 1 must name the columns")
     seen: set[str] = set()
-    for name in header:
-        if name in seen:
-            raise InputError(f"CSV {str(path)!r} names column {name!r} twice")
-        seen.add(name)
+    for k, column in enumerate(header):
+        if not column:
+            raise InputError(f"{_name(name)} line 1: column {k + 1} has no name")
+        if column in seen:
+            raise InputError(f"{_name(name)} line 1 names column {column!r} twice")
+        seen.add(column)
     missing = [c for c in required if c not in header]
     if missing:
         raise InputError(
-            f"CSV {str(path)!r} lacks column {missing[0]!r}; it has {','.join(header)}"
+            f"{_name(name)} lacks column {missing[0]!r}; line 1 names {_shown(','.join(header), 80)}"
         )
-    if not rows.strip():
-        raise InputError(f"CSV {str(path)!r} has no data rows")
-    try:
-        data = np.loadtxt(io.StringIO(rows), delimiter=",", ndmin=2)
-    except ValueError as e:
-        raise InputError(f"CSV {str(path)!r}: {str(e).splitlines()[0]}") from e
-    if data.size == 0:
-        raise InputError(f"CSV {str(path)!r} has no data rows")
-    if data.shape[1] != len(header):
-        raise InputError(f"CSV {str(path)!r}: {data.shape[1]} columns but {len(header)} names")
+    data = None
+    if rows.strip():
+        try:
+            data = np.loadtxt(io.StringIO(rows), delimiter=",", ndmin=2, comments=None)
+        except ValueError:
+            pass  # the slow reader below says where and what
+    if data is None or data.shape[1] != len(header):
+        data, lines = _read_rows(name, header, rows)
+    else:
+        lines = _row_lines(rows, data.shape[0])
+    if data.shape[0] == 0:
+        raise InputError(f"{_name(name)} has no data rows (only the header, line 1)")
+    table = CsvTable(path=name, header=header, data=data, lines=lines, _text=text)
     bad = ~np.isfinite(data)
     if bad.any():
-        r, c = np.argwhere(bad)[0]
+        r, c = (int(i) for i in np.argwhere(bad)[0])
         raise InputError(
-            f"CSV {str(path)!r}: non-finite value {float(data[r, c])!r} in column "
-            f"{header[c]!r}, row {r + 2}"
+            f"{table.where(r, c)}: {_shown(table.value_text(r, c))} is not a finite number"
         )
-    return header, data
+    return table
+
+
+def _row_lines(rows: str, n: int) -> np.ndarray:
+    """The line numbers of the ``n`` non-blank lines of ``rows`` (which start on line 2)."""
+    count = rows.count("\n") + (0 if rows.endswith("\n") or not rows else 1)
+    if count == n:  # no blank line
+        return np.arange(2, n + 2)
+    return np.array([k for k, line in enumerate(rows.split("\n"), start=2) if line.strip()][:n])
+
+
+def _read_rows(name: str, header: list[str], rows: str) -> tuple[np.ndarray, np.ndarray]:
+    """Parse ``rows`` value by value; raise at the first bad one, naming its line and column."""
+    values: list[float] = []
+    lines: list[int] = []
+    width = len(header)
+    for number, line in enumerate(rows.split("\n"), start=2):
+        if not line.strip():
+            continue
+        fields = line.split(",")
+        where = f"{_name(name)} line {number}"
+        if len(fields) > width:
+            extra = fields[width].strip()
+            what = f"an extra value {_shown(extra)}" if extra else "an extra comma"
+            raise InputError(
+                f"{where} has {len(fields)} fields but line 1 names {width} columns: "
+                f"{what} follows the last column {header[-1]!r}"
+            )
+        for k, word in enumerate(fields):
+            word = word.strip()
+            if not word:
+                raise InputError(f"{where}, column {header[k]!r}: the value is missing")
+            if not _NUMBER.fullmatch(word):
+                raise InputError(f"{where}, column {header[k]!r}: {_shown(word)} is not a number")
+            values.append(float(word))
+        if len(fields) < width:
+            raise InputError(
+                f"{where} has {len(fields)} fields but line 1 names {width} columns: "
+                f"the value of column {header[len(fields)]!r} is missing"
+            )
+        lines.append(number)
+    return np.array(values, dtype=float).reshape(len(lines), width), np.array(lines, dtype=int)

@@ -9,7 +9,6 @@ maps them to Pinocchio's configuration with :meth:`Robot.configuration`.
 from __future__ import annotations
 
 import os
-import warnings
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -80,27 +79,27 @@ def read_trajectory_csv(path: str, robot: Robot) -> tuple[np.ndarray, np.ndarray
         InputError: the file cannot be read, a column is missing, a value is
             not a finite number, or the times do not increase strictly.
     """
-    from rrt_pin.csvio import read_csv
+    from rrt_pin.csvio import read_csv_table
 
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", UserWarning)  # numpy's "input contained no data"
-        header, data = read_csv(path, required=("t",))
+    table = read_csv_table(path, required=("t",))
+    header, data = table.header, table.data
     cols = csv_columns(robot, header, path)
     t = data[:, header.index("t")]
     values = np.column_stack([data[:, header.index(c)] for c in cols])
     for name, column in (("t", t), *zip(cols, values.T, strict=True)):
         huge = np.flatnonzero(np.abs(column) > MAX_VALUE)
         if huge.size:
+            row = int(huge[0])
             raise InputError(
-                f"CSV {path!r}: value {float(column[huge[0]])!r} in column {name!r}, row "
-                f"{huge[0] + 2} is beyond ±{MAX_VALUE:g}"
+                f"{table.where(row, name)}: {table.value_text(row, name)} is beyond ±{MAX_VALUE:g}"
             )
     steps = np.diff(t)
     if (steps <= 0.0).any():
         k = int(np.argmax(steps <= 0.0))
         raise InputError(
-            f"CSV {path!r}: times must increase strictly, but t={float(t[k + 1])!r} s in row "
-            f"{k + 3} follows t={float(t[k])!r} s"
+            f"{table.where(k + 1, 't')}: times must increase strictly, but "
+            f"{table.value_text(k + 1, 't')} s follows {table.value_text(k, 't')} s "
+            f"(line {int(table.lines[k])})"
         )
     return t, values
 

@@ -1,7 +1,9 @@
+import re
+
 import numpy as np
 import pytest
 
-from rrt_pin.csvio import csv_text, read_csv, write_csv
+from rrt_pin.csvio import csv_text, read_csv, read_csv_table, write_csv
 from rrt_pin.errors import InputError
 from rrt_pin.grid import time_grid
 
@@ -43,23 +45,93 @@ def test_shortest_numbers_that_read_back_bit_for_bit(tmp_path, rng, engine):
             assert digits == shortest, (word, repr(value))
 
 
+# Every error names the file, the line as an editor numbers it (header = line 1),
+# the column and the value, in our words (never numpy's "could not convert", "row 1").
 @pytest.mark.parametrize(
     "text, words",
     [
-        ("t,q1\n", "no data rows"),
-        ("", "lacks column 't'"),
-        ("t,q2\n0,1\n", "lacks column 'q1'"),
-        ("t,q1\n0,nan\n", "non-finite value nan in column 'q1', row 2"),
-        ("t,q1\n0,1\n1,-inf\n", "non-finite value -inf in column 'q1', row 3"),
-        ("t,q1\n0,x\n", "could not convert"),
-        ("t,q1\n0,1,2\n", "columns"),
+        ("t,q1\n0,1\n1,x\n", "line 3, column 'q1': 'x' is not a number"),
+        ("t,q1\n0,1e\n", "line 2, column 'q1': '1e' is not a number"),
+        ("t,q1\n0,1_0\n", "line 2, column 'q1': '1_0' is not a number"),
+        ("t,q1\n0,nan\n", "line 2, column 'q1': 'nan' is not a finite number"),
+        ("t,q1\n0,1\n1,-inf\n", "line 3, column 'q1': '-inf' is not a finite number"),
+        ("t,q1\n0,1\n1e999,1\n", "line 3, column 't': '1e999' is not a finite number"),
+        ("t,q1,q2\n0,1,2\n1,,2\n", "line 3, column 'q1': the value is missing"),
+        (
+            "t,q1,q2\n0,1,2\n1,2\n",
+            "line 3 has 2 fields but line 1 names 3 columns: the value of column 'q2' is missing",
+        ),
+        (
+            "t,q1\n0,1\n1,2,3\n",
+            "line 3 has 3 fields but line 1 names 2 columns: an extra value '3' follows the "
+            "last column 'q1'",
+        ),
+        ("t,q1\n0,1,\n", "line 2 has 3 fields but line 1 names 2 columns: an extra comma"),
+        ("t,q1\n", "has no data rows (only the header, line 1)"),
+        ("t,q1\n\n  \n", "has no data rows"),
+        ("", "is empty: line 1 must name the columns"),
+        ("t,,q1\n0,1,2\n", "line 1: column 2 has no name"),
+        ("t,q1,q1\n0,1,2\n", "line 1 names column 'q1' twice"),
+        ("t,q2\n0,1\n", "lacks column 'q1'; line 1 names 't,q2'"),
+        # blank lines count as lines, as in an editor; so do Windows line ends
+        ("t,q1\n\n0,1\n\n1,nan\n", "line 5, column 'q1': 'nan' is not a finite number"),
+        ("t,q1\r\n0,1\r\n1,y\r\n", "line 3, column 'q1': 'y' is not a number"),
+        ("t,q1\n0,1\n1," + "9" * 100 + "x\n", "'" + "9" * 39 + "…' is not a number"),
     ],
 )
 def test_bad_csv(tmp_path, text, words):
     path = tmp_path / "bad.csv"
-    path.write_text(text)
-    with pytest.raises(InputError, match=words):
+    path.write_text(text, newline="")
+    with pytest.raises(InputError) as e:
         read_csv(path, required=["t", "q1"])
+    message = str(e.value)
+    assert message.startswith(f"CSV {str(path)!r}")
+    assert words in message
+    assert "\n" not in message and "convert" not in message
+    assert not re.search(r"\brow \d", message)  # numpy's 0-based rows
+
+
+@pytest.mark.parametrize(
+    "make, words",
+    [
+        (lambda p: None, "cannot read CSV '{p}': No such file or directory"),
+        (lambda p: p.mkdir(), "cannot read CSV '{p}': it is a folder"),
+        (lambda p: p.write_bytes(b"t,q1\n0,caf\xe9\n"), "CSV '{p}' is not UTF-8 text"),
+    ],
+)
+def test_unreadable_csv(tmp_path, make, words):
+    path = tmp_path / "x.csv"
+    make(path)
+    with pytest.raises(InputError, match=words.format(p=path)):
+        read_csv(path)
+
+
+def test_lines_as_an_editor_numbers_them(tmp_path):
+    path = tmp_path / "x.csv"
+    path.write_bytes(b"\xef\xbb\xbft , q1\r\n0,1\r\n\r\n 2 , 3 \r\n\r\n")
+    table = read_csv_table(path, required=["t"])
+    assert table.header == ["t", "q1"]
+    assert table.data.tolist() == [[0.0, 1.0], [2.0, 3.0]]
+    assert table.lines.tolist() == [2, 4]
+    assert table.where(1, "q1") == f"CSV {str(path)!r} line 4, column 'q1'"
+    assert table.value_text(1, 0) == "2"
+
+
+def test_a_whitespace_line_is_blank(tmp_path):
+    path = tmp_path / "x.csv"
+    path.write_text("t,q1\n0,1\n   \n2,3\n")
+    table = read_csv_table(path)
+    assert table.data.tolist() == [[0.0, 1.0], [2.0, 3.0]] and table.lines.tolist() == [2, 4]
+
+
+def test_a_csv_beyond_the_cap_is_refused_unread(tmp_path, monkeypatch):
+    import rrt_pin.csvio as csvio
+
+    path = tmp_path / "x.csv"
+    path.write_text("t,q1\n0,1\n")
+    monkeypatch.setattr(csvio, "MAX_CSV_BYTES", 8)
+    with pytest.raises(InputError, match="is 9 bytes, larger than the 8 bytes allowed"):
+        read_csv(path)
 
 
 def test_failed_write_leaves_nothing(tmp_path):

@@ -108,10 +108,11 @@ def test_resampling_error_is_within_the_linear_interpolation_bound():
 @pytest.mark.parametrize(
     "t, q, words",
     [
-        ([0.0, 1.0, 1.0], [[0.0], [1.0], [2.0]], "increase strictly"),
-        ([0.0, 2.0, 1.0], [[0.0], [1.0], [2.0]], "increase strictly"),
-        ([0.0, 1.0], [[0.0], [math.nan]], "non-finite value nan"),
-        ([0.0, math.inf], [[0.0], [1.0]], "non-finite time inf"),
+        ([0.0, 1.0, 1.0], [[0.0], [1.0], [2.0]], r"t\[2\]=1 s follows t\[1\]=1 s"),
+        ([0.0, 2.0, 1.0], [[0.0], [1.0], [2.0]], r"t\[2\]=1 s follows t\[1\]=2 s"),
+        ([0.0, 1.0 + 2e-16, 1.0], [[0], [1], [2]], r"t\[2\]=1 s follows t\[1\]=1.0000000000000002"),
+        ([0.0, 1.0], [[0.0], [math.nan]], r"q\[1, 0\]=nan is not finite \(at t\[1\]=1 s\)"),
+        ([0.0, math.inf], [[0.0], [1.0]], r"t\[1\]=inf is not finite"),
         ([0.0, 1.0], [[0.0]], "q.shape"),
     ],
 )
@@ -345,19 +346,23 @@ def _csv(tmp_path, header, rows, name="traj.csv"):
         (
             ["t", "q1", "q2", "q3"],
             [[0, 0, 0, 0], [1, "nan", 0, 0]],
-            ("non-finite value", "nan", "in column 'q1', row 3"),
+            "traj.csv' line 3, column 'q1': 'nan' is not a finite number",
         ),
         (
             ["t", "q1", "q2", "q3"],
             [[0, 0, 0, 0], [1, 0, "inf", 0]],
-            ("non-finite value", "inf", "in column 'q2', row 3"),
+            "traj.csv' line 3, column 'q2': 'inf' is not a finite number",
         ),
         (
             ["t", "q1", "q2", "q3"],
             [[0, 0, 0, 0], [0, 1, 0, 0]],
-            "times must increase strictly, but t=0.0 s in row 3 follows t=0.0 s",
+            "line 3, column 't': times must increase strictly, but 0 s follows 0 s (line 2)",
         ),
-        (["t", "q1", "q2", "q3"], [[0, 0, 0, 0], [1, 0, "x", 0]], "could not convert"),
+        (
+            ["t", "q1", "q2", "q3"],
+            [[0, 0, 0, 0], [1, 0, "x", 0]],
+            "traj.csv' line 3, column 'q2': 'x' is not a number",
+        ),
         (["t", "q1", "q2", "q3"], [], "no data rows"),
     ],
 )

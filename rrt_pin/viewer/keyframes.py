@@ -128,22 +128,31 @@ def resample(t: np.ndarray, q: np.ndarray, fps: float) -> tuple[np.ndarray, np.n
     if q.ndim != 2 or q.shape[0] != t.size:
         raise InputError(f"{q.shape=} must be (len(t), n) with {t.size=}")
     if not np.isfinite(t).all():
-        raise InputError(f"non-finite time {float(t[~np.isfinite(t)][0])!r} [s]")
+        i = int(np.argmax(~np.isfinite(t)))
+        raise InputError(f"t[{i}]={float(t[i])} is not finite [s]")
     if not np.isfinite(q).all():
-        r, c = np.argwhere(~np.isfinite(q))[0]
-        raise InputError(
-            f"non-finite value {float(q[r, c])!r} in column {c} at t={float(t[r])!r} s"
-        )
+        r, c = (int(i) for i in np.argwhere(~np.isfinite(q))[0])
+        raise InputError(f"q[{r}, {c}]={float(q[r, c])} is not finite (at t[{r}]={t[r]:.6g} s)")
     steps = np.diff(t)
     if (steps <= 0.0).any():
         k = int(np.argmax(steps <= 0.0))
+        later, earlier = _distinct(float(t[k + 1]), float(t[k]))
         raise InputError(
-            f"times must increase strictly: t={t[k + 1]!r} s follows t={t[k]!r} s (row {k + 2})"
+            f"t must increase strictly, but t[{k + 1}]={later} s follows t[{k}]={earlier} s"
         )
     times = t[0] + keyframe_times(float(t[-1] - t[0]), fps)
     times[-1] = t[-1]
     values = np.column_stack([np.interp(times, t, q[:, j]) for j in range(q.shape[1])])
     return times, values.reshape(times.size, q.shape[1])
+
+
+def _distinct(a: float, b: float) -> tuple[str, str]:
+    """``a`` and ``b`` with 6 significant digits, or as many more as tell them apart."""
+    for digits in (6, 9, 12, 17):
+        shown = f"{a:.{digits}g}", f"{b:.{digits}g}"
+        if shown[0] != shown[1] or a == b:
+            return shown
+    return shown
 
 
 def frame_placements(model: pin.Model, q: np.ndarray, frame_ids: list[int]) -> np.ndarray:
