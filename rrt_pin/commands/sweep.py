@@ -6,7 +6,7 @@ import argparse
 import sys
 
 from rrt_pin._logging import note
-from rrt_pin.commands._common import positive_int
+from rrt_pin.commands._common import nonempty, positive_int
 
 HELP = "run a sweep spec (TOML): many variants, metrics to Parquet, locally or on Dask (SI units)"
 
@@ -20,11 +20,14 @@ values and the metrics (units in the Parquet metadata, "rrt_pin.units"):
   peak_effort_<effort> [N·m or N] and peak_effort_time_<effort> [s],
   excursion_<q> [rad or m], control_energy [J], evaluations,
   diverged, diverged_time [s], diverged_coordinate, diverged_reason.
-Read it with pandas: pandas.read_parquet("OUT/chunks").
+Read it with pandas: pandas.read_parquet("OUT/chunks") (chunks/ holds chunks only:
+--resume refuses any other file there). One run at a time writes into OUT (it holds
+OUT/sweep.lock); a new sweep needs a new or empty folder.
 Without --scheduler Dask's local cluster runs the chunks with a thread per core
 (the compiled batch releases the GIL; --workers 1 runs them in this process without
 Dask). --resume finishes an
-interrupted sweep (the spec must be unchanged)."""
+interrupted sweep (the spec must be unchanged): it checks every chunk listed as
+done (readable, the spec's hash, its variants) and recomputes those that fail."""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -32,7 +35,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.formatter_class = argparse.RawDescriptionHelpFormatter
     parser.epilog = _EPILOG
     parser.add_argument("spec", metavar="SPEC.toml", help="the sweep spec")
-    parser.add_argument("--out", required=True, metavar="DIR", help="output folder (created)")
+    parser.add_argument(
+        "--out",
+        required=True,
+        type=nonempty,
+        metavar="DIR",
+        help="output folder: new or empty (created), or a sweep to --resume; one run at a time",
+    )
     parser.add_argument(
         "--scheduler", metavar="ADDRESS", help="a Dask scheduler, e.g. tcp://10.0.0.5:8786"
     )

@@ -51,8 +51,11 @@ class SweepResult:
         chunks: chunks in the spec.
         computed: chunks computed by this call (the others were done already).
         wall_time: duration of the call [s].
-        settled: variants whose every joint settled (2 % band) without diverging.
-        diverged: variants that diverged (or had invalid parameters).
+        computed_variants: variants in the chunks computed by this call.
+        settled: variants (of those computed) whose every joint settled (2 % band)
+            without diverging; None when the metrics do not include settling times.
+        diverged: variants (of those computed) that diverged (or had invalid
+            parameters); None when the task does not integrate (inverse dynamics).
         worst: (value, variant, varied values) of the largest final errors.
         metric: the metric the worst cases are ranked by.
     """
@@ -62,8 +65,9 @@ class SweepResult:
     chunks: int
     computed: int
     wall_time: float
-    settled: int = 0
-    diverged: int = 0
+    computed_variants: int = 0
+    settled: int | None = None
+    diverged: int | None = None
     worst: list[tuple[float, int, dict[str, float]]] = field(default_factory=list)
     metric: str = ""
 
@@ -74,16 +78,32 @@ class SweepResult:
         return Store(self.out).read()
 
     def summary(self) -> str:
-        """One screen: counts, rate, the worst cases and their parameters."""
-        rate = self.variants / self.wall_time if self.wall_time > 0 else math.nan
-        lines = [
-            f"sweep of {self.variants} variants in {self.chunks} chunks -> {self.out}/",
-            f"  computed {self.computed} chunks in {duration(self.wall_time)} "
-            f"({rate:,.0f} variants/s over the whole sweep)" if self.computed else
-            "  nothing to compute: every chunk was done",
-        ]  # fmt: skip
-        if self.computed == self.chunks:
-            lines.append(f"  settled (every joint, 2 %): {self.settled}; diverged: {self.diverged}")
+        """One screen: counts, rate, the worst cases and their parameters.
+
+        The rate is this call's: the variants it computed over its duration (after
+        ``resume`` the chunks done before are not counted).
+        """
+        rate = self.computed_variants / self.wall_time if self.wall_time > 0 else math.nan
+        lines = [f"sweep of {self.variants} variants in {self.chunks} chunks -> {self.out}/"]
+        if not self.computed:
+            lines.append("  nothing to compute: every chunk was done")
+        elif self.computed == self.chunks:
+            lines.append(
+                f"  computed {self.computed} chunks in {duration(self.wall_time)} "
+                f"({rate:,.0f} variants/s)"
+            )
+        else:
+            lines.append(
+                f"  computed {self.computed} of {self.chunks} chunks ({self.computed_variants:,} "
+                f"variants) in {duration(self.wall_time)} ({rate:,.0f} variants/s in this run)"
+            )
+        counts = []
+        if self.settled is not None:
+            counts.append(f"settled (every joint, 2 %): {self.settled}")
+        if self.diverged is not None:
+            counts.append(f"diverged: {self.diverged}")
+        if self.computed == self.chunks and counts:
+            lines.append("  " + "; ".join(counts))
         for value, index, values in self.worst:
             params = ", ".join(f"{k}={v:.6g}" for k, v in values.items())
             lines.append(f"  worst {self.metric} = {value:.3g}: variant {index} ({params})")
@@ -282,12 +302,16 @@ def sweep(
     Raises:
         SceneError: a bad spec (unknown name, empty range, a range that makes a
             parameter invalid …).
-        InputError: ``out`` holds another sweep, the scheduler is unreachable, or
-            the extra ``sweep`` is not installed.
+        InputError: ``out`` is empty or not a path, holds another sweep or other
+            files, is being written by another run, cannot be written, or (``resume``)
+            holds another spec's sweep or a stray file in ``chunks/``; the scheduler
+            is unreachable; or the extra ``sweep`` is not installed. A chunk that
+            fails its check on ``resume`` is recomputed, with a warning.
     """
     from rrt_pin.sweeps.compute import BLOCK, plan
-    from rrt_pin.sweeps.store import Store
+    from rrt_pin.sweeps.store import Store, folder_path
 
+    out = folder_path(out)  # None, a list or "" refused before any work
     start_time = time.perf_counter()
     spec = _spec(spec)
     p = plan(spec)
@@ -337,11 +361,12 @@ def sweep(
         for k, chunk in stream:
             store.write_chunk(k, chunk, units)
             cols = chunk["columns"]
+            result.computed_variants += len(chunk["index"])
             if "diverged" in cols:
-                result.diverged += int(np.count_nonzero(cols["diverged"]))
+                result.diverged = (result.diverged or 0) + int(np.count_nonzero(cols["diverged"]))
             settle = [c for n, c in cols.items() if n.startswith("settling_time_")]
             if settle:
-                result.settled += int(
+                result.settled = (result.settled or 0) + int(
                     np.count_nonzero(np.isfinite(np.column_stack(settle)).all(axis=1))
                 )
             ranked = _ranked(cols)
@@ -352,6 +377,7 @@ def sweep(
             if on_chunk is not None:
                 on_chunk(k, chunk)
     finally:
+        store.close()  # releases the folder's lock
         if bar is not None:
             bar.close()
         if client is not None:

@@ -3,18 +3,53 @@
 Layout of ``OUT/``::
 
     manifest.json                 spec, its hash, variants, chunks, which are done
+    sweep.lock                    held (``flock``) by the one run writing into the folder
     chunks/chunk-000042.parquet   variant index, varied values, metrics (units in metadata)
     trajectories/variant-17.parquet  t, q…, qd…, tau… of a kept variant
 
-Every file is written atomically (:mod:`rrt_pin.io`): a crash leaves the old
-file or the new one. The manifest is rewritten after each chunk file, so a
-chunk listed as done is on disk; ``--resume`` recomputes only the others and
-refuses a spec whose hash differs.
+The rules, each checked before anything is computed or written:
+
+* One writer: a run holds an exclusive, non-blocking ``flock`` on ``sweep.lock``
+  from opening the folder to its end; a second run into the same folder stops
+  with "another sweep is writing into 'OUT' (pid N)". The lock file stays (it
+  is empty but for the pid); the kernel drops the lock when the run ends, even
+  on SIGKILL.
+* A new sweep adopts nothing: ``OUT`` must be missing, empty, or hold only an
+  empty ``chunks/`` and ``sweep.lock`` (what a run stopped before its first
+  chunk leaves). A folder with a manifest needs ``resume``.
+* Nothing is written through a link or into a special file: the folder is
+  opened once (``OUT`` itself may be a link to a folder) and every name inside
+  it is opened with ``O_NOFOLLOW``. Each file is written to a new hidden
+  temporary file (``O_EXCL``) in its own folder, synced, and then *linked* to
+  its name (``link`` fails if anything is there: exclusive creation) or, for a
+  file this run replaces on purpose, *renamed* over it. A rename replaces a
+  symbolic link, FIFO or device node at the name by the file itself, never
+  writing through it; a crash leaves the old file or the new one, and the
+  temporary files (``.NAME.XXXXXXXX.tmp``) it may leave are removed by the
+  next run and ignored by Parquet readers (hidden names).
+* ``resume`` trusts no file: the manifest must have the right shape and the
+  spec's hash, and every chunk it lists as done is read back: a regular file,
+  readable Parquet, the spec hash in its metadata, exactly the rows of its
+  variant range in order. A chunk that fails is recomputed (a warning says
+  which and why); one that passes is kept.
+* ``chunks/`` holds chunks only, so ``pandas.read_parquet("OUT/chunks")`` reads
+  this sweep and nothing else: ``resume`` refuses a folder whose ``chunks/``
+  holds any other visible name (a stray file), naming it; the user moves it
+  out. :meth:`Store.read` reads only the chunks the manifest lists.
 """
 
 from __future__ import annotations
 
+import contextlib
+import errno
+import fcntl
 import json
+import logging
+import os
+import re
+import secrets
+import stat
+import time
 from pathlib import Path
 from typing import Any
 
@@ -22,11 +57,49 @@ import numpy as np
 
 from rrt_pin._version import __version__
 from rrt_pin.errors import InputError
-from rrt_pin.io import atomic_write_bytes
+from rrt_pin.io import _PROBLEMS, OutputError
 
-__all__ = ["Store"]
+__all__ = ["LOCK", "MANIFEST", "Store", "folder_path"]
+
+logger = logging.getLogger("rrt_pin")
 
 MANIFEST = "manifest.json"
+LOCK = "sweep.lock"
+CHUNKS = "chunks"
+TRAJECTORIES = "trajectories"
+#: A manifest larger than this is not one of ours [bytes].
+MAX_MANIFEST = 64 << 20
+#: How long a run refused by the lock waits for the holder's pid to appear [s].
+PID_WAIT = 0.5
+
+_CHUNK = re.compile(r"chunk-(\d+)\.parquet")
+_TEMP = re.compile(r"\..+\.[0-9a-f]{8}\.tmp")  # our temporary files (see _put)
+_NOFOLLOW = os.O_NOFOLLOW | os.O_CLOEXEC
+_DIR = os.O_RDONLY | os.O_DIRECTORY | _NOFOLLOW
+#: Manifest keys a resumed sweep relies on, and their types.
+_KEYS = {"spec_hash": str, "chunk": int, "done": list}
+
+
+def folder_path(out: object) -> Path:
+    """``out`` as a folder's path, refusing None, lists and the empty string.
+
+    Raises:
+        InputError: ``out`` is not a ``str`` or ``os.PathLike``, or is empty (it
+            would mean the current folder).
+    """
+    if not isinstance(out, (str, os.PathLike)):
+        raise InputError(
+            f"out must be a folder's path (str or os.PathLike), not {type(out).__name__}"
+        )
+    text = os.fspath(out)
+    if not isinstance(text, str) or not text.strip():
+        raise InputError(f"out={text!r} must not be empty (a folder's path)")
+    return Path(text)
+
+
+def chunk_name(k: int) -> str:
+    """The file name of chunk ``k``."""
+    return f"chunk-{k:06d}.parquet"
 
 
 def _table(columns: dict[str, np.ndarray], metadata: dict[str, str]) -> Any:
@@ -49,12 +122,111 @@ def _parquet_bytes(table: Any) -> bytes:
     return sink.getvalue().to_pybytes()
 
 
+def _problem(e: OSError) -> str:
+    if e.errno == errno.ELOOP:
+        return "it is a symbolic link (not followed)"
+    return _PROBLEMS.get(e.errno or 0, e.strerror or str(e))
+
+
+def _kind(mode: int) -> str:
+    if stat.S_ISDIR(mode):
+        return "a folder"
+    if stat.S_ISLNK(mode):
+        return "a symbolic link"
+    if stat.S_ISFIFO(mode):
+        return "a FIFO"
+    if stat.S_ISCHR(mode) or stat.S_ISBLK(mode):
+        return "a device node"
+    if stat.S_ISSOCK(mode):
+        return "a socket"
+    return "a regular file"
+
+
+def _open_regular(name: str, dir_fd: int) -> int:
+    """A read descriptor of the regular file ``name``: never through a link, never blocking."""
+    fd = os.open(name, os.O_RDONLY | os.O_NONBLOCK | _NOFOLLOW, dir_fd=dir_fd)
+    mode = os.fstat(fd).st_mode
+    if not stat.S_ISREG(mode):
+        os.close(fd)
+        raise InputError(f"is {_kind(mode)}, not a regular file")
+    return fd
+
+
+def _lstat(name: str, dir_fd: int) -> os.stat_result | None:
+    try:
+        return os.stat(name, dir_fd=dir_fd, follow_symlinks=False)
+    except FileNotFoundError:
+        return None
+
+
+def _subfolder(parent: int, name: str, create: bool) -> int | None:
+    """A descriptor of the real folder ``name`` in ``parent`` (None if missing and not created)."""
+    if create:
+        with contextlib.suppress(FileExistsError):
+            os.mkdir(name, 0o777, dir_fd=parent)
+    try:
+        return os.open(name, _DIR, dir_fd=parent)
+    except FileNotFoundError:
+        return None
+
+
+def _not_writable(folder: Path) -> str | None:
+    """Why ``folder`` cannot take new files (read-only file system, permissions), or None."""
+    if os.access(folder, os.W_OK | os.X_OK):
+        return None
+    try:
+        read_only = bool(os.statvfs(folder).f_flag & os.ST_RDONLY)
+    except OSError:
+        read_only = False
+    return _PROBLEMS[errno.EROFS if read_only else errno.EACCES]
+
+
+def _remove_temps(fd: int) -> None:
+    """Remove the temporary files an interrupted run left (ours by their names)."""
+    for name in os.listdir(fd):
+        st = _lstat(name, fd)
+        if _TEMP.fullmatch(name) and st is not None and stat.S_ISREG(st.st_mode):
+            with contextlib.suppress(FileNotFoundError):
+                os.unlink(name, dir_fd=fd)
+
+
+def _check_manifest(data: object, where: str) -> dict[str, Any]:
+    """``data`` if it has a sweep manifest's shape; one line naming what is wrong otherwise."""
+    bad = f"{where} is not a sweep's manifest"
+    if not isinstance(data, dict):
+        raise InputError(f"{bad}: a JSON {type(data).__name__}, not an object")
+    for key, kind in _KEYS.items():
+        if key not in data:
+            raise InputError(f"{bad}: it has no {key!r}")
+        value = data[key]
+        if not isinstance(value, kind) or isinstance(value, bool):
+            raise InputError(f"{bad}: {key!r} is a {type(value).__name__}, not a {kind.__name__}")
+    if data["chunk"] < 1:
+        raise InputError(f"{bad}: 'chunk' is {data['chunk']}, not >= 1")
+    wrong = [k for k in data["done"] if not isinstance(k, int) or isinstance(k, bool) or k < 0]
+    if wrong:
+        raise InputError(f"{bad}: 'done' lists {wrong[0]!r}, not a chunk number")
+    return data
+
+
 class Store:
-    """The output folder of one sweep."""
+    """The output folder of one sweep (see the module's rules).
+
+    A run calls :meth:`check` (reads only), :meth:`start` (creates the folder,
+    takes the lock, verifies what a resumed sweep kept), :meth:`write_chunk` per
+    chunk, and :meth:`close` at the end.
+    """
 
     def __init__(self, folder: str | Path) -> None:
         self.folder = Path(folder)
+        self._fd: int | None = None  # the folder, while open
+        self._chunks: int | None = None
+        self._trajectories: int | None = None
+        self._lock: int | None = None
+        self._locked = False  # this run holds the lock
+        self._replace: dict[str, set[str]] = {CHUNKS: set(), TRAJECTORIES: set()}
 
+    # ------------------------------------------------------------------ names
     @property
     def manifest_path(self) -> Path:
         """The manifest's path."""
@@ -62,60 +234,399 @@ class Store:
 
     def chunk_path(self, k: int) -> Path:
         """Where chunk ``k`` is stored."""
-        return self.folder / "chunks" / f"chunk-{k:06d}.parquet"
+        return self.folder / CHUNKS / chunk_name(k)
 
-    def read_manifest(self) -> dict[str, Any] | None:
-        """The manifest, or None when the folder holds no sweep."""
+    def _where(self, *names: str) -> str:
+        return repr(str(self.folder.joinpath(*names)))
+
+    def _os_error(self, e: OSError, *names: str) -> OutputError:
+        problem = _problem(e)
+        return OutputError(
+            f"cannot write into the sweep folder {self._where(*names)}: {problem}",
+            e.errno,
+            problem,
+            str(self.folder.joinpath(*names)),
+        )
+
+    # ------------------------------------------------------------------ reading
+    def _open_folder(self) -> int | None:
+        """A descriptor of the folder (following ``OUT`` itself if a link), None if missing."""
+        path = self.folder
         try:
-            return json.loads(self.manifest_path.read_text(encoding="utf-8"))
+            st = path.lstat()
+        except FileNotFoundError:
+            parent = path.absolute().parent
+            if not parent.is_dir():
+                raise InputError(
+                    f"sweep folder {self._where()}: its folder does not exist"
+                ) from None
+            return None
+        except OSError as e:
+            raise InputError(f"sweep folder {self._where()}: {_problem(e)}") from e
+        if stat.S_ISLNK(st.st_mode) and not path.exists():
+            raise InputError(
+                f"sweep folder {self._where()} is a symbolic link to nothing "
+                f"({os.readlink(path)!r}); remove it or name a folder"
+            )
+        if not path.is_dir():
+            raise InputError(f"sweep folder {self._where()} is not a folder")
+        try:
+            return os.open(path, os.O_RDONLY | os.O_DIRECTORY | os.O_CLOEXEC)
+        except OSError as e:
+            raise InputError(f"sweep folder {self._where()}: {_problem(e)}") from e
+
+    def _manifest_at(self, fd: int) -> dict[str, Any] | None:
+        where = self._where(MANIFEST)
+        try:
+            mfd = _open_regular(MANIFEST, fd)
         except FileNotFoundError:
             return None
-        except (OSError, ValueError) as e:
-            raise InputError(f"cannot read {str(self.manifest_path)!r}: {e}") from e
+        except InputError as e:
+            raise InputError(f"{where} {e}: not a sweep's manifest") from None
+        except OSError as e:
+            raise InputError(f"cannot read {where}: {_problem(e)}") from e
+        with os.fdopen(mfd, "rb") as fh:
+            try:
+                raw = fh.read(MAX_MANIFEST + 1)
+            except OSError as e:
+                raise InputError(f"cannot read {where}: {_problem(e)}") from e
+        if len(raw) > MAX_MANIFEST:
+            raise InputError(f"{where} is not a sweep's manifest: over {MAX_MANIFEST >> 20} MiB")
+        try:
+            data = json.loads(raw.decode("utf-8"))
+        except (UnicodeDecodeError, ValueError, RecursionError) as e:
+            line = str(e).splitlines()[0] if str(e) else type(e).__name__
+            raise InputError(f"{where} is not a sweep's manifest: not JSON ({line})") from None
+        return _check_manifest(data, where)
 
+    def read_manifest(self) -> dict[str, Any] | None:
+        """The manifest (checked for shape), or None when the folder holds no manifest.
+
+        Raises:
+            InputError: the manifest is a link, a special file, not JSON or not of
+                a manifest's shape; or the folder cannot be read.
+        """
+        fd = self._open_folder()
+        if fd is None:
+            return None
+        try:
+            return self._manifest_at(fd)
+        finally:
+            os.close(fd)
+
+    def read(self) -> Any:
+        """The chunks the manifest lists as done, as one pyarrow Table sorted by variant."""
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+
+        fd = self._open_folder()
+        if fd is None:
+            raise InputError(f"sweep folder {self._where()} does not exist")
+        try:
+            manifest = self._manifest_at(fd)
+            if manifest is None:
+                raise InputError(f"{self._where()} holds no sweep (no {MANIFEST})")
+            cfd = os.open(CHUNKS, _DIR, dir_fd=fd) if manifest["done"] else None
+            tables = []
+            try:
+                for k in sorted(set(manifest["done"])):
+                    try:
+                        with os.fdopen(_open_regular(chunk_name(k), cfd), "rb") as fh:
+                            tables.append(pq.read_table(fh))
+                    except (OSError, InputError, pa.ArrowException) as e:
+                        raise InputError(
+                            f"cannot read {self._where(CHUNKS, chunk_name(k))}: {e}"
+                        ) from e
+            finally:
+                if cfd is not None:
+                    os.close(cfd)
+        except OSError as e:
+            raise InputError(f"cannot read the sweep in {self._where()}: {_problem(e)}") from e
+        finally:
+            os.close(fd)
+        if not tables:
+            raise InputError(f"{self._where()} holds no chunk yet")
+        return pa.concat_tables(tables).sort_by("variant")
+
+    # ------------------------------------------------------------------ checks
     def check(self, manifest: dict[str, Any], resume: bool) -> None:
         """Refuse, writing nothing, a folder this sweep cannot use.
 
         Raises:
-            InputError: the folder is a file or its parent is missing; it holds another
-                sweep and ``resume`` is false; or ``resume`` is true and the spec differs.
+            InputError: ``OUT`` is a file, a dangling link, or its parent is missing;
+                it cannot be written; it holds another sweep and ``resume`` is false;
+                it is not empty and holds no sweep; the manifest has the wrong shape;
+                ``resume`` is true and the spec or chunk size differ, or ``chunks/``
+                holds a file that is not one of this sweep's chunks.
         """
-        if self.folder.exists() and not self.folder.is_dir():
-            raise InputError(f"--out {str(self.folder)!r} is not a folder")
-        old = self.read_manifest() if self.folder.is_dir() else None
-        if old is not None and not resume:
-            raise InputError(
-                f"--out {str(self.folder)!r} already holds a sweep: add --resume to finish it, "
-                "or choose another folder"
-            )
-        if resume and old is not None and old.get("spec_hash") != manifest["spec_hash"]:
-            raise InputError(
-                f"--resume: the spec changed since {str(self.folder)!r} was started "
-                f"(hash {manifest['spec_hash']} vs {old.get('spec_hash')}); use another folder"
-            )
-        if resume and old is not None and old.get("chunk") != manifest["chunk"]:
-            raise InputError(
-                f"--resume: chunk={manifest['chunk']} but the sweep in {str(self.folder)!r} "
-                f"was started with chunk={old.get('chunk')}"
-            )
-        if not self.folder.is_dir() and not self.folder.absolute().parent.is_dir():
-            raise InputError(f"--out {str(self.folder)!r}: its folder does not exist")
+        fd = self._open_folder()
+        if fd is None:
+            problem = _not_writable(self.folder.absolute().parent)
+            if problem:
+                raise InputError(f"cannot create the sweep folder {self._where()}: {problem}")
+            return
+        try:
+            self._inspect(fd, manifest, resume)
+        finally:
+            os.close(fd)
+        problem = _not_writable(self.folder)
+        if problem:
+            raise InputError(f"cannot write into the sweep folder {self._where()}: {problem}")
 
+    def _inspect(self, fd: int, manifest: dict[str, Any], resume: bool) -> dict[str, Any] | None:
+        """The checks of :meth:`check` on the open folder; the old manifest (or None)."""
+        old = self._manifest_at(fd)
+        if old is None:
+            self._check_empty(fd)
+            return None
+        if not resume:
+            raise InputError(
+                f"sweep folder {self._where()} already holds a sweep: resume it "
+                "(--resume, resume=True) or choose another folder"
+            )
+        if old["spec_hash"] != manifest["spec_hash"]:
+            raise InputError(
+                f"cannot resume the sweep in {self._where()}: the spec changed since it was "
+                f"started (hash {manifest['spec_hash']} vs {old['spec_hash']}); "
+                "use another folder"
+            )
+        if old["chunk"] != manifest["chunk"]:
+            raise InputError(
+                f"cannot resume the sweep in {self._where()}: chunk={manifest['chunk']} but it "
+                f"was started with chunk={old['chunk']}"
+            )
+        for name in (CHUNKS, TRAJECTORIES):
+            st = _lstat(name, fd)
+            if st is not None and not stat.S_ISDIR(st.st_mode):
+                raise InputError(f"{self._where(name)} is {_kind(st.st_mode)}, not a folder")
+        self._check_strays(fd, manifest["chunks"])
+        return old
+
+    def _check_empty(self, fd: int) -> None:
+        """Refuse a folder without a manifest that holds anything but an empty start."""
+        for name in sorted(os.listdir(fd)):
+            st = _lstat(name, fd)
+            if st is None:
+                continue
+            if name == LOCK and stat.S_ISREG(st.st_mode):
+                continue
+            if name == CHUNKS and stat.S_ISDIR(st.st_mode):
+                cfd = os.open(CHUNKS, _DIR, dir_fd=fd)
+                try:
+                    inside = [n for n in os.listdir(cfd) if not _TEMP.fullmatch(n)]
+                finally:
+                    os.close(cfd)
+                if not inside:
+                    continue
+                name = f"{CHUNKS}/{sorted(inside)[0]}"
+            raise InputError(
+                f"sweep folder {self._where()} is not empty and holds no sweep (no {MANIFEST}; "
+                f"it holds {name!r}): name a new or empty folder"
+            )
+
+    def _check_strays(self, fd: int, n_chunks: int) -> None:
+        """Refuse a ``chunks/`` holding a visible name that is not one of this sweep's chunks."""
+        try:
+            cfd = os.open(CHUNKS, _DIR, dir_fd=fd)
+        except FileNotFoundError:
+            return
+        try:
+            for name in sorted(os.listdir(cfd)):
+                if name.startswith((".", "_")):  # hidden from Parquet readers
+                    continue
+                m = _CHUNK.fullmatch(name)
+                st = _lstat(name, cfd)
+                ours = m is not None and chunk_name(int(m.group(1))) == name
+                if not ours or int(m.group(1)) >= n_chunks:
+                    raise InputError(
+                        f"{self._where(CHUNKS, name)} is not a chunk of this sweep (a reader of "
+                        f"{self._where(CHUNKS)} would take it in): move it out of the folder"
+                    )
+                if st is not None and stat.S_ISDIR(st.st_mode):
+                    raise InputError(
+                        f"{self._where(CHUNKS, name)} is a folder, not a chunk: move it out "
+                        "of the folder"
+                    )
+        finally:
+            os.close(cfd)
+
+    # ------------------------------------------------------------------ writing
     def start(self, manifest: dict[str, Any], resume: bool) -> set[int]:
-        """Open the folder for a sweep (after :meth:`check`); the chunks already done."""
-        self.check(manifest, resume)
-        old = self.read_manifest() if self.folder.is_dir() else None
-        (self.folder / "chunks").mkdir(parents=True, exist_ok=True)
-        done = set()
-        if old is not None:
-            done = {k for k in old.get("done", []) if self.chunk_path(k).is_file()}
-        self.manifest = dict(manifest, done=sorted(done))
-        self._write_manifest()
+        """Open the folder for a sweep (after :meth:`check`); the chunks already done.
+
+        Creates the folder, takes its lock, repeats :meth:`check`'s checks under the
+        lock, removes an interrupted run's temporary files, verifies every chunk the
+        old manifest lists (see the module's rules) and writes the new manifest.
+
+        Raises:
+            InputError: another run holds the lock; what :meth:`check` refuses; the
+                folder cannot be written (``OutputError``).
+        """
+        try:
+            self._start()
+            old = self._inspect(self._fd, manifest, resume)
+            self._replace[""] = set(os.listdir(self._fd))  # the manifest when resuming
+            _remove_temps(self._fd)
+            self._chunks = _subfolder(self._fd, CHUNKS, create=True)
+            _remove_temps(self._chunks)
+            self._replace[CHUNKS] = set(os.listdir(self._chunks))
+            self._trajectories = _subfolder(self._fd, TRAJECTORIES, create=False)
+            if self._trajectories is not None:
+                _remove_temps(self._trajectories)
+                self._replace[TRAJECTORIES] = set(os.listdir(self._trajectories))
+            done = set() if old is None else self._verified(old["done"], manifest)
+            self.manifest = dict(manifest, done=sorted(done))
+            self._write_manifest()
+        except BaseException as e:
+            self.close()
+            if isinstance(e, OSError) and not isinstance(e, OutputError):
+                raise self._os_error(e) from e
+            raise
         return done
+
+    def _start(self) -> None:
+        """Create and open the folder and take its lock."""
+        try:
+            self.folder.mkdir()
+        except FileExistsError:
+            pass
+        fd = self._open_folder()
+        if fd is None:  # removed between mkdir and open
+            raise InputError(f"sweep folder {self._where()} vanished while it was opened")
+        self._fd = fd
+        try:
+            lock = os.open(LOCK, os.O_RDWR | os.O_CREAT | os.O_NONBLOCK | _NOFOLLOW, 0o644,
+                           dir_fd=fd)  # fmt: skip
+        except OSError as e:
+            if e.errno == errno.ELOOP:
+                raise InputError(f"{self._where(LOCK)} is a symbolic link (not followed)") from e
+            raise
+        self._lock = lock
+        mode = os.fstat(lock).st_mode
+        if not stat.S_ISREG(mode):
+            raise InputError(f"{self._where(LOCK)} is {_kind(mode)}, not a lock file")
+        try:
+            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            raise InputError(
+                f"another sweep is writing into {self._where()} (pid {self._holder(lock)})"
+            ) from None
+        self._locked = True
+        os.ftruncate(lock, 0)
+        os.pwrite(lock, f"{os.getpid()}\n".encode(), 0)
+
+    @staticmethod
+    def _holder(lock: int) -> str:
+        """The pid the lock's holder wrote (it writes it just after taking the lock)."""
+        deadline = time.monotonic() + PID_WAIT
+        while True:
+            text = os.pread(lock, 32, 0).decode("ascii", "replace").strip()
+            if text.isdigit() or time.monotonic() > deadline:
+                return text if text.isdigit() else "unknown"
+            time.sleep(0.01)
+
+    def _verified(self, listed: list[int], manifest: dict[str, Any]) -> set[int]:
+        """The chunks of ``listed`` that pass their check; a warning names the others."""
+        done, failed = set(), []
+        for k in sorted(set(listed)):
+            problem = self._chunk_problem(k, manifest)
+            if problem is None:
+                done.add(k)
+            else:
+                failed.append((k, problem))
+                logger.info("chunk %d of %s %s: recomputing it", k, self._where(), problem)
+        if failed:
+            k, problem = failed[0]
+            more = f" (and {len(failed) - 1} more)" if len(failed) > 1 else ""
+            logger.warning(
+                "resume: %d chunk(s) listed as done in %s failed their check and are recomputed: "
+                "chunk %d %s%s",
+                len(failed), self._where(MANIFEST), k, problem, more,
+            )  # fmt: skip
+        return done
+
+    def _chunk_problem(self, k: int, manifest: dict[str, Any]) -> str | None:
+        """Why chunk ``k`` cannot be trusted, or None if it holds exactly its variants."""
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+
+        n, size = manifest["variants"], manifest["chunk"]
+        if k >= manifest["chunks"]:
+            return f"is beyond the sweep's {manifest['chunks']} chunks"
+        start, stop = k * size, min((k + 1) * size, n)
+        try:
+            fd = _open_regular(chunk_name(k), self._chunks)
+        except FileNotFoundError:
+            return "is missing"
+        except InputError as e:
+            return str(e)
+        except OSError as e:
+            if e.errno == errno.ELOOP:
+                return "is a symbolic link (not followed)"
+            return f"cannot be read ({_problem(e)})"
+        try:
+            with os.fdopen(fd, "rb") as fh:
+                meta = pq.ParquetFile(fh)
+                tags = meta.schema_arrow.metadata or {}
+                theirs = tags.get(b"rrt_pin.spec_hash", b"").decode("utf-8", "replace")
+                if theirs != manifest["spec_hash"]:
+                    return f"belongs to another spec (hash {theirs[:16] or 'none'})"
+                if meta.metadata.num_rows != stop - start:
+                    return f"holds {meta.metadata.num_rows} rows, not {stop - start}"
+                table = meta.read()
+        except (OSError, ValueError, pa.ArrowException) as e:
+            first = str(e).splitlines()[0] if str(e) else type(e).__name__
+            return f"is not readable Parquet ({first})"
+        if "variant" not in table.column_names:
+            return "has no 'variant' column"
+        variant = table.column("variant").to_numpy(zero_copy_only=False)
+        if not np.array_equal(variant, np.arange(start, stop)):
+            return f"does not hold variants {start} to {stop - 1} in order"
+        return None
+
+    def _put(self, folder: str, name: str, data: bytes) -> None:
+        """Write ``data`` as ``folder/name`` (see the module's rules: temp, then link or rename)."""
+        fd = {CHUNKS: self._chunks, TRAJECTORIES: self._trajectories, "": self._fd}[folder]
+        where = (folder, name) if folder else (name,)
+        replace = name in self._replace.get(folder, ())  # else created exclusively
+        temp = f".{name}.{secrets.token_hex(4)}.tmp"
+        try:
+            out = os.open(temp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | _NOFOLLOW, 0o666,
+                          dir_fd=fd)  # fmt: skip
+            try:
+                view = memoryview(data)
+                while view:
+                    view = view[os.write(out, view) :]
+                os.fsync(out)
+            finally:
+                os.close(out)
+            if replace:
+                os.rename(temp, name, src_dir_fd=fd, dst_dir_fd=fd)
+            else:
+                try:
+                    os.link(temp, name, src_dir_fd=fd, dst_dir_fd=fd, follow_symlinks=False)
+                except FileExistsError:
+                    raise InputError(
+                        f"{self._where(*where)} appeared while this sweep was writing "
+                        "(another writer?): not replaced"
+                    ) from None
+                finally:
+                    with contextlib.suppress(FileNotFoundError):
+                        os.unlink(temp, dir_fd=fd)
+            os.fsync(fd)
+        except OSError as e:
+            with contextlib.suppress(OSError):
+                os.unlink(temp, dir_fd=fd)
+            raise self._os_error(e, *where) from e
+        except BaseException:
+            with contextlib.suppress(OSError):
+                os.unlink(temp, dir_fd=fd)
+            raise
+        self._replace.setdefault(folder, set()).add(name)  # this run's own file from now on
 
     def _write_manifest(self) -> None:
         text = json.dumps(self.manifest, indent=1) + "\n"
-        atomic_write_bytes(self.manifest_path, text.encode("utf-8"), flag="--out")
+        self._put("", MANIFEST, text.encode("utf-8"))
 
     def write_chunk(self, k: int, result: dict[str, Any], units: dict[str, str]) -> None:
         """Store chunk ``k`` (index, varied values, metrics) and its kept trajectories."""
@@ -127,8 +638,7 @@ class Store:
             "rrt_pin.spec_hash": self.manifest["spec_hash"],
             "rrt_pin.units": json.dumps({n: units.get(n, "") for n in columns}),
         }
-        data = _parquet_bytes(_table(columns, meta))
-        atomic_write_bytes(self.chunk_path(k), data, flag="--out")
+        self._put(CHUNKS, chunk_name(k), _parquet_bytes(_table(columns, meta)))
         for i, (t, q, qd, tau) in result["trajectories"].items():
             self.write_trajectory(i, t, q, qd, tau)
         self.manifest["done"] = sorted({*self.manifest["done"], k})
@@ -145,17 +655,29 @@ class Store:
             cols[name] = qd[:, k]
         for k, name in enumerate(names["tau"]):
             cols[name] = tau[:, k]
-        (self.folder / "trajectories").mkdir(exist_ok=True)
+        if self._trajectories is None:
+            try:
+                self._trajectories = _subfolder(self._fd, TRAJECTORIES, create=True)
+            except OSError as e:
+                raise self._os_error(e, TRAJECTORIES) from e
         data = _parquet_bytes(_table(cols, {"rrt_pin.variant": str(i)}))
-        atomic_write_bytes(self.folder / "trajectories" / f"variant-{i}.parquet", data)
+        self._put(TRAJECTORIES, f"variant-{i}.parquet", data)
 
-    def read(self) -> Any:
-        """All chunks as one pyarrow Table, sorted by variant."""
-        import pyarrow as pa
-        import pyarrow.parquet as pq
+    def close(self) -> None:
+        """Release the lock and the folder (the lock file stays, emptied of the pid)."""
+        if self._locked and self._lock is not None:
+            with contextlib.suppress(OSError):
+                os.ftruncate(self._lock, 0)
+            self._locked = False
+        for attr in ("_chunks", "_trajectories", "_lock", "_fd"):
+            fd = getattr(self, attr)
+            if fd is not None:
+                with contextlib.suppress(OSError):
+                    os.close(fd)  # closing the lock's descriptor releases the flock
+                setattr(self, attr, None)
 
-        files = sorted((self.folder / "chunks").glob("chunk-*.parquet"))
-        if not files:
-            raise InputError(f"{str(self.folder)!r} holds no chunk yet")
-        table = pa.concat_tables([pq.read_table(f) for f in files])
-        return table.sort_by("variant")
+    def __enter__(self) -> Store:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
