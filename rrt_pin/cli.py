@@ -257,6 +257,15 @@ def _main(argv: list[str], set_level: Callable[[int], None]) -> int:
     except RrtPinError as e:
         print(f"rrt-pin: error: {e}", file=sys.stderr)
         return EXIT_USAGE
+    except MemoryError as e:  # what rrt_pin.memory's estimates before allocating did not foresee
+        detail = f" ({e})" if str(e) else ""
+        print(
+            f"rrt-pin: error: out of memory{detail}: the run needs more than this process may "
+            "take (ulimit -v, the cgroup's limit or the machine's memory); try fewer samples, "
+            "joints or variants",
+            file=sys.stderr,
+        )
+        return EXIT_USAGE
     except KeyboardInterrupt:
         print("rrt-pin: interrupted", file=sys.stderr)
         return 130

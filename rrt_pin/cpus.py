@@ -5,15 +5,26 @@ schedule, one chunk a thread) waits for its slowest thread, and a thread on a
 core another process is using gets half of it. So the default thread count of
 every parallel path is :func:`free`: the CPUs this process may run on, less
 those other processes are running on at the call. An explicit thread count is
-always kept.
+kept, up to :func:`max_threads` (256, or 4 a CPU on larger machines): every thread
+reserves a stack (8 MiB) and may copy the model's data, so a count far beyond the
+CPUs only costs memory (``threads=10**6`` once took 23 GB).
 """
 
 from __future__ import annotations
 
 import os
 import time
+from numbers import Integral
 
-__all__ = ["available", "busy", "free", "threads_for"]
+__all__ = [
+    "MAX_THREADS",
+    "available",
+    "busy",
+    "check_threads",
+    "free",
+    "max_threads",
+    "threads_for",
+]
 
 
 def available() -> int:
@@ -27,6 +38,39 @@ def available() -> int:
     except ValueError:
         cap = cpus
     return max(1, min(cpus, cap if cap > 0 else cpus))
+
+
+#: The most threads one call may start, on machines of up to 64 CPUs (see :func:`max_threads`).
+MAX_THREADS = 256
+
+
+def max_threads() -> int:
+    """The most threads one call may start: :data:`MAX_THREADS`, or 4 per CPU if more."""
+    return max(MAX_THREADS, 4 * (os.cpu_count() or 1))
+
+
+def check_threads(name: str, value: object) -> int:
+    """``value`` as a thread count: an integer from 1 to :func:`max_threads`.
+
+    Args:
+        name: the argument, for the message (``"threads"``, ``"num_threads"``).
+        value: what was given.
+
+    Raises:
+        InputError: not an integer, below 1, or more than :func:`max_threads`.
+    """
+    from rrt_pin.errors import InputError
+
+    if isinstance(value, bool) or not isinstance(value, Integral) or value < 1:
+        raise InputError(f"{name}={value!r} must be an integer >= 1")
+    count = int(value)
+    most = max_threads()
+    if count > most:
+        raise InputError(
+            f"{name}={count}: at most {most} threads (each reserves a stack and may copy "
+            f"the model's data; this machine has {os.cpu_count() or 1} CPUs)"
+        )
+    return count
 
 
 def busy() -> int:

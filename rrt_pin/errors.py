@@ -9,6 +9,7 @@ from __future__ import annotations
 __all__ = [
     "DivergenceError",
     "InputError",
+    "MemoryLimitError",
     "ParameterError",
     "RrtPinError",
     "SceneError",
@@ -66,6 +67,22 @@ class DivergenceError(RrtPinError, ArithmeticError):
         self.t = t
         self.coordinate = coordinate
         super().__init__(f"simulation {verb} at t={t:.6g} s in {coordinate}: {problem}")
+
+
+class MemoryLimitError(RrtPinError, MemoryError):
+    """A run would need more memory than this process may take (checked before allocating).
+
+    Attributes:
+        need: the bytes it would need at least.
+        limit: the bytes left under the limit it exceeds.
+        source: that limit (``MemAvailable``, ``ulimit -v (RLIMIT_AS)``, the cgroup's).
+    """
+
+    def __init__(self, message: str, *, need: int, limit: int, source: str) -> None:
+        self.need = need
+        self.limit = limit
+        self.source = source
+        super().__init__(message)
 
 
 class ViewerError(RrtPinError, RuntimeError):

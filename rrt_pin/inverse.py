@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from rrt_pin import cpus, validate
+from rrt_pin import cpus, memory, validate
 from rrt_pin.errors import InputError
 
 if TYPE_CHECKING:
@@ -78,6 +78,40 @@ def _pool(model: Any, threads: int) -> _Pool:
     return entry
 
 
+def _num_threads(value: Any) -> int:
+    """``num_threads`` as an int from 1 to :func:`rrt_pin.cpus.max_threads`.
+
+    Raises:
+        InputError: otherwise.
+    """
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        raise InputError(f"num_threads={value!r} must be an integer >= 1")
+    if value < 1:
+        raise InputError(f"num_threads={value!r} must be >= 1")
+    return cpus.check_threads("num_threads", value)
+
+
+def _threads_that_fit(model: Any, threads: int, name: str | None) -> int:
+    """``threads`` cut to the pool's copies of the model's data that fit in memory.
+
+    ``pin.ModelPool`` holds one ``Data`` a thread and, while it is built, one more;
+    the scratch efforts are :data:`CHUNK` samples.
+
+    Raises:
+        MemoryLimitError: not even one thread's copy fits.
+    """
+    data = memory.data_bytes(model)
+    return memory.threads_that_fit(
+        threads,
+        memory.Cost(data) + memory.thread_cost(),
+        fixed=memory.Cost(data + model.nv * CHUNK * 8),
+        what=f"inverse dynamics of a {model.nv}-joint model",
+        each=f"{memory.describe(data)} a copy of Pinocchio's Data: one a thread, one more "
+        "while they are made",
+        name=name,
+    )
+
+
 def default_num_threads() -> int:
     """The CPUs this process may run on (see :func:`rrt_pin.cpus.available`)."""
     return cpus.available()
@@ -130,7 +164,10 @@ def inverse_dynamics(
         backend: a backend of :mod:`rrt_pin.backends` that computes ``inverse``.
         params: the chapter arm's parameters (``symbolic``/``compiled`` with a model).
         num_threads: threads for the Pinocchio backend and the generated
-            kernels; default: the CPUs free now, fewer for small batches.
+            kernels, at most :func:`rrt_pin.cpus.max_threads` (256); default: the
+            CPUs free now, fewer for small batches. Each Pinocchio thread holds a
+            copy of the model's data (0.89 GB for a 300-joint chain): the count is
+            cut to what fits in the memory left (:mod:`rrt_pin.memory`).
 
     Returns:
         Efforts, shape (N, nv) — (nv,) for a single sample, as ``pin.rnea`` —
@@ -140,12 +177,17 @@ def inverse_dynamics(
     Raises:
         InputError: bad shapes, non-finite values (in or out: the first bad sample
             and joint named), an unknown backend, or a backend that does not
-            compute this robot or is not installed.
+            compute this robot or is not installed; ``num_threads`` not from 1 to
+            :func:`rrt_pin.cpus.max_threads`.
+        MemoryLimitError: not even one copy of the model's data fits in the
+            memory left (the need and the limit named).
     """
     from rrt_pin import backends
     from rrt_pin.robot import Robot
 
     b = backends.get(backend, "inverse")
+    if num_threads is not None:
+        num_threads = _num_threads(num_threads)
     robot = model if isinstance(model, Robot) else None
     if b.name == "pinocchio":
         if model is None:
@@ -225,6 +267,14 @@ def _generated(
         raise MissingExtra("numba", "fast", "backend 'compiled'")
     from rrt_pin.compiled import rnea
 
+    if num_threads is not None and num_threads > 1:  # a default never exceeds the free CPUs
+        num_threads = memory.threads_that_fit(
+            num_threads,
+            memory.thread_cost(),
+            allocating=True,
+            what=f"inverse dynamics of a {pin_model.nv}-joint model",
+            name="num_threads",
+        )
     configuration = q if robot is None else robot.configuration(q)
     tau, finite = rnea.inverse_dynamics(pin_model, configuration, qd, qdd, num_threads)
     if not finite:
@@ -306,17 +356,18 @@ def _rnea_batch(
     adaptive = num_threads is None
     if num_threads is None:
         num_threads = default_num_threads()
-    if isinstance(num_threads, bool) or not isinstance(num_threads, (int, np.integer)):
-        raise InputError(f"num_threads={num_threads!r} must be an integer >= 1")
-    if num_threads < 1:
-        raise InputError(f"num_threads={num_threads!r} must be >= 1")
+    num_threads = _num_threads(num_threads)
     threads = int(max(1, min(num_threads, n // _MIN_SAMPLES_PER_THREAD)))
     if adaptive and threads > 1:
         # A thread on a core another job holds makes the whole (statically split) call
         # wait for it: use only the CPUs that are free now.
         threads = min(threads, cpus.threads_for(n, _MIN_SAMPLES_PER_THREAD))
+    kept = _POOLS.get(id(model))
+    if kept is None or kept.model is not model or not kept.fits(model, threads):
+        threads = _threads_that_fit(model, threads, None if adaptive else "num_threads")
     entry = _pool(model, threads)
     if not entry.lock.acquire(blocking=False):
+        threads = _threads_that_fit(model, threads, None if adaptive else "num_threads")
         entry = _Pool(model, threads)  # another thread is using the kept pool
         entry.lock.acquire()
     try:

@@ -445,7 +445,10 @@ def simulate_batch_compiled(
             each takes the next variant when a lane falls free); default
             :func:`rrt_pin.cpus.threads_for` (the CPUs free now, no thread with fewer
             than :data:`MIN_PER_THREAD` variants). The results
-            do not depend on it, bit for bit.
+            do not depend on it, bit for bit. At most :func:`rrt_pin.cpus.max_threads`
+            (256); a count whose stacks and malloc arenas do not fit in the address
+            space left (``ulimit -v``) is cut to one that does, with a warning
+            (:mod:`rrt_pin.memory`).
         band: the settling band of ``keep="metrics"`` (share of |q0 − qf|).
         max_steps: step budget of each variant.
         start: ``time.perf_counter()`` when the caller's call began (for ``wall_time``).
@@ -501,7 +504,8 @@ def run_batch(
     count = q0s.shape[0]
     keep = validate.choice("keep", keep, KEEPS)
     band = validate.real("band", band, positive=True)
-    threads = None if threads is None else validate.positive_int("threads", threads)
+    if threads is not None:
+        threads = _threads_that_fit(validate.positive_int("threads", threads), count)
     max_steps = _max_steps(max_steps)
     plants = [_params(v) for v in _per_variant("params", params, count)]
     laws = _per_variant("controllers", controllers, count)
@@ -545,6 +549,31 @@ def run_batch(
         keep=keep,
         metrics=columns,
     )
+
+
+def _threads_that_fit(threads: int, count: int) -> int:
+    """An asked thread count, at most :func:`rrt_pin.cpus.max_threads`, cut to what fits.
+
+    Each helper thread reserves a stack and (numba allocates in it) a malloc arena;
+    the count is cut to the variants first (no thread without one).
+
+    Raises:
+        InputError: more than :func:`rrt_pin.cpus.max_threads`.
+    """
+    from rrt_pin import cpus, memory
+
+    threads = cpus.check_threads("threads", threads)
+    used = min(threads, max(1, count))
+    if used == 1:
+        return threads
+    fit = memory.threads_that_fit(
+        used,
+        memory.thread_cost(),
+        allocating=True,
+        what=f"a batch of {count} variants",
+        name="threads",
+    )
+    return threads if fit == used else fit
 
 
 def _batch_arrays(plants: list[Params], laws: list[Any]) -> tuple[np.ndarray, ...]:

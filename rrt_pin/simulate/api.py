@@ -308,9 +308,13 @@ def simulate_batch(
         atol: absolute tolerance [rad, m, rad/s, m/s], in (0, 1) (default the method's).
         backend: ``pinocchio`` or ``compiled``.
         step: longest step of the fixed-step methods [s].
-        threads: threads of the batch; default: the CPUs free now, none with too
-            little work, capped by ``OMP_NUM_THREADS`` (:mod:`rrt_pin.cpus`); the numbers
-            do not depend on it. Pinocchio backend: OpenMP threads of
+        threads: threads of the batch, at most :func:`rrt_pin.cpus.max_threads`
+            (256); default: the CPUs free now, none with too little work, capped by
+            ``OMP_NUM_THREADS`` (:mod:`rrt_pin.cpus`); the numbers do not depend on it.
+            Each thread reserves a stack (and, Pinocchio backend, holds a copy of the
+            model's data): a count that does not fit in the memory left is cut to
+            one that does, with a warning on the ``rrt_pin`` logger
+            (:mod:`rrt_pin.memory`). Pinocchio backend: OpenMP threads of
             ``pin.abaInParallel``, the free CPUs looked up again every 50 ms of the run,
             at least 32 variants a thread; compiled backend: threads sharing the
             variants, each taking the next one when it has room.
@@ -332,7 +336,10 @@ def simulate_batch(
         States (B, T, nv) and efforts; ``result.variant(i)`` is one run.
 
     Raises:
-        InputError: bad shapes, values, controllers or options; an unknown ``keep``.
+        InputError: bad shapes, values, controllers or options; an unknown ``keep``;
+            ``threads`` not from 1 to :func:`rrt_pin.cpus.max_threads`.
+        MemoryLimitError: not even one thread's copy of the model's data fits in
+            the memory left (the need and the limit named).
         DivergenceError: a variant's state became non-finite or the integrator
             failed (the message names the coordinate and the variant).
     """
@@ -358,7 +365,7 @@ def simulate_batch(
         t, backend=backend, method=method, rtol=rtol, atol=atol, step=step, batch=True
     )
     keep = validate.choice("keep", keep, KEEPS)
-    chosen = None if threads is None else validate.positive_int("threads", threads)
+    chosen = None if threads is None else _threads(threads)
     laws = []
     for i, c in enumerate(controllers):
         try:
@@ -381,6 +388,7 @@ def simulate_batch(
         from rrt_pin.simulate.pinocchio_backend import run_batch
 
         targets = _targets(laws) if keep == "metrics" else None
+        chosen = _pool_threads(robot, chosen)
 
         def run(o: Options, began: float, tau: bool, kept: str) -> BatchResult:
             full = run_batch(robot, laws, q0s, qd0s, t, o, chosen, tau or kept == "metrics", began)
@@ -391,6 +399,39 @@ def simulate_batch(
         return result
     second = "trajectories" if keep == "trajectories" else "final"
     return _with_estimate(result, options, lambda o, began: run(o, began, False, second))
+
+
+def _threads(threads: Any) -> int:
+    """``threads=`` as an int from 1 to :func:`rrt_pin.cpus.max_threads` (256)."""
+    from rrt_pin import cpus
+
+    return cpus.check_threads("threads", validate.positive_int("threads", threads))
+
+
+def _pool_threads(robot: Robot, chosen: int | None) -> int | None:
+    """The threads of a Pinocchio batch whose ``ModelPool`` fits in memory.
+
+    The pool holds a copy of the model's data a thread (one more while it is made):
+    the asked count, or the default (None: as many copies as CPUs), is cut to what
+    fits (:mod:`rrt_pin.memory`).
+
+    Raises:
+        MemoryLimitError: not even one thread's copy fits.
+    """
+    from rrt_pin import cpus, memory
+
+    wanted = chosen if chosen is not None else cpus.available()
+    data = memory.data_bytes(robot.model)
+    fit = memory.threads_that_fit(
+        wanted,
+        memory.Cost(data) + memory.thread_cost(),
+        fixed=memory.Cost(data),
+        what=f"a batch of a {robot.nv}-joint model",
+        each=f"{memory.describe(data)} a copy of Pinocchio's Data: one a thread, one more "
+        "while they are made",
+        name=None if chosen is None else "threads",
+    )
+    return chosen if fit == wanted else fit
 
 
 def _targets(laws: Sequence[Any]) -> np.ndarray:

@@ -49,6 +49,9 @@ class ClosedLoop:
             self.kp, self.kd, self.qf = feedback.kp, feedback.kd, feedback.qf
         else:
             self.model = robot.model
+        from rrt_pin.memory import check_data
+
+        check_data(self.model, f"a simulation of a {self.n}-joint model")
         self.data = self.model.createData()
 
     def acceleration(self) -> Callable[[float, np.ndarray, np.ndarray], np.ndarray]:
