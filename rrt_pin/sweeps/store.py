@@ -78,6 +78,7 @@ _NOFOLLOW = os.O_NOFOLLOW | os.O_CLOEXEC
 _DIR = os.O_RDONLY | os.O_DIRECTORY | _NOFOLLOW
 #: Manifest keys a resumed sweep relies on, and their types.
 _KEYS = {"spec_hash": str, "chunk": int, "done": list}
+_WORDS = {str: "a string", int: "an integer", list: "a list"}
 
 
 def folder_path(out: object) -> Path:
@@ -200,7 +201,7 @@ def _check_manifest(data: object, where: str) -> dict[str, Any]:
             raise InputError(f"{bad}: it has no {key!r}")
         value = data[key]
         if not isinstance(value, kind) or isinstance(value, bool):
-            raise InputError(f"{bad}: {key!r} is a {type(value).__name__}, not a {kind.__name__}")
+            raise InputError(f"{bad}: {key!r} must be {_WORDS[kind]}, not {type(value).__name__}")
     if data["chunk"] < 1:
         raise InputError(f"{bad}: 'chunk' is {data['chunk']}, not >= 1")
     wrong = [k for k in data["done"] if not isinstance(k, int) or isinstance(k, bool) or k < 0]
@@ -366,12 +367,31 @@ class Store:
                 raise InputError(f"cannot create the sweep folder {self._where()}: {problem}")
             return
         try:
+            self._check_unlocked(fd)
             self._inspect(fd, manifest, resume)
         finally:
             os.close(fd)
         problem = _not_writable(self.folder)
         if problem:
             raise InputError(f"cannot write into the sweep folder {self._where()}: {problem}")
+
+    def _check_unlocked(self, fd: int) -> None:
+        """Refuse a folder another run holds (tried with a shared lock, released at once)."""
+        try:
+            lock = os.open(LOCK, os.O_RDONLY | os.O_NONBLOCK | _NOFOLLOW, dir_fd=fd)
+        except OSError:
+            return  # no lock file (or not one): start() tells
+        try:
+            if not stat.S_ISREG(os.fstat(lock).st_mode):
+                return
+            try:
+                fcntl.flock(lock, fcntl.LOCK_SH | fcntl.LOCK_NB)
+            except BlockingIOError:
+                raise InputError(
+                    f"another sweep is writing into {self._where()} (pid {self._holder(lock)})"
+                ) from None
+        finally:
+            os.close(lock)  # releases the shared lock
 
     def _inspect(self, fd: int, manifest: dict[str, Any], resume: bool) -> dict[str, Any] | None:
         """The checks of :meth:`check` on the open folder; the old manifest (or None)."""
