@@ -526,3 +526,26 @@ def test_a_finished_sweep_leaves_no_pid_and_no_temporary_file(done):
     names = sorted(p.name for p in (base / "ref").rglob("*"))
     assert names == sorted(["sweep.lock", "manifest.json", "chunks", "chunk-000000.parquet",
                             "chunk-000001.parquet", "chunk-000002.parquet"])  # fmt: skip
+
+
+def test_the_plot_in_the_folder_replaces_a_link_never_writes_through_it(copy, tmp_path):
+    from rrt_pin.sweeps.plot import plot_metric
+
+    out, _ = copy
+    target = tmp_path / "precious"
+    target.write_bytes(b"mine")
+    (out / "final_error_q1.png").symlink_to(target)
+    path = plot_metric(out, "final_error_q1")
+    assert path == out / "final_error_q1.png" and target.read_bytes() == b"mine"
+    assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and not path.is_symlink()
+
+
+def test_workers_takes_numpy_integers_and_refuses_the_rest(tmp_path):
+    result = sweep(SPEC, tmp_path / "np", workers=np.int64(1), progress=False)
+    assert result.computed == 3
+    for workers, words in ((np.float64(2.0), "not float64"), (True, "not bool"),
+                           ("2", "not str"), (np.int32(0), "workers=0 must be")):  # fmt: skip
+        with pytest.raises(InputError, match=words) as info:
+            sweep(SPEC, tmp_path / "refused", workers=workers, progress=False)
+        assert "np." not in str(info.value)
+    assert not (tmp_path / "refused").exists()

@@ -59,7 +59,7 @@ from rrt_pin._version import __version__
 from rrt_pin.errors import InputError
 from rrt_pin.io import _PROBLEMS, OutputError
 
-__all__ = ["LOCK", "MANIFEST", "Store", "folder_path"]
+__all__ = ["LOCK", "MANIFEST", "Store", "folder_path", "write_into"]
 
 logger = logging.getLogger("rrt_pin")
 
@@ -96,6 +96,30 @@ def folder_path(out: object) -> Path:
     if not isinstance(text, str) or not text.strip():
         raise InputError(f"out={text!r} must not be empty (a folder's path)")
     return Path(text)
+
+
+def write_into(folder: str | Path, name: str, data: bytes) -> Path:
+    """Write ``data`` as the file ``name`` directly inside the sweep folder ``folder``.
+
+    As the sweep's own files: a temporary file, then a rename over ``name``, so a
+    link, FIFO or device node there is replaced, never written through.
+
+    Raises:
+        InputError: ``name`` is not a plain file name, the folder is missing, or the
+            file cannot be written (``OutputError``).
+    """
+    if not name or "/" in name or name in (".", ".."):
+        raise InputError(f"{name!r} is not a file name")
+    store = Store(folder)
+    store._fd = store._open_folder()
+    if store._fd is None:
+        raise InputError(f"sweep folder {store._where()} does not exist")
+    try:
+        store._replace[""] = {name}
+        store._put("", name, data)
+    finally:
+        store.close()
+    return store.folder / name
 
 
 def chunk_name(k: int) -> str:
