@@ -17,6 +17,7 @@ from __future__ import annotations
 import heapq
 import logging
 import math
+import numbers
 import os
 import sys
 import time
@@ -320,9 +321,12 @@ def sweep(
 
         spec = replace(spec, chunk=BLOCK * math.ceil(spec.chunk / BLOCK))
     _check_extremes(spec)
-    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int)
-                                or workers < 1):  # fmt: skip
-        raise InputError(f"workers={workers!r} must be an integer >= 1")
+    if workers is not None:  # numpy integers too; never a bool, a float or a string
+        if isinstance(workers, (bool, np.bool_)) or not isinstance(workers, numbers.Integral):
+            raise InputError(f"workers must be an integer >= 1, not {type(workers).__name__}")
+        if int(workers) < 1:
+            raise InputError(f"workers={int(workers)} must be an integer >= 1")
+        workers = int(workers)
     from rrt_pin import cpus
 
     n_workers = workers or cpus.available()
