@@ -103,6 +103,10 @@ def plot_metric(out: str | Path, metric: str, path: str | Path | None = None) ->
         fig.savefig(buffer, format="png", dpi=110)
     finally:
         plt.close(fig)
-    target = Path(path) if path is not None else Path(out) / f"{metric}.png"
+    if path is None:  # inside the sweep folder: as its own files, never through a link
+        from rrt_pin.sweeps.store import write_into
+
+        return write_into(out, f"{metric}.png", buffer.getvalue())
+    target = Path(path)
     atomic_write_bytes(target, buffer.getvalue(), flag="--plot")
     return target
