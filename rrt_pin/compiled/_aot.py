@@ -18,6 +18,15 @@ The build needs numba (with its ``pycc``) and a C compiler; it runs in a child
 process, writes into a temporary file renamed into place (a crash leaves no
 partial module), and is only ever an optimisation: when it cannot be built or
 loaded, the JIT path is used and nothing else changes.
+
+A damaged module must never be loaded: the loader maps the file, and a page
+beyond the end of a truncated one kills the process with SIGBUS, before any
+exception can be raised. So :func:`build` records the module's size and SHA-256
+beside it (``<module>.json``, written before the module is renamed into place),
+and :func:`load` checks both before importing it: a module without its record,
+of another size or with other contents is deleted unread (a note on the
+``rrt_pin`` logger at INFO, shown by ``-v``), the JIT path runs, and the next
+:func:`build` makes it again.
 """
 
 from __future__ import annotations
@@ -35,7 +44,7 @@ import tempfile
 from pathlib import Path
 from types import ModuleType
 
-__all__ = ["EXPORTS", "build", "can_build", "is_built", "load", "module_path"]
+__all__ = ["EXPORTS", "build", "can_build", "damage", "is_built", "load", "module_path"]
 
 #: The functions the module exports, by JIT module (each with its JIT signature).
 EXPORTS = {
@@ -47,9 +56,12 @@ EXPORTS = {
 _NAME = "rrt_pin_dynamics_aot"
 #: Left in the cache directory when a build failed, so that later processes do not retry.
 _FAILED = "AOT_FAILED"
+#: Appended to the module's name for its record (size and SHA-256 when built).
+_RECORD = ".json"
 _logger = logging.getLogger("rrt_pin")
 _loaded: ModuleType | None = None
 _failed = False
+_noted = False
 
 
 def module_path() -> Path | None:
@@ -67,10 +79,84 @@ def module_path() -> Path | None:
     return None
 
 
+def _record_path(path: Path) -> Path:
+    return path.with_name(path.name + _RECORD)
+
+
+def _describe(path: Path) -> dict[str, object]:
+    """The size [bytes] and SHA-256 of ``path`` (raises OSError)."""
+    data = path.read_bytes()
+    return {"size": len(data), "sha256": hashlib.sha256(data).hexdigest()}
+
+
+def _recorded(path: Path) -> dict[str, object] | None:
+    """The size and SHA-256 recorded for the module at ``path`` when it was built, or None."""
+    try:
+        record = json.loads(_record_path(path).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    if not isinstance(record, dict):
+        return None
+    size, digest = record.get("size"), record.get("sha256")
+    if not isinstance(size, int) or isinstance(size, bool) or not isinstance(digest, str):
+        return None
+    return {"size": size, "sha256": digest}
+
+
+def damage(path: Path, contents: bool = True) -> str | None:
+    """What is wrong with the module file at ``path`` (None: it is the one built).
+
+    Compares its size, and with ``contents`` its SHA-256 (reading the whole file,
+    ~0.8 MB: about a millisecond), with its record; never imports it.
+    """
+    record = _recorded(path)
+    if record is None:
+        return "it has no record of its size and SHA-256"
+    try:
+        found = _describe(path) if contents else {"size": path.stat().st_size}
+    except OSError as e:
+        return f"it cannot be read ({e.strerror or e})"
+    if found["size"] != record["size"]:
+        return f"it has {found['size']} bytes, {record['size']} when built (truncated or grown)"
+    if contents and found["sha256"] != record["sha256"]:
+        return "its contents changed since it was built (SHA-256)"
+    return None
+
+
+def _discard(path: Path, problem: str) -> None:
+    """Say why the module at ``path`` is not used (once), then delete it and its record.
+
+    What cannot be deleted stays, unread.
+    """
+    global _noted
+    if not _noted:
+        _noted = True
+        _logger.info(
+            "ahead-of-time module %s not loaded: %s; deleted, the JIT is used and the "
+            "module is built again",
+            path,
+            problem,
+        )
+    for file in (path, _record_path(path)):
+        try:
+            file.unlink(missing_ok=True)
+        except OSError:
+            pass
+
+
 def is_built() -> bool:
-    """Whether the module for the current sources exists (cheap: no import, no numba)."""
+    """Whether the module for the current sources exists with its record, of the recorded size.
+
+    Cheap (no import, no numba, no hashing): :func:`load` checks the contents too.
+    """
     path = module_path()
-    return path is not None and path.is_file()
+    if path is None or not path.is_file():
+        return False
+    problem = damage(path, contents=False)
+    if problem is not None:
+        _discard(path, problem)
+        return False
+    return True
 
 
 def load() -> ModuleType | None:
@@ -80,6 +166,11 @@ def load() -> ModuleType | None:
         return _loaded
     path = module_path()
     if path is None or not path.is_file():
+        return None
+    problem = damage(path)
+    if problem is not None:  # never mapped: a truncated file would end the process (SIGBUS)
+        _failed = True
+        _discard(path, problem)
         return None
     try:
         spec = importlib.util.spec_from_file_location(_NAME, path)
@@ -92,8 +183,7 @@ def load() -> ModuleType | None:
             raise ImportError("a function is missing")
     except Exception as e:  # a damaged file: the JIT path takes over, the next build replaces it
         _failed = True
-        _logger.debug("ahead-of-time module %s not loaded: %s", path, e)
-        path.unlink(missing_ok=True)
+        _discard(path, f"it does not import ({e})")
         return None
     _loaded = module
     return module
@@ -115,7 +205,7 @@ def build(timeout: float = 600.0) -> bool:
     path = module_path()
     if path is None:
         return False
-    if path.is_file():
+    if is_built():
         return True
     if (path.parent / _FAILED).exists():
         return False
@@ -139,10 +229,21 @@ def build(timeout: float = 600.0) -> bool:
             except OSError:
                 pass
             return False
+        # The record first, then the module: a module is never there without its
+        # record (one left from a crash, without its module, is rewritten next time).
+        record = _record_path(path)
+        tmp = Path(work) / record.name
         try:
+            tmp.write_text(json.dumps(_describe(built)) + "\n", encoding="utf-8")
+            os.replace(tmp, record)
             os.replace(built, path)  # same directory: atomic
         except OSError as e:
             _logger.debug("ahead-of-time module not saved: %s", e)
+            for file in (path, record):
+                try:
+                    file.unlink(missing_ok=True)
+                except OSError:
+                    pass
             return False
     return True
 

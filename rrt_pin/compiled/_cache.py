@@ -17,6 +17,8 @@ home directory shared by two machines, therefore gets its own directory.
 :func:`mark_ready` records, once every function is cached, each cache file and
 its SHA-256; :func:`is_cached` requires all of them, unchanged, and
 :func:`discard_damaged` deletes the ones that changed before numba reads them.
+The ahead-of-time module kept in the same directory has its own record of its
+size and SHA-256, checked before it is imported (:mod:`rrt_pin.compiled._aot`).
 
 The base directory is, in order of preference:
 
