@@ -24,7 +24,6 @@ command, and a key of a command's table an option of that command.
 from __future__ import annotations
 
 import math
-import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -32,11 +31,6 @@ from typing import Any
 from rrt_pin.commands import COMMANDS
 from rrt_pin.errors import SceneError
 from rrt_pin.params import PARAM_DOCS, Params, param_names, parse_number
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover - Python 3.10
-    import tomli as tomllib
 
 __all__ = ["MAX_SCENE_BYTES", "Scene", "load_scene", "resolve_params"]
 
@@ -72,16 +66,10 @@ def load_scene(path: str | Path) -> Scene:
             or not TOML, has an unknown table or parameter, or a value that is
             not a finite number where one is due (or an integer beyond 64 bits).
     """
-    from rrt_pin._read import read_text_capped
+    from rrt_pin._read import load_toml
 
     path = Path(path)
-    text = read_text_capped(path, cap=MAX_SCENE_BYTES, what="scene file", error=SceneError)
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as e:
-        raise SceneError(f"scene file {str(path)!r} is not valid TOML: {e}") from e
-    except (RecursionError, MemoryError):
-        raise SceneError(f"scene file {str(path)!r} is not valid TOML: nested too deeply") from None
+    data = load_toml(path, cap=MAX_SCENE_BYTES, what="scene file", error=SceneError)
     unknown = sorted(set(data) - {"params", "options", *COMMANDS})
     if unknown:
         raise SceneError(
@@ -125,12 +113,9 @@ def load_scene(path: str | Path) -> Scene:
 
 def _check_int(path: Path, name: str, value: object) -> None:
     """Refuse integers beyond TOML's 64-bit range (tomllib returns them unbounded)."""
-    if isinstance(value, int) and not isinstance(value, bool) and value.bit_length() > 63:
-        digits = int(value.bit_length() * math.log10(2)) + 1
-        raise SceneError(
-            f"scene file {str(path)!r}: {name} is an integer of about {digits} digits, "
-            "beyond TOML's 64-bit range"
-        )
+    from rrt_pin._read import check_int64
+
+    check_int64(f"scene file {str(path)!r}", name, value, SceneError)
 
 
 def resolve_params(scene: Scene | None = None, overrides: dict[str, float] | None = None) -> Params:

@@ -19,14 +19,32 @@ from typing import Any
 import numpy as np
 
 from rrt_pin import text
-from rrt_pin.errors import DivergenceError, RrtPinError, SceneError
+from rrt_pin.errors import DivergenceError, InputError, RrtPinError, SceneError
 from rrt_pin.sweeps.spec import Spec, spec_from_dict
 
-__all__ = ["BLOCK", "Plan", "plan", "run_chunk"]
+__all__ = ["BLOCK", "Plan", "metric_names", "plan", "run_chunk"]
 
 #: Variants per Pinocchio batch (a URDF sweep's chunk is a multiple of it).
 BLOCK = 64
 _PREFIXES = ("q0", "qd0", "qf", "kp", "kd")
+
+
+@dataclass(frozen=True)
+class _Failure:
+    """A variant that failed without a time of divergence (inverse dynamics that overflow).
+
+    Attributes:
+        t: when [s] (NaN: not in time).
+        coordinate: where ("" when the reason says it).
+        reason: why, one line.
+    """
+
+    t: float
+    coordinate: str
+    reason: str
+
+    def __str__(self) -> str:
+        return self.reason
 
 
 @dataclass(frozen=True, eq=False)
@@ -130,6 +148,22 @@ def _plan(digest: str, source_json: str) -> Plan:
             raise SceneError(f"[sweep]: {e}") from e
         method, rtol, atol, step = options.method.name, options.rtol, options.atol, options.step
     return Plan(spec, robot, names, base, backend, method, rtol, atol, step, t)
+
+
+def metric_names(p: Plan) -> tuple[str, ...]:
+    """The metric columns every chunk of the plan's spec has (text ones included)."""
+    robot, out = p.robot, []
+    for group in p.spec.metrics:
+        if group in ("final_error", "settling_time", "excursion"):
+            out += [f"{group}_{name}" for name in robot.q_names]
+        elif group == "peak_effort":
+            out += [f"peak_effort_{name}" for name in robot.effort_names]
+            out += [f"peak_effort_time_{name}" for name in robot.effort_names]
+        elif group == "diverged":
+            out += ["diverged", "diverged_time", "diverged_coordinate", "diverged_reason"]
+        else:  # control_energy, evaluations: one column each
+            out.append(group)
+    return tuple(out)
 
 
 def plan(spec: Spec) -> Plan:
@@ -362,13 +396,20 @@ def _finish(
              for i, f in enumerate(failures)], dtype=object
         )  # fmt: skip
         columns["diverged_reason"] = np.array(
-            [str(f).split(": ", 1)[-1] if f is not None else (why[i] or "")
-             for i, f in enumerate(failures)], dtype=object
-        )  # fmt: skip
+            [_reason(f) if f is not None else (why[i] or "") for i, f in enumerate(failures)],
+            dtype=object,
+        )
     for name, col in columns.items():  # a failed variant has no metric
         if col.dtype == float and name not in ("diverged_time",):
             col[failed] = np.nan
     return {"columns": columns}
+
+
+def _reason(failure: DivergenceError | _Failure) -> str:
+    """Why a variant failed: the message after "simulation diverged at … in q2: "."""
+    if isinstance(failure, _Failure):
+        return failure.reason
+    return str(failure).split(": ", 1)[-1]
 
 
 def _inverse(p: Plan, values: dict[str, np.ndarray], count: int, rows: list[int]) -> dict:
@@ -388,9 +429,12 @@ def _inverse(p: Plan, values: dict[str, np.ndarray], count: int, rows: list[int]
         for i in np.flatnonzero(~bad):
             params = Params(**{k: float(table[k][i]) for k in p.base})
             traj = rest_to_rest(params.q0, params.qf, params.Tp, p.t)
-            tau[i] = inverse_dynamics(chapter_arm(params), traj.q, traj.qd, traj.qdd,
-                                      backend=p.backend)  # fmt: skip
             q[i], qd[i] = traj.q, traj.qd
+            try:
+                tau[i] = inverse_dynamics(chapter_arm(params), traj.q, traj.qd, traj.qdd,
+                                          backend=p.backend)  # fmt: skip
+            except InputError as e:  # efforts that overflow: this variant fails, not the sweep
+                failures[i] = _Failure(math.nan, "efforts", str(e))
         qf = np.column_stack([table[k] for k in ("q1f", "q2f", "q3f")])
     else:
         cols = {k: np.column_stack([np.broadcast_to(values.get(f"{k}_{j}", p.base[f"{k}_{j}"]),
@@ -400,8 +444,11 @@ def _inverse(p: Plan, values: dict[str, np.ndarray], count: int, rows: list[int]
         Tp = float(p.spec.base.get("Tp", p.spec.tf))
         for i in range(count):
             traj = rest_to_rest(cols["q0"][i], cols["qf"][i], Tp, p.t)
-            tau[i] = inverse_dynamics(robot, traj.q, traj.qd, traj.qdd, num_threads=1)
             q[i], qd[i] = traj.q, traj.qd
+            try:
+                tau[i] = inverse_dynamics(robot, traj.q, traj.qd, traj.qdd, num_threads=1)
+            except InputError as e:
+                failures[i] = _Failure(math.nan, "efforts", str(e))
         qf = cols["qf"]
     part = _finish(p, q, qd, tau, qf, np.full(count, np.nan), bad, why, failures)
     return {"columns": part["columns"], "keep": {k: (q[k], qd[k], tau[k]) for k in rows}}

@@ -4,13 +4,15 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from rrt_pin import text
 from rrt_pin.errors import InputError
+from rrt_pin.sweeps.spec import TEXT_COLUMNS
 
-__all__ = ["plot_metric"]
+__all__ = ["check_metric", "plot_metric"]
 
 #: Bins of a random axis.
 BINS = 24
@@ -24,6 +26,30 @@ def _bins(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     edges = np.linspace(values.min(), values.max(), BINS + 1)
     index = np.clip(np.searchsorted(edges, values, side="right") - 1, 0, BINS - 1)
     return index, 0.5 * (edges[1:] + edges[:-1])
+
+
+def check_metric(spec: Any, metric: str) -> None:
+    """Refuse, before a sweep runs, a ``--plot`` metric its chunks will not have.
+
+    Args:
+        spec: the sweep's spec (a Spec, its dict or a TOML file's path).
+        metric: a metric column of numbers (``final_error_q3``, ``diverged`` …).
+
+    Raises:
+        InputError: no such metric column, or a column of text.
+        SceneError: the spec itself is bad (as the sweep would say).
+    """
+    from rrt_pin.sweeps.compute import metric_names, plan
+    from rrt_pin.sweeps.run import _spec
+
+    names = metric_names(plan(_spec(spec)))
+    numbers = [n for n in names if n not in TEXT_COLUMNS]
+    if metric in TEXT_COLUMNS and metric in names:
+        raise InputError(
+            f"--plot {metric!r} is a column of text; plot one of numbers: {text.names(numbers, 20)}"
+        )
+    if metric not in numbers:
+        raise InputError(f"--plot {metric!r} is not a column; valid: {text.names(numbers, 20)}")
 
 
 def plot_metric(out: str | Path, metric: str, path: str | Path | None = None) -> Path:
@@ -45,8 +71,12 @@ def plot_metric(out: str | Path, metric: str, path: str | Path | None = None) ->
     if manifest is None:
         raise InputError(f"{str(out)!r} holds no sweep")
     table = store.read()
+    names = [n for n in table.column_names if n != "variant" and n not in TEXT_COLUMNS]
+    if metric in TEXT_COLUMNS:
+        raise InputError(
+            f"--plot {metric!r} is a column of text; plot one of numbers: {text.names(names, 20)}"
+        )
     if metric not in table.column_names:
-        names = [n for n in table.column_names if n != "variant"]
         raise InputError(f"--plot {metric!r} is not a column; valid: {text.names(names, 20)}")
     units = json.loads((table.schema.metadata or {}).get(b"rrt_pin.units", b"{}"))
     varied = list(manifest["spec"].get("vary", {}))

@@ -32,6 +32,11 @@ sample ``i % count``. Random samples are drawn once from ``seed``, so a
 variant's values never depend on chunking or workers. Names: any of the
 chapter's symbols for the arm; ``q0_<k>``, ``qd0_<k>``, ``qf_<k>``, ``kp_<k>``,
 ``kd_<k>`` (k = 1 … n joints) for a URDF. SI units.
+
+Sizes are counted before anything is made: a spec asking for more than
+:data:`MAX_VARIANTS` variants (or :data:`MAX_CHUNKS` chunks) is refused from
+its axes' sizes alone, and a chunk computes its variants' grid values from
+their indices, never the whole grid.
 """
 
 from __future__ import annotations
@@ -39,7 +44,6 @@ from __future__ import annotations
 import hashlib
 import json
 import math
-import sys
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -47,14 +51,10 @@ from typing import Any
 
 import numpy as np
 
+from rrt_pin._read import check_int64, load_toml
 from rrt_pin.errors import SceneError
 
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover - Python 3.10
-    import tomli as tomllib
-
-__all__ = ["METRICS", "Spec", "load_spec"]
+__all__ = ["MAX_SPEC_BYTES", "MAX_VARIANTS", "METRICS", "Spec", "load_spec", "spec_from_dict"]
 
 #: Metrics by task: name -> what it is (units in the column names' docs).
 METRICS: dict[str, dict[str, str]] = {
@@ -70,8 +70,12 @@ METRICS: dict[str, dict[str, str]] = {
     "inverse": {
         "peak_effort": "peak |effort| per joint [N·m or N] and when [s]",
         "control_energy": "∫ Σ|τ·q̇| dt [J]",
+        "diverged": "whether the variant failed (invalid parameters, efforts that overflow), "
+        "and why",
     },
 }
+#: Metric columns of text (not numbers: nothing to plot).
+TEXT_COLUMNS = ("diverged_coordinate", "diverged_reason")
 _SECTIONS = ("sweep", "base", "vary", "keep")
 _SWEEP_KEYS = ("task", "urdf", "tf", "dt", "count", "seed", "chunk", "method", "rtol", "atol")
 _GRID = ("linspace", "logspace")
@@ -80,6 +84,17 @@ _RANDOM = ("uniform", "normal", "lhs")
 DEFAULT_CHUNK = 8192
 #: Largest number of variants a spec may ask for.
 MAX_VARIANTS = 100_000_000
+#: Largest number of chunks (each is a file and a manifest entry).
+MAX_CHUNKS = 100_000
+#: Largest spec file [bytes].
+MAX_SPEC_BYTES = 1 << 20
+#: What each section must be, for messages.
+_SECTION_KINDS = {
+    "sweep": "a table of options (task, tf, dt, count …)",
+    "base": "a table of name = value",
+    "vary": "a table of name = values or { kind = [...] }",
+    "keep": "a table (metrics = [...], trajectories = [...])",
+}
 _URDF_PREFIXES = ("q0", "qd0", "qf", "kp", "kd")
 
 
@@ -102,14 +117,57 @@ class Axis:
         """Whether the axis is drawn at random."""
         return self.kind in _RANDOM
 
+    @property
+    def size(self) -> int:
+        """The number of grid values, counted without making them (1 for a random axis)."""
+        if self.random:
+            return 1
+        if self.kind == "values":
+            return len(self.args)
+        return int(self.args[2])
+
     def grid(self) -> np.ndarray:
-        """The grid's values."""
+        """The grid's values (all of them: for small grids; see :meth:`take`)."""
         if self.kind == "values":
             return np.array(self.args)
         a, b, n = self.args
         if self.kind == "linspace":
             return np.linspace(a, b, int(n))
         return np.logspace(a, b, int(n))
+
+    def take(self, k: np.ndarray) -> np.ndarray:
+        """The grid values at indices ``k``, bit for bit those of :meth:`grid`, made alone.
+
+        ``np.linspace``'s arithmetic (``k·step + start``, the end set exactly; ``k / div ·
+        delta`` where the step underflows) on the indices asked for only.
+        """
+        k = np.asarray(k)
+        if self.kind == "values":
+            return np.array(self.args)[k]
+        a, b, n = self.args
+        n = int(n)
+        start, stop = np.float64(a), np.float64(b)
+        y = k.astype(np.float64)
+        if n > 1:
+            div = n - 1
+            delta = np.subtract(stop, start, dtype=np.float64)
+            step = delta / div
+            y = y / div * delta if step == 0 else y * step
+            y += start
+            y[k == n - 1] = stop
+        else:
+            y = y * np.subtract(stop, start, dtype=np.float64) + start
+        return y if self.kind == "linspace" else np.power(np.float64(10.0), y)
+
+    def ends(self) -> tuple[float, float]:
+        """The smallest and largest values a grid or a bounded distribution reaches."""
+        if self.kind == "values":
+            return min(self.args), max(self.args)
+        if self.kind in ("linspace", "uniform", "lhs"):
+            return min(self.args[:2]), max(self.args[:2])
+        if self.kind == "logspace":
+            return 10.0 ** min(self.args[:2]), 10.0 ** max(self.args[:2])
+        raise ValueError(f"a {self.kind} axis has no ends")
 
 
 @dataclass(frozen=True)
@@ -162,11 +220,11 @@ class Spec:
     @property
     def grid_shape(self) -> tuple[int, ...]:
         """The number of values of each grid axis."""
-        return tuple(a.grid().size for a in self.grid_axes)
+        return tuple(a.size for a in self.grid_axes)
 
     @property
     def variants(self) -> int:
-        """How many variants the spec describes."""
+        """How many variants the spec describes (a Python int: never overflows)."""
         return math.prod(self.grid_shape) * self.count
 
     @property
@@ -223,7 +281,7 @@ class Spec:
         if grid_axes:
             point = np.unravel_index(index // self.count, self.grid_shape)
             for a, k in zip(grid_axes, point, strict=True):
-                out[a.name] = a.grid()[k]
+                out[a.name] = a.take(k)
         if self.random_axes:
             rows = self.random_rows(self.random_table(), start, stop) if random is None else random
             for a in self.random_axes:
@@ -238,12 +296,21 @@ class Spec:
         return {name: np.ascontiguousarray(np.asarray(col)[rows]) for name, col in table.items()}
 
 
+def _show(value: Any, limit: int = 60) -> str:
+    """``repr(value)``, cut to ``limit`` characters (a message stays one short line)."""
+    text = repr(value)
+    return text if len(text) <= limit else text[: limit - 1] + "…"
+
+
 def _number(where: str, value: Any) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise SceneError(f"{where}={value!r} must be a number")
-    x = float(value)
+        raise SceneError(f"{where}={_show(value)} must be a number")
+    try:
+        x = float(value)
+    except OverflowError:  # an int beyond float's range (a dict spec's)
+        x = math.inf
     if not math.isfinite(x):
-        raise SceneError(f"{where}={value!r} must be finite")
+        raise SceneError(f"{where}={_show(value)} must be finite")
     return x
 
 
@@ -286,34 +353,96 @@ def _urdf_names(n: int) -> list[str]:
     return [f"{p}_{k}" for p in _URDF_PREFIXES for k in range(1, n + 1)]
 
 
+def _plain(value: Any, where: str, name: str, depth: int = 0) -> Any:
+    """``value`` in TOML's types, integers beyond 64 bits refused.
+
+    Numpy scalars and arrays become Python numbers and lists, tuples lists,
+    mappings dicts.
+    """
+    if depth > 32:
+        raise SceneError(f"{where}: {name} is nested too deeply")
+    if isinstance(value, np.ndarray):
+        value = value.tolist()
+    elif isinstance(value, np.generic):
+        value = value.item()
+    if isinstance(value, Mapping):
+        out = {}
+        for key, item in value.items():
+            if not isinstance(key, str):
+                raise SceneError(f"{where}: {name} has the key {_show(key)}; keys are names")
+            out[key] = _plain(item, where, f"{name}.{key}" if name else key, depth + 1)
+        return out
+    if isinstance(value, (list, tuple)):
+        return [_plain(v, where, f"{name}[{i}]", depth + 1) for i, v in enumerate(value)]
+    check_int64(where, name, value, SceneError)
+    return value
+
+
+def _kind(value: Any) -> str:
+    if isinstance(value, list):
+        return "an array of tables" if value and isinstance(value[0], dict) else "an array"
+    if isinstance(value, str):
+        return f"the string {_show(value)}"
+    return f"{type(value).__name__} {_show(value)}"
+
+
+def _section(data: dict[str, Any], name: str, where: str) -> dict[str, Any]:
+    value = data.get(name, {})
+    if not isinstance(value, dict):
+        raise SceneError(f"{where}: [{name}] must be {_SECTION_KINDS[name]}, not {_kind(value)}")
+    return value
+
+
+def _count_text(n: int) -> str:
+    """A count for a message: exact up to 15 digits, else its power of ten."""
+    if n < 10**15:
+        return f"{n:,}"
+    return f"about 1e{int(n.bit_length() * math.log10(2))}"
+
+
 def spec_from_dict(data: Mapping[str, Any], where: str = "spec") -> Spec:
     """A validated :class:`Spec` from the TOML's dict.
 
+    Values may be numpy scalars or arrays (taken as numbers and lists).
+
     Raises:
-        SceneError: an unknown section, key, name or metric; an empty range; a
-            negative count; values that make a parameter invalid (e.g. a
-            negative mass), each in one line naming it.
+        SceneError: a section that is not a table, an unknown section, key,
+            name or metric; an empty range; a negative count; more variants or
+            chunks than allowed (counted before anything is made); values that
+            make a parameter invalid (e.g. a negative mass), each in one line
+            naming it.
     """
-    data = dict(data)
+    if not isinstance(data, Mapping):
+        raise SceneError(f"{where}: a spec is a table of sections, not {_kind(data)}")
+    try:
+        data = _plain(data, where, "")
+    except RecursionError:
+        raise SceneError(f"{where}: nested too deeply") from None
     unknown = sorted(set(data) - set(_SECTIONS))
     if unknown:
         raise SceneError(f"{where}: unknown section [{unknown[0]}]; valid: {', '.join(_SECTIONS)}")
-    sweep = dict(data.get("sweep", {}))
+    sweep = _section(data, "sweep", where)
+    vary = _section(data, "vary", where)
+    keep = _section(data, "keep", where)
+    base_in = _section(data, "base", where)
     bad = sorted(set(sweep) - set(_SWEEP_KEYS))
     if bad:
         raise SceneError(
             f"{where}: unknown key {bad[0]!r} in [sweep]; valid: {', '.join(_SWEEP_KEYS)}"
         )
     task = sweep.get("task", "simulate")
-    if task not in METRICS:
-        raise SceneError(f"{where}: task={task!r} is not one of {', '.join(METRICS)}")
+    if not isinstance(task, str) or task not in METRICS:
+        raise SceneError(f"{where}: task={_show(task)} is not one of {', '.join(METRICS)}")
     urdf = sweep.get("urdf")
     if urdf is not None and (not isinstance(urdf, str) or not urdf):
-        raise SceneError(f"{where}: urdf={urdf!r} must be a path")
+        raise SceneError(f"{where}: urdf={_show(urdf)} must be a path")
+    method = sweep.get("method")
+    if method is not None and (not isinstance(method, str) or not method):
+        raise SceneError(f"{where}: method={_show(method)} must be a method's name")
     tf = _number("tf", sweep.get("tf", 15.0))
     dt = _number("dt", sweep.get("dt", 0.01))
     if tf <= 0 or dt <= 0 or dt > tf:
-        raise SceneError(f"{where}: tf={tf!r} and dt={dt!r} must satisfy 0 < dt <= tf [s]")
+        raise SceneError(f"{where}: tf={tf:.6g} and dt={dt:.6g} must satisfy 0 < dt <= tf [s]")
     if tf / dt > 1_000_000:
         raise SceneError(f"{where}: tf/dt = {tf / dt:.3g} samples per variant is over 1e6")
     ints = {}
@@ -322,15 +451,30 @@ def spec_from_dict(data: Mapping[str, Any], where: str = "spec") -> Spec:
         if value is None:
             continue
         if isinstance(value, bool) or not isinstance(value, int) or value < low:
-            raise SceneError(f"{where}: {key}={value!r} must be an integer >= {low}")
+            raise SceneError(f"{where}: {key}={_show(value)} must be an integer >= {low}")
         ints[key] = value
-    axes = tuple(_axis(name, value) for name, value in dict(data.get("vary", {})).items())
+    axes = tuple(_axis(name, value) for name, value in vary.items())
     random = any(a.random for a in axes)
     if random and "count" not in ints:
         raise SceneError(f"{where}: random axes need count = N in [sweep]")
     if not random and "count" in ints:
         raise SceneError(f"{where}: count applies to random axes ([vary] has none)")
-    keep = dict(data.get("keep", {}))
+    # counted as Python ints from the axes' sizes, before any value is made
+    variants = math.prod(a.size for a in axes if not a.random) * ints.get("count", 1)
+    if variants > MAX_VARIANTS:
+        sizes = " × ".join(_count_text(a.size) for a in axes if not a.random)
+        if random:
+            sizes = f"{sizes} × count {_count_text(ints['count'])}" if sizes else "count"
+        raise SceneError(
+            f"{where}: {_count_text(variants)} variants ({sizes}) is over the limit of "
+            f"{MAX_VARIANTS:,}"
+        )
+    chunks = -(-variants // ints["chunk"])
+    if chunks > MAX_CHUNKS:
+        raise SceneError(
+            f"{where}: chunk={ints['chunk']} makes {chunks:,} chunks of {variants:,} variants, "
+            f"over the limit of {MAX_CHUNKS:,}; use a larger chunk"
+        )
     bad = sorted(set(keep) - {"metrics", "trajectories"})
     if bad:
         raise SceneError(f"{where}: unknown key {bad[0]!r} in [keep]; valid: metrics, trajectories")
@@ -338,28 +482,37 @@ def spec_from_dict(data: Mapping[str, Any], where: str = "spec") -> Spec:
     if not isinstance(metrics, list) or not metrics:
         raise SceneError(f"{where}: [keep] metrics must be a non-empty list")
     for m in metrics:
-        if m not in METRICS[task]:
+        if not isinstance(m, str) or m not in METRICS[task]:
             raise SceneError(
-                f"{where}: metric {m!r} is not one of task {task}'s: {', '.join(METRICS[task])}"
+                f"{where}: metric {_show(m)} is not one of task {task}'s: "
+                f"{', '.join(METRICS[task])}"
             )
     trajectories = keep.get("trajectories", [])
     if not isinstance(trajectories, list) or any(
         isinstance(i, bool) or not isinstance(i, int) or i < 0 for i in trajectories
     ):
         raise SceneError(f"{where}: [keep] trajectories must be a list of variant indices >= 0")
+    for i in trajectories:
+        if i >= variants:
+            raise SceneError(f"{where}: trajectory of variant {i}, but there are {variants}")
     base = {}
-    for name, value in dict(data.get("base", {})).items():
-        base[name] = (
-            [_number(f"[base] {name}", v) for v in value]
-            if isinstance(value, list)
-            else _number(f"[base] {name}", value)
-        )
+    for name, value in base_in.items():
+        if isinstance(value, list):
+            if urdf is None or name not in _URDF_PREFIXES:
+                lists = f"a URDF's {', '.join(_URDF_PREFIXES)}" if urdf else "a URDF sweep"
+                raise SceneError(
+                    f"{where}: [base] {name} = {_show(value)} must be a number "
+                    f"(lists of values per joint are for {lists})"
+                )
+            base[name] = [_number(f"[base] {name}[{i}]", v) for i, v in enumerate(value)]
+        else:
+            base[name] = _number(f"[base] {name}", value)
     for key in ("rtol", "atol"):
         if key in sweep:
             value = _number(key, sweep[key])
             if not 0 < value < 1:
-                raise SceneError(f"{where}: {key}={value!r} must lie in (0, 1)")
-    spec = Spec(
+                raise SceneError(f"{where}: {key}={value:.6g} must lie in (0, 1)")
+    return Spec(
         task=task,
         urdf=urdf,
         tf=tf,
@@ -367,38 +520,26 @@ def spec_from_dict(data: Mapping[str, Any], where: str = "spec") -> Spec:
         count=ints.get("count", 1),
         seed=ints["seed"],
         chunk=ints["chunk"],
-        method=sweep.get("method"),
+        method=method,
         rtol=sweep.get("rtol"),
         atol=sweep.get("atol"),
         base=base,
         axes=axes,
         metrics=tuple(metrics),
         trajectories=tuple(trajectories),
-        source=json.loads(json.dumps(data, default=str)),
+        source=json.loads(json.dumps(data)),
     )
-    if spec.variants > MAX_VARIANTS:
-        raise SceneError(f"{where}: {spec.variants} variants is over the limit of {MAX_VARIANTS}")
-    for i in spec.trajectories:
-        if i >= spec.variants:
-            raise SceneError(f"{where}: trajectory of variant {i}, but there are {spec.variants}")
-    return spec
 
 
 def load_spec(path: str | Path) -> Spec:
-    """Read and validate a sweep spec (TOML).
+    """Read and validate a sweep spec (TOML, UTF-8, at most 1 MB).
+
+    Read as run files are (:func:`rrt_pin._read.load_toml`): a device, a folder or a
+    FIFO nobody writes to is refused without blocking, nesting and 64-bit integers
+    are guarded.
 
     Raises:
         SceneError: the file cannot be read, is not TOML, or is not a valid spec.
     """
-    path = Path(path)
-    try:
-        raw = path.read_bytes()
-    except OSError as e:
-        raise SceneError(f"cannot read sweep spec {str(path)!r}: {e.strerror or e}") from e
-    if len(raw) > 1_000_000:
-        raise SceneError(f"sweep spec {str(path)!r} is over 1 MB")
-    try:
-        data = tomllib.loads(raw.decode("utf-8").removeprefix("\ufeff"))
-    except (UnicodeDecodeError, tomllib.TOMLDecodeError) as e:
-        raise SceneError(f"sweep spec {str(path)!r} is not valid TOML: {e}") from e
+    data = load_toml(path, cap=MAX_SPEC_BYTES, what="sweep spec", error=SceneError)
     return spec_from_dict(data, where=f"sweep spec {str(path)!r}")
