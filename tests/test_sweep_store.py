@@ -356,8 +356,10 @@ def test_a_new_sweep_takes_an_empty_folder_or_an_unstarted_one(tmp_path, done):
     unstarted = tmp_path / "unstarted"  # what a run refused by its scheduler leaves
     (unstarted / "chunks").mkdir(parents=True)
     (unstarted / "sweep.lock").write_text("")
+    (unstarted / ".manifest.json.0123abcd.tmp").write_text("{")
     _run(unstarted)
     _same_rows(unstarted, ref)
+    assert not (unstarted / ".manifest.json.0123abcd.tmp").exists()
 
 
 def test_a_symlink_at_the_manifest_is_never_followed(tmp_path, done):
@@ -549,3 +551,29 @@ def test_workers_takes_numpy_integers_and_refuses_the_rest(tmp_path):
             sweep(SPEC, tmp_path / "refused", workers=workers, progress=False)
         assert "np." not in str(info.value)
     assert not (tmp_path / "refused").exists()
+
+
+def test_a_file_system_without_hard_links_still_takes_a_sweep(tmp_path, done, monkeypatch):
+    """FAT and some FUSE file systems refuse ``link``: a rename after a check takes its place."""
+    import errno
+
+    _, ref = done
+
+    def no_links(*args, **kwargs):
+        raise PermissionError(errno.EPERM, "Operation not permitted")
+
+    monkeypatch.setattr(os, "link", no_links)
+    out = tmp_path / "out"
+    _run(out)
+    _same_rows(out, ref)
+    assert not [p for p in out.rglob(".*")]  # no temporary file left
+    target = tmp_path / "precious"
+    target.write_bytes(b"mine")
+
+    def plant(k, chunk):
+        if k == 0:
+            (tmp_path / "again" / "chunks" / "chunk-000001.parquet").symlink_to(target)
+
+    with pytest.raises(InputError, match="appeared while this sweep"):
+        _run(tmp_path / "again", on_chunk=plant)
+    assert target.read_bytes() == b"mine"

@@ -12,11 +12,11 @@ The rules, each checked before anything is computed or written:
 * One writer: a run holds an exclusive, non-blocking ``flock`` on ``sweep.lock``
   from opening the folder to its end; a second run into the same folder stops
   with "another sweep is writing into 'OUT' (pid N)". The lock file stays (it
-  is empty but for the pid); the kernel drops the lock when the run ends, even
-  on SIGKILL.
+  holds the running writer's pid, emptied at its end); the kernel drops the
+  lock when the run ends, even on SIGKILL.
 * A new sweep adopts nothing: ``OUT`` must be missing, empty, or hold only an
-  empty ``chunks/`` and ``sweep.lock`` (what a run stopped before its first
-  chunk leaves). A folder with a manifest needs ``resume``.
+  empty ``chunks/``, ``sweep.lock`` and temporary files (what a run stopped
+  before its first manifest leaves). A folder with a manifest needs ``resume``.
 * Nothing is written through a link or into a special file: the folder is
   opened once (``OUT`` itself may be a link to a folder) and every name inside
   it is opened with ``O_NOFOLLOW``. Each file is written to a new hidden
@@ -24,7 +24,8 @@ The rules, each checked before anything is computed or written:
   its name (``link`` fails if anything is there: exclusive creation) or, for a
   file this run replaces on purpose, *renamed* over it. A rename replaces a
   symbolic link, FIFO or device node at the name by the file itself, never
-  writing through it; a crash leaves the old file or the new one, and the
+  writing through it (on a file system without hard links the name is checked
+  free, then renamed to); a crash leaves the old file or the new one, and the
   temporary files (``.NAME.XXXXXXXX.tmp``) it may leave are removed by the
   next run and ignored by Parquet readers (hidden names).
 * ``resume`` trusts no file: the manifest must have the right shape and the
@@ -36,6 +37,8 @@ The rules, each checked before anything is computed or written:
   this sweep and nothing else: ``resume`` refuses a folder whose ``chunks/``
   holds any other visible name (a stray file), naming it; the user moves it
   out. :meth:`Store.read` reads only the chunks the manifest lists.
+* ``OUT/METRIC.png`` (``--plot``) goes through :func:`write_into`: the same
+  temporary file and rename, so a link there is replaced, not written through.
 """
 
 from __future__ import annotations
@@ -79,6 +82,13 @@ _DIR = os.O_RDONLY | os.O_DIRECTORY | _NOFOLLOW
 #: Manifest keys a resumed sweep relies on, and their types.
 _KEYS = {"spec_hash": str, "chunk": int, "done": list}
 _WORDS = {str: "a string", int: "an integer", list: "a list"}
+#: What ``link`` says on a file system without hard links.
+_NO_LINKS = {
+    errno.EPERM,
+    errno.EOPNOTSUPP,
+    getattr(errno, "ENOTSUP", errno.EOPNOTSUPP),
+    errno.EMLINK,
+}
 
 
 def folder_path(out: object) -> Path:
@@ -452,8 +462,8 @@ class Store:
             st = _lstat(name, fd)
             if st is None:
                 continue
-            if name == LOCK and stat.S_ISREG(st.st_mode):
-                continue
+            if stat.S_ISREG(st.st_mode) and (name == LOCK or _TEMP.fullmatch(name)):
+                continue  # what a run stopped before its first manifest leaves
             if name == CHUNKS and stat.S_ISDIR(st.st_mode):
                 cfd = os.open(CHUNKS, _DIR, dir_fd=fd)
                 try:
@@ -647,16 +657,7 @@ class Store:
             if replace:
                 os.rename(temp, name, src_dir_fd=fd, dst_dir_fd=fd)
             else:
-                try:
-                    os.link(temp, name, src_dir_fd=fd, dst_dir_fd=fd, follow_symlinks=False)
-                except FileExistsError:
-                    raise InputError(
-                        f"{self._where(*where)} appeared while this sweep was writing "
-                        "(another writer?): not replaced"
-                    ) from None
-                finally:
-                    with contextlib.suppress(FileNotFoundError):
-                        os.unlink(temp, dir_fd=fd)
+                self._create(fd, temp, name, where)
             os.fsync(fd)
         except OSError as e:
             with contextlib.suppress(OSError):
@@ -667,6 +668,29 @@ class Store:
                 os.unlink(temp, dir_fd=fd)
             raise
         self._replace.setdefault(folder, set()).add(name)  # this run's own file from now on
+
+    def _create(self, fd: int, temp: str, name: str, where: tuple[str, ...]) -> None:
+        """Give ``temp`` the name ``name`` if nothing has it (``link``: exclusive creation)."""
+        appeared = InputError(
+            f"{self._where(*where)} appeared while this sweep was writing (another writer?): "
+            "not replaced"
+        )
+        try:
+            os.link(temp, name, src_dir_fd=fd, dst_dir_fd=fd, follow_symlinks=False)
+        except FileExistsError:
+            raise appeared from None
+        except OSError as e:
+            if e.errno not in _NO_LINKS:
+                raise
+            # a file system without hard links (FAT, some FUSE): the lock keeps other runs
+            # out, and a name that is already there is refused as above
+            if _lstat(name, fd) is not None:
+                raise appeared from None
+            os.rename(temp, name, src_dir_fd=fd, dst_dir_fd=fd)
+            return
+        finally:
+            with contextlib.suppress(FileNotFoundError):
+                os.unlink(temp, dir_fd=fd)
 
     def _write_manifest(self) -> None:
         text = json.dumps(self.manifest, indent=1) + "\n"
