@@ -55,10 +55,11 @@ THREAD_RESIDENT = 128 << 10
 #: A thread's malloc arena, reserved (not touched) by glibc for each of the first
 #: 8 × CPUs threads that allocate [bytes].
 ARENA = 64 << 20
-#: What a run leaves free of each limit: this share of it, and at least :data:`RESERVE`.
+#: What a run leaves free of each limit: this share of it, and at least :data:`RESERVE`
+#: or half of it, whichever is less.
 HEADROOM = 0.1
-#: The least a run leaves free of each limit [bytes] (numpy's BLAS alone reserves
-#: tens of MB a thread when it first multiplies matrices).
+#: What a run leaves free of a limit of more than twice this [bytes] (numpy's BLAS
+#: alone reserves tens of MB a thread when it first multiplies matrices).
 RESERVE = 256 << 20
 _logger = logging.getLogger("rrt_pin")
 
@@ -98,8 +99,8 @@ class Limit:
     address_space: bool = False
 
     def usable(self) -> int:
-        """The bytes a run plans for: :attr:`room` less :data:`HEADROOM` (at least :data:`RESERVE`)."""
-        return max(0, self.room - max(int(self.room * HEADROOM), RESERVE))
+        """The bytes a run plans for: :attr:`room` less its headroom (see :data:`HEADROOM`)."""
+        return self.room - max(int(self.room * HEADROOM), min(RESERVE, self.room // 2))
 
     def takes(self, cost: Cost) -> int:
         """The bytes ``cost`` counts against this limit."""
