@@ -4,12 +4,14 @@ Pinocchio's URDF parser (urdfdom) and mesh loader (assimp) print errors and
 warnings straight to file descriptor 2, bypassing Python. :func:`captured_stderr`
 points descriptor 2 at a temporary file for the duration of a call and logs
 what was captured at DEBUG level on the ``rrt_pin`` logger (``rrt-pin -v -v``
-shows it).
+shows it). :func:`native_message` turns the text of their exceptions (which
+name C++ source files, functions and lines) into one line for a user.
 """
 
 from __future__ import annotations
 
 import os
+import re
 import sys
 import tempfile
 from collections.abc import Iterator
@@ -18,7 +20,7 @@ from dataclasses import dataclass
 
 from rrt_pin._logging import logger
 
-__all__ = ["Captured", "captured_stderr"]
+__all__ = ["Captured", "captured_stderr", "native_message"]
 
 #: At most this much captured output is kept [bytes].
 _KEEP = 64 * 1024
@@ -84,3 +86,51 @@ def captured_stderr(label: str) -> Iterator[Captured]:
             captured.text = data.decode("utf-8", errors="replace").strip()
             if captured.text:
                 logger.debug("%s said on stderr: %s", label, captured.text)
+
+
+# Lines of a C++ exception's text that locate it in the library's sources.
+_WHERE = re.compile(r"^\s*(from file|in function|at line|hint)\s*:", re.IGNORECASE)
+# A C++ source path, with its line if any (``/project/src/mesh_loader/assimp.cpp:91``).
+_SOURCE = re.compile(r"\S+\.(?:cpp|cc|cxx|hpp|hxx|h)(?::\d+)?\b")
+_RESOURCE = re.compile(r"^could not load resource (.+)$", re.IGNORECASE)
+_NOT_FOUND = re.compile(r"^mesh (.+) could not be found\.?$", re.IGNORECASE)
+
+
+def native_message(text: str, limit: int = 300) -> str:
+    """One line for a user from a C++ library's exception text (Pinocchio, coal, assimp).
+
+    Drops the lines that locate the error in the library's sources (``From file:
+    /project/src/mesh_loader/assimp.cpp``, ``in function: ...``, ``at line: 91``)
+    and its hints; a mesh that does not load becomes ``mesh file PATH does not
+    load: REASON``, one that is missing ``mesh file PATH could not be found``.
+
+    Args:
+        text: the exception's text, possibly several lines.
+        limit: the longest line returned [characters].
+    """
+    lines = []
+    for line in str(text).splitlines():
+        if _WHERE.match(line):
+            continue
+        line = re.sub(r"^\s*message\s*:\s*", "", line, flags=re.IGNORECASE)
+        line = " ".join(_SOURCE.sub("", line).split())
+        if line:
+            lines.append(line)
+    if not lines:
+        return "an error without a message"
+    if found := _NOT_FOUND.match(lines[0]):
+        out = f"mesh file {found.group(1).strip()} could not be found"
+    elif found := _RESOURCE.match(lines[0]):
+        path = found.group(1).strip()
+        reasons = []
+        for line in lines[1:]:
+            line = line.replace(f' "{path}"', "").replace(f" '{path}'", "")
+            line = line.replace(f" for {path}", "").replace(f" {path}", "").rstrip(" .")
+            if line:
+                reasons.append(line[0].lower() + line[1:])
+        out = f"mesh file {path} does not load"
+        if reasons:
+            out += ": " + "; ".join(reasons)
+    else:
+        out = "; ".join(line.rstrip(".") for line in lines)
+    return out if len(out) <= limit else out[: limit - 1] + "…"

@@ -146,7 +146,7 @@ def build_geometry(
     """
     import pinocchio as pin
 
-    from rrt_pin._quiet import captured_stderr
+    from rrt_pin._quiet import captured_stderr, native_message
 
     check_urdf_xml(xml, mimic="allow")
     with captured_stderr("urdfdom/assimp") as said:
@@ -160,7 +160,7 @@ def build_geometry(
             error = None
     if error is not None:
         text = str(error).strip()
-        first = text.splitlines()[0] if text else said.first_line() or type(error).__name__
+        first = native_message(text) if text else said.first_line() or type(error).__name__
         raise UrdfError(f"URDF geometry does not load: {first}") from error
     return geometry
 

@@ -450,7 +450,7 @@ def test_meshes_that_cannot_be_found_are_skipped_with_a_warning(tmp_path, capsys
     assert code == 0 and out.startswith("http://127.0.0.1:")
     warning = err.splitlines()[0]
     assert warning.startswith(
-        "rrt-pin: warning: Mesh package://nowhere/meshes/tool.stl could not be found; "
+        "rrt-pin: warning: mesh file package://nowhere/meshes/tool.stl could not be found; "
         "drawing the URDF without its meshes"
     )
     assert "ROS_PACKAGE_PATH" in warning  # and how to make them found

@@ -1,15 +1,19 @@
 """A killed screenshot leaves no browser and no profile behind (SIGKILL and SIGTERM).
 
 Each run gets a private TMPDIR, so the profile, and every process whose command
-line names it, are the test's own.
+line names it, are the test's own. It is made in /tmp: Chromium's socket paths
+must fit in 107 bytes, and in a TMPDIR as long as pytest's ``tmp_path`` the
+browser's folder would go to /tmp (``rrt_pin.viewer.browser.MAX_TMPDIR``).
 """
 
 from __future__ import annotations
 
 import os
+import shutil
 import signal
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -77,8 +81,8 @@ def _wait_gone(tmp: Path, seconds: float = 20.0) -> None:
 
 
 @pytest.mark.parametrize("sig", [signal.SIGKILL, signal.SIGTERM])
-def test_killed_screenshot_leaves_nothing(tmp_path, sig):
-    tmp = tmp_path.resolve()
+def test_killed_screenshot_leaves_nothing(sig):
+    tmp = Path(tempfile.mkdtemp(prefix="rrt-test-", dir="/tmp"))
     try:
         proc = _kill_mid_screenshot(tmp, sig)
         assert proc.returncode != 0
@@ -90,3 +94,4 @@ def test_killed_screenshot_leaves_nothing(tmp_path, sig):
                 os.kill(pid, signal.SIGKILL)
             except OSError:
                 pass
+        shutil.rmtree(tmp, ignore_errors=True)

@@ -6,12 +6,28 @@ Uses Debian's ``/usr/bin/chromium`` and ``/usr/bin/chromedriver`` (or the
 profile and no network beyond the viewer's own address; every process it
 starts is ended on exit, Ctrl-C included. Times in seconds [s], sizes in pixels.
 
-Nothing outlives us, not even a SIGKILL: a watchdog process (its own session,
-so a terminal's signals and a killed process group spare it) holds the read end
-of a pipe whose write end only this process has. When this process ends without
-saying "done" on it (killed), the pipe closes and the watchdog kills every process
-whose command line names the throw-away profile — chromedriver (its log is in the
-profile) and every Chromium process — then removes the profile.
+Everything the browser writes goes into one private folder,
+``$TMPDIR/rrt-pin-chromium-XXXXXXXX/``: the throw-away profile (``profile/``),
+chromedriver's log, Chromium's and chromedriver's own temporary files
+(``org.chromium.Chromium.*``: both run with ``TMPDIR`` pointing at the folder),
+and what Chromium would put in ``~/.config`` and ``~/.cache`` (``XDG_CONFIG_HOME``,
+``XDG_CACHE_HOME``). Chromium's socket paths must fit in 107 bytes, so when
+``$TMPDIR`` is longer than :data:`MAX_TMPDIR` (36) bytes the folder is made in
+``/tmp`` instead. Nothing outlives us:
+
+* closing (a normal end, an error, Ctrl-C, and SIGTERM or SIGHUP, which
+  ``rrt-pin view`` turns into Ctrl-C) ends every process and removes the folder;
+* a SIGKILL: a watchdog process (its own session, so a terminal's signals and
+  a killed process group spare it) holds the read end of a pipe whose write end
+  only this process has. When this process ends without saying "done" on it,
+  the pipe closes and the watchdog kills every process whose command line names
+  the folder (chromedriver, whose log is there, and every Chromium process),
+  then removes it;
+* the watchdog killed too (``kill -9`` of both, the OOM killer): the folder
+  holds the pids of its owners (this process and the watchdog) with their start
+  times; the next :class:`Chromium` of the same user, in the same temporary
+  folder, ends the processes naming a folder whose owners are all dead and
+  removes it (:func:`remove_stale_folders`).
 """
 
 from __future__ import annotations
@@ -20,6 +36,7 @@ import contextlib
 import os
 import shutil
 import signal
+import stat
 import subprocess
 import sys
 import tempfile
@@ -34,8 +51,12 @@ __all__ = [
     "BROWSER_NAMES",
     "CHROMIUM_FLAGS",
     "DRIVER_NAMES",
+    "FOLDER_PREFIX",
     "Chromium",
+    "MAX_TMPDIR",
     "find_chromium",
+    "folder_base",
+    "remove_stale_folders",
     "screenshot",
 ]
 
@@ -81,12 +102,13 @@ requestAnimationFrame(() => requestAnimationFrame(() => done(true)));
 
 
 # The watchdog (run by ``python -I -c``, so it imports nothing of ours): argv[1] is
-# the profile folder. It waits for EOF on stdin; unless it read b"done", it kills
-# every process whose command line names the profile, until none is left, then
-# removes the profile.
+# the private folder. It waits for EOF on stdin; unless it read b"done", it kills
+# every process whose command line names the folder, until none is left, then
+# removes the folder.
 _WATCHDOG = r"""
 import os, shutil, signal, sys, time
-profile = sys.argv[1]
+folder = sys.argv[1]
+marker = (folder.rstrip("/") + "/").encode()
 signal.signal(signal.SIGINT, signal.SIG_IGN)
 signal.signal(signal.SIGTERM, signal.SIG_IGN)
 said = sys.stdin.buffer.read()
@@ -96,7 +118,7 @@ def marked():
         if name.isdigit() and int(name) != os.getpid():
             try:
                 with open(f"/proc/{name}/cmdline", "rb") as fh:
-                    if profile.encode() in fh.read():
+                    if marker in fh.read():
                         out.append(int(name))
             except OSError:
                 pass
@@ -114,23 +136,167 @@ if said != b"done":
                 pass
         time.sleep(0.05)
     for _ in range(20):
-        shutil.rmtree(profile, ignore_errors=True)
-        if not os.path.exists(profile):
+        shutil.rmtree(folder, ignore_errors=True)
+        if not os.path.exists(folder):
             break
         time.sleep(0.1)
 """
 
 
-def _processes_naming(marker: str, exclude: frozenset[int] = frozenset()) -> list[int]:
-    """Pids of the processes whose command line contains ``marker`` (Linux /proc; else none)."""
+#: The private folders' names start with this (in the temporary folder, ``$TMPDIR``).
+FOLDER_PREFIX = "rrt-pin-chromium-"
+#: The file of a private folder that names its owners: ``pid start-time`` per line.
+_OWNERS = "owners"
+#: A private folder without owners (being made) is left alone this long [s].
+_MAKING = 60.0
+#: The longest temporary folder path the private folder can be made in [bytes]:
+#: Chromium's singleton socket, ``FOLDER/org.chromium.Chromium.XXXXXX/SingletonSocket``
+#: with ``FOLDER`` = ``TMPDIR/rrt-pin-chromium-XXXXXXXX``, must fit in a Unix socket
+#: address (107 bytes), else Chromium exits at once ("Socket path too long").
+MAX_TMPDIR = (
+    107
+    - len("/org.chromium.Chromium.XXXXXX/SingletonSocket")
+    - len("/" + FOLDER_PREFIX + "XXXXXXXX")
+)
+
+
+def _processes_naming(folder: str, exclude: frozenset[int] = frozenset()) -> list[int]:
+    """Pids of the processes whose command line names a path in ``folder`` (Linux /proc; else none)."""
+    marker = (folder.rstrip(os.sep) + os.sep).encode()
     pids = []
     with contextlib.suppress(OSError):
         for name in os.listdir("/proc"):
             if name.isdigit() and int(name) not in exclude:
                 with contextlib.suppress(OSError), open(f"/proc/{name}/cmdline", "rb") as fh:
-                    if marker.encode() in fh.read():
+                    if marker in fh.read():
                         pids.append(int(name))
     return pids
+
+
+def _start_time(pid: int) -> int | None:
+    """When process ``pid`` started [clock ticks since boot], None if it is not running.
+
+    With the pid, this names one process even after the pid is reused. A
+    zombie counts as not running. Where there is no /proc, 0 for any process
+    that exists.
+    """
+    try:
+        with open(f"/proc/{pid}/stat", "rb") as fh:
+            fields = fh.read().rsplit(b")", 1)[1].split()
+        if fields[0] in (b"Z", b"X"):  # a zombie: dead, not yet reaped
+            return None
+        return int(fields[19])  # field 22 of proc(5); fields[0] is field 3
+    except FileNotFoundError:
+        return None
+    except (OSError, IndexError, ValueError):
+        pass
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return None
+    except OSError:
+        pass
+    return 0
+
+
+def _add_owner(folder: str, pid: int) -> None:
+    """Name process ``pid`` among the owners of the private ``folder``."""
+    with open(os.path.join(folder, _OWNERS), "a", encoding="ascii") as fh:
+        fh.write(f"{pid} {_start_time(pid) or 0}\n")
+
+
+def _owners_alive(folder: str) -> bool | None:
+    """Whether an owner of ``folder`` still runs; None when it names none (being made)."""
+    try:
+        with open(os.path.join(folder, _OWNERS), encoding="ascii") as fh:
+            text = fh.read(4096)
+    except OSError:
+        return None
+    owners = []
+    for line in text.splitlines():
+        with contextlib.suppress(ValueError):
+            pid, start = (int(word) for word in line.split())
+            owners.append((pid, start))
+    if not owners:
+        return None
+    return any(_start_time(pid) in (start, 0) for pid, start in owners if pid > 0)
+
+
+def folder_base() -> str:
+    """Where the private folder is made: the temporary folder, or /tmp if that path is long.
+
+    ``/tmp`` is used when the temporary folder's path (``$TMPDIR``) is longer
+    than :data:`MAX_TMPDIR` bytes.
+
+    Raises:
+        ViewerError: the temporary folder's path is too long and /tmp is not usable.
+    """
+    base = tempfile.gettempdir()
+    if len(os.fsencode(base)) <= MAX_TMPDIR:
+        return base
+    if os.path.isdir("/tmp") and os.access("/tmp", os.W_OK | os.X_OK):
+        return "/tmp"
+    raise ViewerError(
+        f"the temporary folder {base!r} is {len(os.fsencode(base))} bytes long; Chromium needs "
+        f"one of at most {MAX_TMPDIR} bytes (its socket paths): set TMPDIR to a shorter one"
+    )
+
+
+def remove_stale_folders(where: str | None = None) -> list[str]:
+    """Remove the private folders of earlier runs that were killed with their watchdog.
+
+    A folder in ``where`` (default: the temporary folder, ``$TMPDIR``) is
+    stale when its name starts with :data:`FOLDER_PREFIX`, it belongs to this
+    user, it is a real folder (not a link) and none of the owners it names (pid
+    and start time) runs; a folder that names no owner is stale after 60 s.
+    The processes of this user whose command line names a stale folder (a
+    Chromium left running) are killed first.
+
+    Returns:
+        The folders removed.
+    """
+    where = where or tempfile.gettempdir()
+    removed = []
+    uid = os.getuid() if hasattr(os, "getuid") else None
+    try:
+        entries = [e for e in os.scandir(where) if e.name.startswith(FOLDER_PREFIX)]
+    except OSError:
+        return removed
+    for entry in entries:
+        try:
+            info = entry.stat(follow_symlinks=False)
+        except OSError:
+            continue
+        if not stat.S_ISDIR(info.st_mode) or (uid is not None and info.st_uid != uid):
+            continue
+        alive = _owners_alive(entry.path)
+        if alive or (alive is None and time.time() - info.st_mtime < _MAKING):
+            continue
+        for pid in _processes_naming(entry.path, frozenset({os.getpid()})):
+            with contextlib.suppress(OSError):
+                if uid is None or os.stat(f"/proc/{pid}").st_uid == uid:
+                    os.kill(pid, signal.SIGKILL)
+        _remove(entry.path, [])
+        if not os.path.lexists(entry.path):
+            removed.append(entry.path)
+    return removed
+
+
+def _remove(folder: str, spare: list[int], seconds: float = 10.0) -> None:
+    """Kill the processes naming ``folder`` (but ``spare``), then remove it."""
+    deadline = time.monotonic() + seconds
+    # Chromium's processes may take a moment to die after SIGKILL: until none
+    # names the folder, they can still write to it (and survive rmtree).
+    while (pids := _processes_naming(folder, frozenset(spare))) and time.monotonic() < deadline:
+        for pid in pids:
+            with contextlib.suppress(ProcessLookupError, PermissionError):
+                os.kill(pid, signal.SIGKILL)
+        time.sleep(0.05)
+    for _ in range(20):
+        shutil.rmtree(folder, ignore_errors=True)
+        if not os.path.lexists(folder):
+            break
+        time.sleep(0.05)
 
 
 @dataclass(frozen=True)
@@ -208,25 +374,58 @@ class Chromium:
                 "headless Chromium not found: install Debian's chromium and chromium-driver "
                 "(or set RRT_PIN_CHROMIUM and RRT_PIN_CHROMEDRIVER)"
             )
-        self._profile = tempfile.mkdtemp(prefix="rrt-pin-chromium-")
-        self._watchdog = subprocess.Popen(
-            [sys.executable, "-I", "-c", _WATCHDOG, self._profile],
-            stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-            start_new_session=True, close_fds=True,
-        )  # fmt: skip
-        options = webdriver.ChromeOptions()
-        options.binary_location = paths.browser
-        for flag in (*CHROMIUM_FLAGS, f"--window-size={size[0]},{size[1]}"):
-            options.add_argument(flag)
-        options.add_argument(f"--user-data-dir={self._profile}")
-        # Its own session: a terminal's Ctrl-C reaches us, and we end the whole group.
-        # Its log in the profile: chromedriver's command line names the profile too.
-        self._service = Service(
-            paths.driver,
-            log_output=os.path.join(self._profile, "chromedriver.log"),
-            popen_kw={"start_new_session": True},
-        )
+        base = folder_base()
+        for where in dict.fromkeys((tempfile.gettempdir(), base)):
+            remove_stale_folders(where)
+        try:
+            self._folder = tempfile.mkdtemp(prefix=FOLDER_PREFIX, dir=base)
+        except OSError as e:
+            raise ViewerError(
+                f"cannot make a folder for Chromium in {base!r}: {e.strerror}"
+            ) from None
+        self._watchdog: subprocess.Popen[bytes] | None = None
+        self._service: Any = None
         self.driver: Any = None
+        try:
+            _add_owner(self._folder, os.getpid())
+            self._watchdog = subprocess.Popen(
+                [sys.executable, "-I", "-c", _WATCHDOG, self._folder],
+                stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                start_new_session=True, close_fds=True,
+            )  # fmt: skip
+            _add_owner(self._folder, self._watchdog.pid)
+            profile = os.path.join(self._folder, "profile")
+            os.mkdir(profile, 0o700)
+            options = webdriver.ChromeOptions()
+            options.binary_location = paths.browser
+            for flag in (*CHROMIUM_FLAGS, f"--window-size={size[0]},{size[1]}"):
+                options.add_argument(flag)
+            options.add_argument(f"--user-data-dir={profile}")
+            # Its own session: a terminal's Ctrl-C reaches us, and we end the whole group.
+            # Its log in the folder: chromedriver's command line names the folder too.
+            # TMPDIR: chromedriver's and Chromium's own temporary files go in the folder
+            # (itself, not a subfolder: see MAX_TMPDIR); XDG_*: so do Chromium's "Crash
+            # Reports" settings and dconf's cache (else made in ~/.config and ~/.cache).
+            env = {
+                **os.environ,
+                **dict.fromkeys(("TMPDIR", "TMP", "TEMP"), self._folder),
+                "XDG_CONFIG_HOME": os.path.join(self._folder, "config"),
+                "XDG_CACHE_HOME": os.path.join(self._folder, "cache"),
+            }
+            self._service = Service(
+                paths.driver,
+                log_output=os.path.join(self._folder, "chromedriver.log"),
+                env=env,
+                popen_kw={"start_new_session": True},
+            )
+        except OSError as e:
+            self.close()
+            raise ViewerError(
+                f"cannot prepare Chromium's folder {self._folder!r}: {e.strerror or e}"
+            ) from None
+        except BaseException:
+            self.close()
+            raise
         try:
             self.driver = webdriver.Chrome(service=self._service, options=options)
         except WebDriverException as e:
@@ -272,15 +471,21 @@ class Chromium:
         """Run JavaScript in the page and return its result."""
         return self.driver.execute_script(script, *args)
 
+    @property
+    def folder(self) -> str:
+        """The private folder of this browser (its profile, log and temporary files)."""
+        return self._folder
+
     def close(self) -> None:
-        """Quit the browser and end every process it started; remove its profile."""
+        """Quit the browser and end every process it started; remove its folder."""
         process = getattr(self._service, "process", None)
         try:
             if self.driver is not None:
                 with contextlib.suppress(Exception):
                     self.driver.quit()
-            with contextlib.suppress(Exception):
-                self._service.stop()
+            if self._service is not None:
+                with contextlib.suppress(Exception):
+                    self._service.stop()
         finally:
             self.driver = None
             if process is not None:
@@ -289,25 +494,13 @@ class Chromium:
                     os.killpg(process.pid, signal.SIGKILL)
                 with contextlib.suppress(Exception):
                     process.wait(5)
-            # Chromium's processes may take a moment to die after SIGKILL: until none
-            # names the profile, it can still be written to (and survive rmtree).
-            deadline = time.monotonic() + 10
-            spare = frozenset({self._watchdog.pid} if self._watchdog is not None else ())
-            while (pids := _processes_naming(self._profile, spare)) and time.monotonic() < deadline:
-                for pid in pids:
-                    with contextlib.suppress(ProcessLookupError, PermissionError):
-                        os.kill(pid, signal.SIGKILL)
-                time.sleep(0.05)
-            for _ in range(20):
-                shutil.rmtree(self._profile, ignore_errors=True)
-                if not os.path.exists(self._profile):
-                    break
-                time.sleep(0.05)
+            spare = [self._watchdog.pid] if self._watchdog is not None else []
+            _remove(self._folder, spare)
             watchdog, self._watchdog = self._watchdog, None
             if watchdog is not None:
                 with contextlib.suppress(OSError, ValueError):
-                    watchdog.stdin.write(b"done")
-                    watchdog.stdin.close()
+                    watchdog.stdin.write(b"done")  # type: ignore[union-attr]
+                    watchdog.stdin.close()  # type: ignore[union-attr]
                 with contextlib.suppress(Exception):
                     watchdog.wait(5)
 

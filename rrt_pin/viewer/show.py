@@ -23,6 +23,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from rrt_pin._quiet import native_message
 from rrt_pin.errors import InputError, UrdfError, ViewerError
 
 if TYPE_CHECKING:
@@ -57,14 +58,26 @@ def geometry(robot: Robot) -> Any:
     try:
         return build_geometry(robot.model, xml, package_dirs=package_dirs(robot.source))
     except UrdfError as e:
-        problem = str(e).removeprefix("URDF geometry does not load: ").rstrip(".")
-        logger.warning(
-            "warning: %s; drawing the URDF without its meshes (package:// paths are looked "
-            "up beside the URDF, in its parent folders and on ROS_PACKAGE_PATH: set "
-            "ROS_PACKAGE_PATH=/path/to/the/folder/holding/the/package)",
-            problem,
-        )
+        logger.warning("warning: %s", mesh_problem(e))
         return build_geometry(robot.model, _without_meshes(xml))
+
+
+def mesh_problem(error: UrdfError) -> str:
+    """One line for the warning of a URDF whose meshes do not load: the mesh file and why.
+
+    Pinocchio's exception (the ``__cause__``) names C++ source files, functions
+    and lines; :func:`rrt_pin._quiet.native_message` keeps the mesh and the problem.
+    """
+    cause = error.__cause__
+    text = str(cause) if cause is not None and str(cause).strip() else str(error)
+    problem = native_message(text.removeprefix("URDF geometry does not load: "))
+    hint = ""
+    if "could not be found" in problem and "package://" in problem:
+        hint = (
+            " (package:// paths are looked up beside the URDF, in its parent folders and on "
+            "ROS_PACKAGE_PATH: set ROS_PACKAGE_PATH=/path/to/the/folder/holding/the/package)"
+        )
+    return f"{problem}; drawing the URDF without its meshes{hint}"
 
 
 def _without_meshes(xml: str) -> str:
