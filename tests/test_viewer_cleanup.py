@@ -166,8 +166,8 @@ def test_stale_folders_are_removed_and_live_ones_kept(tmp_path):
     gone.wait()
     zombie = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
     zombie_owner = (zombie.pid, _start_time(zombie.pid))
-    zombie.kill()  # not waited for: a zombie until the end of the test
-    time.sleep(0.2)
+    zombie.kill()
+    os.waitid(os.P_PID, zombie.pid, os.WEXITED | os.WNOWAIT)  # dead, not reaped: a zombie
     stale = {
         "dead": _folder(tmp_path, "dead", [(gone.pid, 1)]),
         "pid reused": _folder(tmp_path, "reused", [(me[0], me[1] + 1)]),
@@ -175,31 +175,33 @@ def test_stale_folders_are_removed_and_live_ones_kept(tmp_path):
         "old, no owners": _folder(tmp_path, "old", None),
         "orphan": _folder(tmp_path, "orphan", [(gone.pid, 1)]),
     }
-    os.utime(stale["old, no owners"], (time.time() - 7200,) * 2)
     live = {
         "live": _folder(tmp_path, "live", [(gone.pid, 1), me]),
         "new, no owners": _folder(tmp_path, "new", None),
+        "old, no owners, in use": _folder(tmp_path, "used", None),
         "another prefix": tmp_path / "chromium-dead",
         "a sibling whose name extends a stale one": _folder(tmp_path, "orphanX", [me]),
     }
     live["another prefix"].mkdir()
+    for old in (stale["old, no owners"], live["old, no owners, in use"]):
+        os.utime(old, (time.time() - 7200,) * 2)
     (tmp_path / "target").mkdir()
     (tmp_path / "target" / "owners").write_text(f"{gone.pid} 1\n")
     (tmp_path / (FOLDER_PREFIX + "link")).symlink_to(tmp_path / "target")
     orphan = _sleeper(f"--user-data-dir={stale['orphan']}/profile")
     bystander = _sleeper(f"--user-data-dir={live['a sibling whose name extends a stale one']}/p")
+    user = _sleeper(f"--user-data-dir={live['old, no owners, in use']}/profile")
     try:
-        time.sleep(0.3)  # both have exec'd: their command lines name the folders
         removed = remove_stale_folders(str(tmp_path))
         assert sorted(removed) == sorted(str(p) for p in stale.values())
         assert orphan.wait(10) == -signal.SIGKILL
-        assert bystander.poll() is None
+        assert bystander.poll() is None and user.poll() is None
         for name, path in live.items():
             assert path.is_dir(), name
         assert (tmp_path / (FOLDER_PREFIX + "link")).is_symlink()
         assert (tmp_path / "target" / "owners").exists()
     finally:
-        for proc in (orphan, bystander, zombie):
+        for proc in (orphan, bystander, user, zombie):
             proc.kill()
             proc.wait()
 

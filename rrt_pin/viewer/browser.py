@@ -248,9 +248,10 @@ def remove_stale_folders(where: str | None = None) -> list[str]:
     A folder in ``where`` (default: the temporary folder, ``$TMPDIR``) is
     stale when its name starts with :data:`FOLDER_PREFIX`, it belongs to this
     user, it is a real folder (not a link) and none of the owners it names (pid
-    and start time) runs; a folder that names no owner is stale after 60 s.
-    The processes of this user whose command line names a stale folder (a
-    Chromium left running) are killed first.
+    and start time) runs; the processes of this user whose command line names
+    it (a Chromium left running) are killed first. A folder that names no owner
+    (being made, or made by an older rrt-pin) is stale once it is 60 s old and
+    no process names it.
 
     Returns:
         The folders removed.
@@ -270,9 +271,10 @@ def remove_stale_folders(where: str | None = None) -> list[str]:
         if not stat.S_ISDIR(info.st_mode) or (uid is not None and info.st_uid != uid):
             continue
         alive = _owners_alive(entry.path)
-        if alive or (alive is None and time.time() - info.st_mtime < _MAKING):
-            continue
-        for pid in _processes_naming(entry.path, frozenset({os.getpid()})):
+        users = _processes_naming(entry.path, frozenset({os.getpid()}))
+        if alive or (alive is None and (users or time.time() - info.st_mtime < _MAKING)):
+            continue  # in use, being made, or (named by no owner) used by a process
+        for pid in users:
             with contextlib.suppress(OSError):
                 if uid is None or os.stat(f"/proc/{pid}").st_uid == uid:
                     os.kill(pid, signal.SIGKILL)
