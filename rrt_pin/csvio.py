@@ -124,7 +124,8 @@ class CsvTable:
         header: the column names (line 1).
         data: the numbers, shape (rows, columns).
         lines: the line of each row as a text editor numbers it (the header is
-            line 1; blank lines are skipped, so rows and lines may differ), shape (rows,).
+            line 1; blank and ``#`` lines are skipped, so rows and lines may differ),
+            shape (rows,).
     """
 
     path: str
@@ -175,9 +176,9 @@ def read_csv_table(path: str | Path, required: Sequence[str] = ()) -> CsvTable:
 
     The first line names the columns; every other line holds one number per
     column, separated by commas (``nan`` and ``inf`` are read, then refused).
-    Blank lines are skipped; Windows line ends and a UTF-8 byte-order mark
-    are accepted. Every error names the file, the line as a text editor numbers
-    it (the header is line 1), the column and the value.
+    Blank lines and lines starting with ``#`` are skipped; Windows line ends and
+    a UTF-8 byte-order mark are accepted. Every error names the file, the line
+    as a text editor numbers it (the header is line 1), the column and the value.
 
     Args:
         path: the file, at most :data:`MAX_CSV_BYTES`.
@@ -244,7 +245,7 @@ def _read_rows(name: str, header: list[str], rows: str) -> tuple[np.ndarray, np.
     lines: list[int] = []
     width = len(header)
     for number, line in enumerate(rows.split("\n"), start=2):
-        if not line.strip():
+        if not line.strip() or line.lstrip().startswith("#"):
             continue
         fields = line.split(",")
         where = f"{_name(name)} line {number}"

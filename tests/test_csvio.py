@@ -117,9 +117,13 @@ def test_lines_as_an_editor_numbers_them(tmp_path):
     assert table.value_text(1, 0) == "2"
 
 
-def test_a_whitespace_line_is_blank(tmp_path):
+@pytest.mark.parametrize("skipped", ["   ", "# a comment", "  #,1,2"])
+def test_blank_and_comment_lines_are_skipped(tmp_path, skipped):
     path = tmp_path / "x.csv"
-    path.write_text("t,q1\n0,1\n   \n2,3\n")
+    path.write_text(f"t,q1\n0,1\n{skipped}\n2,3\n4,x\n")
+    with pytest.raises(InputError, match="line 5, column 'q1': 'x' is not a number"):
+        read_csv_table(path)
+    path.write_text(f"t,q1\n0,1\n{skipped}\n2,3\n")
     table = read_csv_table(path)
     assert table.data.tolist() == [[0.0, 1.0], [2.0, 3.0]] and table.lines.tolist() == [2, 4]
 
