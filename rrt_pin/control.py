@@ -42,8 +42,14 @@ from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
-from rrt_pin.errors import InputError, ParameterError
-from rrt_pin.params import Params
+from rrt_pin.errors import (
+    ArgumentTypeError,
+    ControllerError,
+    DivergenceError,
+    InputError,
+    ParameterError,
+)
+from rrt_pin.params import PLANT_FIELDS, Params
 
 if TYPE_CHECKING:
     import pinocchio as pin
@@ -138,58 +144,272 @@ class Controller(ABC):
 
 
 # --------------------------------------------------------------------------
-# Adapting user objects
+# Adapting user objects: every result of a user's law is checked
 # --------------------------------------------------------------------------
-def _checked(tau: Any, nv: int, who: str) -> np.ndarray:
-    """A user law's output as a float array of shape (nv,)."""
-    if tau is None:
-        raise InputError(f"the controller {who} returned None, not {nv} efforts")
+#: Relative tolerance between a law's ``efforts_many`` and its ``efforts`` on the rows
+#: compared (different vectorised arithmetic may differ in the last bits, not more).
+BATCH_AGREEMENT = 1e-9
+
+
+def _law_name(obj: Any) -> str:
+    """A law's name for messages: its function or class name."""
+    name = getattr(obj, "__name__", None)
+    return name if isinstance(name, str) else type(obj).__name__
+
+
+def _real_array(value: Any, who: str, call: str, expected: str) -> np.ndarray:
+    """``value`` as a float array, or ControllerError naming the law, the call and the value."""
+    head = f"the controller {who}'s {call}"
+    if value is None:
+        raise ControllerError(who, f"{head} returned None; expected {expected}")
     try:
-        out = np.asarray(tau, dtype=float)
-    except (TypeError, ValueError) as e:
-        raise InputError(f"the controller {who} returned {tau!r}, not {nv} numbers") from e
-    if out.shape != (nv,):
-        raise InputError(f"the controller {who} returned shape {out.shape}; it must be ({nv},)")
-    return out
+        arr = np.asarray(value)
+    except (TypeError, ValueError) as e:  # ragged sequences
+        raise ControllerError(who, f"{head} returned {_shown(value)}; expected {expected}") from e
+    if arr.dtype.kind == "c":
+        bad = arr[np.imag(arr) != 0] if arr.ndim else arr.reshape(1)
+        first = complex(bad.flat[0] if bad.size else arr.flat[0])
+        raise ControllerError(
+            who, f"{head} returned complex numbers ({first:.6g}); expected real {expected}"
+        )
+    if arr.dtype.kind not in "biuf":
+        try:
+            arr = np.asarray(value, dtype=float)
+        except (TypeError, ValueError) as e:
+            raise ControllerError(
+                who, f"{head} returned {_shown(value)}; expected {expected}"
+            ) from e
+        if np.asarray(value).dtype.kind in "USV":  # numbers as text are not numbers
+            raise ControllerError(who, f"{head} returned text {_shown(value)}; expected {expected}")
+    return np.asarray(arr, dtype=float)
 
 
-class _FunctionController(Controller):
-    """A plain function ``f(t, q, qd)`` (or a legacy ``f(q, qd)``) as a Controller."""
+def _shown(value: Any) -> str:
+    """A short text of a returned value (at most 60 characters)."""
+    text = repr(value) if not isinstance(value, np.ndarray) else f"an array of {value.dtype}"
+    return text if len(text) <= 60 else text[:57] + "..."
 
-    def __init__(self, f: Callable[..., Any], nv: int, timed: bool) -> None:
-        self.f, self._nv, self.timed = f, nv, timed
+
+def _frozen(a: Any) -> np.ndarray:
+    """A read-only view of ``a``: a law may read its state, never change it."""
+    view = np.asarray(a, dtype=float).view()
+    view.flags.writeable = False
+    return view
+
+
+def _mutation(who: str, call: str, e: ValueError) -> ControllerError:
+    return ControllerError(
+        who,
+        f"the controller {who}'s {call} writes into its arguments ({e}); a law must not change "
+        "q or qd (copy them first: q = q.copy())",
+    )
+
+
+def _finite_state(q: np.ndarray, qd: np.ndarray) -> bool:
+    return bool(np.isfinite(q).all() and np.isfinite(qd).all())
+
+
+class _Checked(Controller):
+    """A user's law with every result checked; its inputs are read-only views.
+
+    Checks (each failure one line naming the law, what it returned and what was expected):
+    ``efforts`` gives nv real numbers, ``efforts_many`` N×nv (and, when the law
+    defines its own, agrees with ``efforts`` on its first, middle and last rows to
+    :data:`BATCH_AGREEMENT`: the efforts recorded are the efforts applied), ``jacobian``
+    None or two real finite nv×nv arrays; a law that writes into ``q`` or ``qd`` is
+    refused (:class:`~rrt_pin.errors.ControllerError`). Non-finite efforts at a finite
+    state raise :class:`~rrt_pin.errors.DivergenceError` (time and effort named).
+    """
+
+    def __init__(self, obj: Any, nv: int, who: str, names: Sequence[str] | None = None) -> None:
+        self.obj, self._nv, self.who = obj, nv, who
+        self.names = tuple(names) if names is not None else tuple(f"tau[{k}]" for k in range(nv))
 
     @property
     def nv(self) -> int:
         return self._nv
 
+    # What the law itself provides (read-only inputs).
+    def _one(self, t: float, q: np.ndarray, qd: np.ndarray) -> Any:  # pragma: no cover
+        raise NotImplementedError
+
+    def _many(self) -> Callable[..., Any] | None:
+        return None
+
+    def _jac(self) -> Callable[..., Any] | None:
+        return None
+
+    def __getattr__(self, name: str) -> Any:
+        # the law's own attributes (qf, params, kind …) stay visible through the check
+        if name == "obj":
+            raise AttributeError(name)
+        return getattr(self.obj, name)
+
     def efforts(self, t: float, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
-        tau = self.f(t, q, qd) if self.timed else self.f(q, qd)
-        return _checked(tau, self._nv, getattr(self.f, "__name__", "function"))
-
-
-class _DuckController(Controller):
-    """Any object with ``efforts(t, q, qd)`` (and maybe ``efforts_many``, ``jacobian``)."""
-
-    def __init__(self, obj: Any, nv: int) -> None:
-        self.obj, self._nv = obj, nv
-
-    @property
-    def nv(self) -> int:
-        return self._nv
-
-    def efforts(self, t: float, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
-        return _checked(self.obj.efforts(t, q, qd), self._nv, type(self.obj).__name__)
+        """The law's efforts (nv,) [N·m or N], checked."""
+        q, qd = _frozen(q), _frozen(qd)
+        try:
+            tau = self._one(t, q, qd)
+        except ValueError as e:
+            if "read-only" in str(e):
+                raise _mutation(self.who, "efforts(t, q, qd)", e) from None
+            raise
+        return self._checked(tau, t, q, qd, (self._nv,), "efforts(t, q, qd)")
 
     def efforts_many(self, t: Any, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
-        many = getattr(self.obj, "efforts_many", None)
-        return many(t, q, qd) if many is not None else super().efforts_many(t, q, qd)
+        """The law's efforts (N, nv) at N states [N·m or N], checked against :meth:`efforts`."""
+        many = self._many()
+        if many is None:
+            return super().efforts_many(t, q, qd)
+        q, qd = _frozen(q), _frozen(qd)
+        call = "efforts_many(t, q, qd)"
+        try:
+            tau = many(t, q, qd)
+        except ValueError as e:
+            if "read-only" in str(e):
+                raise _mutation(self.who, call, e) from None
+            raise
+        tau = self._checked(tau, t, q, qd, q.shape, call)
+        self._agrees(t, q, qd, tau)
+        return tau
+
+    def _checked(
+        self, tau: Any, t: Any, q: np.ndarray, qd: np.ndarray, shape: tuple, call: str
+    ) -> np.ndarray:
+        expected = f"shape {shape}: efforts [N·m or N]"
+        out = _real_array(tau, self.who, call, expected)
+        if out.shape != shape:
+            raise ControllerError(
+                self.who,
+                f"the controller {self.who} returned shape {out.shape} from {call}; it must be "
+                f"{shape} (efforts [N·m or N])",
+            )
+        if out.ndim == 2:  # efforts_many: the first non-finite row at a finite state, named
+            bad = np.argwhere(~np.isfinite(out))
+            if bad.size:
+                row, k = (int(x) for x in bad[0])
+                if _finite_state(q[row], qd[row]):  # else the state diverged first: said so
+                    times = np.broadcast_to(np.asarray(t, dtype=float), q.shape[:1])
+                    raise DivergenceError(
+                        float(times[row]),
+                        self.names[k],
+                        f"the controller returned {float(out[row, k])} ({self.who}'s {call} at "
+                        "a finite state)",
+                    )
+        # efforts(): a non-finite effort makes a non-finite acceleration, which the
+        # integrator reports with its time and coordinate (DivergenceError)
+        return out
+
+    def _agrees(self, t: Any, q: np.ndarray, qd: np.ndarray, tau: np.ndarray) -> None:
+        """The batch form against the single form on the first, middle and last rows."""
+        n = q.shape[0]
+        if n == 0:
+            return
+        times = np.broadcast_to(np.asarray(t, dtype=float), (n,))
+        for i in sorted({0, n // 2, n - 1}):
+            one = self.efforts(float(times[i]), q[i], qd[i])
+            if not (np.isfinite(one).all() and np.isfinite(tau[i]).all()):
+                continue
+            scale = max(1.0, float(np.abs(one).max()), float(np.abs(tau[i]).max()))
+            diff = np.abs(one - tau[i])
+            if diff.max() > BATCH_AGREEMENT * scale:
+                k = int(np.argmax(diff))
+                raise ControllerError(
+                    self.who,
+                    f"the controller {self.who}'s efforts_many(t, q, qd) gives "
+                    f"{self.names[k]} = {tau[i, k]:.6g} at t={times[i]:.6g} s where "
+                    f"efforts(t, q, qd) gives {one[k]:.6g}: the efforts recorded must be the "
+                    "efforts applied (fix efforts_many, or remove it)",
+                )
 
     def jacobian(
         self, t: float, q: np.ndarray, qd: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray] | None:
+        """The law's (∂τ/∂q, ∂τ/∂q̇), each (nv, nv), checked; None when it gives none."""
+        jac = self._jac()
+        if jac is None:
+            return None
+        q, qd = _frozen(q), _frozen(qd)
+        call = "jacobian(t, q, qd)"
+        try:
+            pair = jac(t, q, qd)
+        except ValueError as e:
+            if "read-only" in str(e):
+                raise _mutation(self.who, call, e) from None
+            raise
+        if pair is None:
+            return None
+        n = self._nv
+        expected = f"None or (dtau/dq, dtau/dqd), each of shape ({n}, {n}), real and finite"
+        if not isinstance(pair, (tuple, list)) or len(pair) != 2 or any(p is None for p in pair):
+            raise ControllerError(
+                self.who,
+                f"the controller {self.who}'s {call} returned {_shown(pair)}; expected {expected}",
+            )
+        out = []
+        for part, value in zip(("dtau/dq", "dtau/dqd"), pair, strict=True):
+            arr = _real_array(value, self.who, f"{call} ({part})", expected)
+            if arr.shape != (n, n):
+                raise ControllerError(
+                    self.who,
+                    f"the controller {self.who}'s {call} returned {part} of shape {arr.shape}; "
+                    f"expected {expected}",
+                )
+            if not np.isfinite(arr).all() and _finite_state(q, qd):
+                i, j = (int(x) for x in np.argwhere(~np.isfinite(arr))[0])
+                raise ControllerError(
+                    self.who,
+                    f"the controller {self.who}'s {call} returned {part}[{i}, {j}] = "
+                    f"{float(arr[i, j])} at t={float(t):.6g} s (a finite state); expected "
+                    f"{expected}",
+                )
+            out.append(arr)
+        return out[0], out[1]
+
+
+class _FunctionController(_Checked):
+    """A plain function ``f(t, q, qd)`` (or a legacy ``f(q, qd)``) as a Controller."""
+
+    def __init__(
+        self, f: Callable[..., Any], nv: int, timed: bool, names: Sequence[str] | None = None
+    ) -> None:
+        super().__init__(f, nv, _law_name(f), names)
+        self.f, self.timed = f, timed
+
+    def _one(self, t: float, q: np.ndarray, qd: np.ndarray) -> Any:
+        return self.f(t, q, qd) if self.timed else self.f(q, qd)
+
+
+class _DuckController(_Checked):
+    """Any object with ``efforts(t, q, qd)`` (and maybe ``efforts_many``, ``jacobian``).
+
+    A user's subclass of :class:`Controller` is checked the same way.
+    """
+
+    def __init__(self, obj: Any, nv: int, names: Sequence[str] | None = None) -> None:
+        super().__init__(obj, nv, type(obj).__name__, names)
+
+    def _one(self, t: float, q: np.ndarray, qd: np.ndarray) -> Any:
+        return self.obj.efforts(t, q, qd)
+
+    def _many(self) -> Callable[..., Any] | None:
+        many = getattr(self.obj, "efforts_many", None)
+        if many is None:
+            return None
+        if isinstance(self.obj, Controller) and type(self.obj).efforts_many is (
+            Controller.efforts_many
+        ):
+            return None  # the default loop over efforts: checked row by row here
+        return many
+
+    def _jac(self) -> Callable[..., Any] | None:
         jac = getattr(self.obj, "jacobian", None)
-        return jac(t, q, qd) if jac is not None else None
+        return jac if callable(jac) else None
+
+    def feedback(self) -> LinearFeedback | None:
+        """The law's own feedback structure (a Controller subclass may declare one)."""
+        feedback = getattr(self.obj, "feedback", None)
+        return feedback() if callable(feedback) else None
 
 
 def _positional_count(f: Callable[..., Any]) -> int | None:
@@ -204,31 +424,43 @@ def _positional_count(f: Callable[..., Any]) -> int | None:
     return sum(1 for p in params if p.kind in kinds)
 
 
-def as_controller(obj: Any, nv: int) -> Controller:
-    """``obj`` as a :class:`Controller` of ``nv`` coordinates.
+def as_controller(obj: Any, nv: int, names: Sequence[str] | None = None) -> Controller:
+    """``obj`` as a :class:`Controller` of ``nv`` coordinates, its results checked.
 
     Accepts a Controller; an object with ``efforts(t, q, qd)``; a function
-    ``f(t, q, qd)``; or a time-invariant function ``f(q, qd)``.
+    ``f(t, q, qd)``; or a time-invariant function ``f(q, qd)``. The laws this
+    module defines are returned as they are; any other is wrapped so that each of
+    its results is checked and its inputs are read-only (see :class:`_Checked`).
+
+    Args:
+        obj: the law.
+        nv: number of joint coordinates of the robot.
+        names: the efforts' names, for messages (default ``tau[0]``…).
 
     Raises:
-        InputError: ``obj`` is none of these, or drives another number of joints.
+        ArgumentTypeError: ``obj`` is none of these.
+        InputError: it drives another number of joints, or its function takes
+            neither (t, q, qd) nor (q, qd).
     """
-    if isinstance(obj, Controller):
+    if type(obj) in _TRUSTED:
         controller = obj
-    elif callable(getattr(obj, "efforts", None)) and _positional_count(obj.efforts) == 3:
-        controller = _DuckController(obj, int(getattr(obj, "nv", nv)))
+    elif isinstance(obj, Controller) or (
+        callable(getattr(obj, "efforts", None)) and _positional_count(obj.efforts) == 3
+    ):
+        controller = _DuckController(obj, int(getattr(obj, "nv", nv)), names)
     elif callable(obj):
         count = _positional_count(obj)
         if count not in (2, 3):
             raise InputError(
-                f"controller {type(obj).__name__} must take (t, q, qd) (or (q, qd) for a "
+                f"controller {_law_name(obj)} must take (t, q, qd) (or (q, qd) for a "
                 "time-invariant law)"
             )
-        controller = _FunctionController(obj, nv, timed=count == 3)
+        controller = _FunctionController(obj, nv, timed=count == 3, names=names)
     else:
-        raise InputError(
+        raise ArgumentTypeError(
+            "controller",
             f"controller must be a Controller, an object with efforts(t, q, qd) or a function "
-            f"f(t, q, qd), not {type(obj).__name__}"
+            f"f(t, q, qd), not {type(obj).__name__}",
         )
     if controller.nv != nv:
         raise InputError(f"the controller drives {controller.nv} joints but the robot has {nv}")
@@ -280,9 +512,7 @@ def _states(q: Any, qd: Any, n: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 #: The fields of Params that the RRT arm's model depends on (not gains, targets, states).
-_PLANT_FIELDS = (
-    "L1", "L2", "m1", "m2", "m3", "I1x", "I1y", "I1z", "I2x", "I2y", "I2z", "I3x", "I3y", "I3z", "g",
-)  # fmt: skip
+_PLANT_FIELDS = PLANT_FIELDS
 
 
 class _ModelKey:
@@ -703,6 +933,9 @@ def regulator(robot: Robot, kp: Any = None, kd: Any = None, qf: Any = None) -> C
         return ChapterController(kp=kp, kd=kd, qf=qf, params=robot.params)
     return PDGravityController(kp=kp, kd=kd, qf=qf, model=robot.model, robot=robot)
 
+
+#: The laws defined here: their results are trusted (tested), not checked at every call.
+_TRUSTED = (ChapterController, PDGravityController, TrackingController)
 
 #: Deprecated names (kept for one release): the chapter was called "the seed".
 SeedController = ChapterController

@@ -7,6 +7,8 @@ The CLI turns any of them into one line on stderr and exit status 2.
 from __future__ import annotations
 
 __all__ = [
+    "ArgumentTypeError",
+    "ControllerError",
     "DivergenceError",
     "InputError",
     "MemoryLimitError",
@@ -82,6 +84,34 @@ class MemoryLimitError(RrtPinError, MemoryError):
         self.need = need
         self.limit = limit
         self.source = source
+        super().__init__(message)
+
+
+class ArgumentTypeError(InputError, TypeError):
+    """An argument of a library function has a type it does not accept (e.g. a str for a model).
+
+    Attributes:
+        argument: the argument's name (``model``, ``params``…).
+    """
+
+    def __init__(self, argument: str, message: str) -> None:
+        self.argument = argument
+        super().__init__(message)
+
+
+class ControllerError(InputError):
+    """A user's law broke its contract (:class:`rrt_pin.control.Controller`).
+
+    A result of the wrong shape or type (``efforts``, ``efforts_many``, ``jacobian``),
+    a complex or non-finite Jacobian, a batch form that disagrees with ``efforts``, or a
+    law that writes into its ``q`` or ``qd``.
+
+    Attributes:
+        law: the law's name (its function or class name).
+    """
+
+    def __init__(self, law: str, message: str) -> None:
+        self.law = law
         super().__init__(message)
 
 

@@ -47,6 +47,7 @@ def _grid(tf: float, dt: float, t0: float = 0.0, what: str = "") -> Grid:
     for name, value in (("tf", tf), ("dt", dt), ("t0", t0)):
         if not isinstance(value, (int, float)) or not math.isfinite(value):
             raise InputError(f"{name}={value!r} must be a finite number [s]")
+    tf, dt, t0 = float(tf), float(dt), float(t0)  # numpy scalars print as plain numbers
     span = tf - t0
     if not math.isfinite(span):
         raise InputError(f"tf - t0 = {tf!r} - {t0!r} is not a finite number [s]")

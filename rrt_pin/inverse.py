@@ -186,6 +186,7 @@ def inverse_dynamics(
     from rrt_pin.robot import Robot
 
     b = backends.get(backend, "inverse")
+    _check_model_and_params(model, params, b.name)
     if num_threads is not None:
         num_threads = _num_threads(num_threads)
     robot = model if isinstance(model, Robot) else None
@@ -280,6 +281,56 @@ def _generated(
     if not finite:
         _refuse_nonfinite((q, qd, qdd), tau, robot)
     return tau[0] if single else tau
+
+
+def _check_model_and_params(model: Any, params: Any, backend: str) -> None:
+    """Refuse a model of another type, and ``params`` that the backend would not use.
+
+    ``params`` name the chapter's arm. With a Robot, or a model on the Pinocchio
+    backend, they must be that arm's own (compared on
+    :data:`rrt_pin.params.PLANT_FIELDS`), else they would be silently ignored
+    (Pinocchio computes the model given; a Robot brings its own parameters).
+
+    Raises:
+        ArgumentTypeError: ``model`` is not None, a Robot or a pinocchio.Model, or
+            ``params`` is not a Params.
+        InputError: ``params`` differ from the arm of the model given.
+    """
+    import sys
+
+    from rrt_pin.errors import ArgumentTypeError
+    from rrt_pin.params import check_params, plant_difference
+    from rrt_pin.robot import Robot
+
+    pin = sys.modules.get("pinocchio")  # not imported: ``model`` cannot be one of its models
+    if model is not None and not isinstance(model, Robot):
+        if pin is None or not isinstance(model, pin.Model):
+            raise ArgumentTypeError(
+                "model",
+                "model must be a rrt_pin.Robot, a pinocchio.Model, or None with params= (the "
+                f"chapter's arm), not {type(model).__name__}",
+            )
+    if params is None:
+        return
+    params = check_params(params)
+    if model is None or (not isinstance(model, Robot) and backend != "pinocchio"):
+        return  # the kernels compute the arm of ``params`` (checked against the model's size)
+    own = model.params if isinstance(model, Robot) else None
+    if own is None and backend == "symbolic":
+        return  # refused below: the kernel computes the chapter's arm only
+    if own is not None:
+        diff = plant_difference(params, own)
+        why = f"differ from the robot's own ({diff})" if diff else None
+    else:
+        from rrt_pin.control import _chapter_model
+
+        pin_model = model.model if isinstance(model, Robot) else model
+        why = None if bool(pin_model == _chapter_model(params)) else "are not the model's arm"
+    if why:
+        raise InputError(
+            f"params= would be ignored: they {why}, and backend={backend!r} computes the "
+            "model given; pass rrt_pin.robots.chapter_arm(params), or leave params out"
+        )
 
 
 #: The inputs' names and units, in order.

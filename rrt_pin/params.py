@@ -16,7 +16,16 @@ from typing import Any
 
 from rrt_pin.errors import ParameterError, SceneError
 
-__all__ = ["PARAM_DOCS", "Params", "param_names", "parse_number", "parse_overrides"]
+__all__ = [
+    "PARAM_DOCS",
+    "PLANT_FIELDS",
+    "Params",
+    "check_params",
+    "param_names",
+    "parse_number",
+    "parse_overrides",
+    "plant_difference",
+]
 
 #: One line of documentation per parameter: meaning and unit.
 PARAM_DOCS: dict[str, str] = {
@@ -52,6 +61,11 @@ PARAM_DOCS: dict[str, str] = {
     "beta23": "damping gain of joint 3 [N·s/m]",
     "gamma23": "stiffness gain of joint 3 [N/m]",
 }
+
+#: The fields the arm's model depends on (not its initial state, target, gains or Tp).
+PLANT_FIELDS = (
+    "L1", "L2", "m1", "m2", "m3", "I1x", "I1y", "I1z", "I2x", "I2y", "I2z", "I3x", "I3y", "I3z", "g",
+)  # fmt: skip
 
 _POSITIVE = ("L1", "L2", "m1", "m2", "m3", "Tp")
 _NONNEGATIVE = ("beta01", "gamma01", "beta12", "gamma12", "beta23", "gamma23")
@@ -259,6 +273,35 @@ def _real(name: str, value: object) -> float:
     if not math.isfinite(out):
         raise ParameterError(name, out, "must be finite")
     return out
+
+
+def check_params(value: object, name: str = "params") -> Params:
+    """``value`` if it is a :class:`Params`.
+
+    A dict of overrides is not applied silently over some default: it is refused,
+    with the call that builds one.
+
+    Raises:
+        ArgumentTypeError: ``value`` is not a Params.
+    """
+    if isinstance(value, Params):
+        return value
+    from rrt_pin.errors import ArgumentTypeError
+
+    hint = " (e.g. Params(**overrides))" if isinstance(value, dict) else ""
+    raise ArgumentTypeError(
+        name,
+        f"{name} must be a rrt_pin.Params{hint}, not {type(value).__name__}: {_shorten(value)}",
+    )
+
+
+def plant_difference(a: Params, b: Params) -> str | None:
+    """The first of :data:`PLANT_FIELDS` in which two arms differ, e.g. ``"L1 = 1 vs 0.5"``."""
+    for field_name in PLANT_FIELDS:
+        x, y = getattr(a, field_name), getattr(b, field_name)
+        if x != y:
+            return f"{field_name} = {x:.6g} vs {y:.6g}"
+    return None
 
 
 def param_names() -> list[str]:

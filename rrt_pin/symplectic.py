@@ -119,7 +119,7 @@ def leapfrog(
     if t_eval.ndim != 1 or t_eval.size < 1 or np.any(np.diff(t_eval) <= 0):
         raise InputError("t_eval must be a strictly increasing 1-D array [s]")
     if not (np.isfinite(step) and step > 0):
-        raise InputError(f"step={step!r} must be > 0 [s]")
+        raise InputError(f"step={float(step):.6g} must be > 0 [s]")
     data = model.createData()
     if names is None:
         names = [f"q{i + 1}" for i in range(model.nv)] + [f"qd{i + 1}" for i in range(model.nv)]
@@ -174,7 +174,7 @@ def leapfrog(
                 if done:
                     break
             else:
-                fail(t, q, ph, f"the momentum stage did not converge with step {h!r} s")
+                fail(t, q, ph, f"the momentum stage did not converge with step {h:.6g} s")
             v0 = np.linalg.solve(M0, ph)
             q1 = q + h * v0
             for _ in range(MAX_ITER):
@@ -187,7 +187,7 @@ def leapfrog(
                 if done:
                     break
             else:
-                fail(t, q1, ph, f"the position stage did not converge with step {h!r} s")
+                fail(t, q1, ph, f"the position stage did not converge with step {h:.6g} s")
             v1 = np.linalg.solve(mass(q1), ph)
             p = ph + 0.5 * h * dLdq(q1, v1, t + h)
             n_evals += 1

@@ -236,7 +236,7 @@ def _raise_status(
     elif status == codes.STATUS_NO_CONVERGENCE:
         problem = (
             "the implicit half kick of 'verlet' did not converge in 50 iterations; "
-            f"use a step shorter than {step!r} s"
+            f"use a step shorter than {step:.6g} s"
         )
     else:  # pragma: no cover - a status the loop does not produce
         problem = f"the compiled integrator returned status {status}"

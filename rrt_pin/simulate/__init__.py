@@ -42,6 +42,7 @@ from typing import Any
 __all__ = [
     "AccuracyWarning",
     "BatchResult",
+    "EstimateWarning",
     "ErrorEstimate",
     "SimulationResult",
     "as_robot",
@@ -57,6 +58,7 @@ _LAZY = {
     "BatchResult": "rrt_pin.simulate.results",
     "ErrorEstimate": "rrt_pin.simulate.results",
     "AccuracyWarning": "rrt_pin.simulate.estimate",
+    "EstimateWarning": "rrt_pin.simulate.estimate",
 }
 
 

@@ -10,6 +10,7 @@ import numpy as np
 
 from rrt_pin import validate
 from rrt_pin.errors import InputError
+from rrt_pin.simulate.energy import check_energy, check_energy_batch
 from rrt_pin.simulate.options import Options, resolve
 from rrt_pin.simulate.results import KEEPS
 
@@ -160,7 +161,7 @@ def simulate(
 
     if t_eval is None:
         raise InputError("simulate needs t_eval, the output times [s]: e.g. time_grid(15.0, 0.01)")
-    robot = as_robot(model, params)
+    robot = as_robot(model, _checked_params(params))
     _prepare(robot, backend, method)
     start = time.perf_counter()
     q0 = robot.as_coordinates("q0", q0)
@@ -171,9 +172,12 @@ def simulate(
     options = resolve(
         t, backend=backend, method=method, rtol=rtol, atol=atol, step=step, jacobian=jacobian
     )
+    _same_plant(robot, params, options.backend)
+    # the same checks on both backends; the law's results are checked (rrt_pin.control)
+    checked = (
+        None if controller is None else as_controller(controller, robot.nv, robot.effort_names)
+    )
     if options.backend == "compiled":
-        if controller is not None:
-            as_controller(controller, robot.nv)  # the same checks as the other backend
         integrate = _compiled()
         p = _params_for(robot, params, [controller])
         if robot.params is None or robot.params is not p:
@@ -184,24 +188,70 @@ def simulate(
     else:
         from rrt_pin.simulate.pinocchio_backend import run_one
 
-        law = _passive(robot) if controller is None else as_controller(controller, robot.nv)
+        law = _passive(robot) if checked is None else checked
 
         def run(o: Options, began: float) -> SimulationResult:
             return run_one(robot, law, q0, qd0, t, o, began)
 
     result = _with_units(run(options, start), robot)
+    check_energy(result, robot, checked)
     return _with_estimate(result, options, run) if estimate_error else result
+
+
+def _checked_params(params: Any, name: str = "params") -> Any:
+    """``params`` if None or a Params (a dict is refused: :func:`rrt_pin.params.check_params`)."""
+    if params is None:
+        return None
+    from rrt_pin.params import check_params
+
+    return check_params(params, name)
+
+
+def _same_plant(robot: Robot, params: Any, backend: str) -> None:
+    """Refuse ``params`` that the Pinocchio backend would ignore.
+
+    The Pinocchio backend simulates the model given; ``params`` may only name that
+    model's own arm (its plant fields, :data:`rrt_pin.params.PLANT_FIELDS`). A list of
+    Params (one a variant) runs on the compiled backend only.
+
+    Raises:
+        InputError: ``params`` describe another arm than the model, or a list of
+            them is given to the Pinocchio backend.
+    """
+    if params is None or backend == "compiled":
+        return
+    if isinstance(params, list):
+        raise InputError(
+            "params as one Params a variant runs on backend='compiled' only; backend "
+            f"{backend!r} simulates the model given (pass chapter_arm(params) as the model)"
+        )
+    from rrt_pin.params import plant_difference
+
+    differs = None
+    if robot.params is None:
+        from rrt_pin.control import _chapter_model
+
+        if not bool(robot.model == _chapter_model(params)):
+            differs = "is not the chapter's arm built from them"
+    else:
+        diff = plant_difference(params, robot.params)
+        differs = f"differs from the robot's own parameters ({diff})" if diff else None
+    if differs:
+        raise InputError(
+            f"params= would be ignored: backend {backend!r} simulates the model given, which "
+            f"{differs}; pass rrt_pin.robots.chapter_arm(params) as the model instead"
+        )
 
 
 def _with_estimate(result: Any, options: Options, run: Any) -> Any:
     """``result`` with its error estimate, warning when it exceeds the accuracy asked for."""
     from dataclasses import replace
 
-    from rrt_pin.simulate.estimate import estimate, warn_if_exceeded
+    from rrt_pin.simulate.estimate import attempt, warn_if_exceeded
 
-    est = estimate(result, options, lambda o: run(o, time.perf_counter()))
+    est, why = attempt(result, options, lambda o: run(o, time.perf_counter()), stacklevel=5)
     if est is None:
-        return result
+        return replace(result, estimate_failure=why)
     result = replace(result, estimate=est)
     warn_if_exceeded(result, stacklevel=4)
     return result
@@ -345,7 +395,11 @@ def simulate_batch(
     """
     from rrt_pin.control import as_controller
 
-    first_params = params[0] if isinstance(params, (list, tuple)) and params else params
+    if isinstance(params, (list, tuple)):
+        params = [_checked_params(p, f"params[{i}]") for i, p in enumerate(params)]
+    else:
+        params = _checked_params(params)
+    first_params = params[0] if isinstance(params, list) and params else params
     robot = as_robot(model, first_params)  # type: ignore[arg-type]
     _prepare(robot, backend, method, batch=True)
     start = time.perf_counter()
@@ -365,11 +419,13 @@ def simulate_batch(
         t, backend=backend, method=method, rtol=rtol, atol=atol, step=step, batch=True
     )
     keep = validate.choice("keep", keep, KEEPS)
+    _same_plant(robot, params, options.backend)
     chosen = None if threads is None else _threads(threads)
     laws = []
     for i, c in enumerate(controllers):
         try:
-            laws.append(_passive(robot) if c is None else as_controller(c, n))
+            law = None if c is None else as_controller(c, n, robot.effort_names)
+            laws.append(_passive(robot) if law is None else law)
         except InputError as e:
             raise InputError(f"controllers[{i}]: {e}") from e
     if options.backend == "compiled":
@@ -395,6 +451,9 @@ def simulate_batch(
             return _reduced(full, kept, targets, tau)
 
     result = _with_units(run(options, start, efforts, keep), robot)
+    if not isinstance(params, list):  # variants with parameters of their own: not checked
+        given = [None if c is None else law for c, law in zip(controllers, laws, strict=True)]
+        check_energy_batch(result, robot, given, q0s, qd0s)
     if not estimate_error:
         return result
     second = "trajectories" if keep == "trajectories" else "final"

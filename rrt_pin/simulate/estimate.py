@@ -37,7 +37,15 @@ if TYPE_CHECKING:
     from rrt_pin.simulate.options import Options
     from rrt_pin.simulate.results import BatchResult, SimulationResult
 
-__all__ = ["TIGHTER", "AccuracyWarning", "estimate", "requested_accuracy", "warn_if_exceeded"]
+__all__ = [
+    "TIGHTER",
+    "AccuracyWarning",
+    "EstimateWarning",
+    "attempt",
+    "estimate",
+    "requested_accuracy",
+    "warn_if_exceeded",
+]
 
 #: How much tighter the second run's tolerances are.
 TIGHTER = 10.0
@@ -49,6 +57,15 @@ _logger = logging.getLogger("rrt_pin")
 
 class AccuracyWarning(UserWarning):
     """A run's estimated global error exceeds the accuracy it asked for."""
+
+
+class EstimateWarning(AccuracyWarning):
+    """A run's error estimate could not be made: its comparison run failed.
+
+    The run itself is returned, with ``estimate=None`` and the reason in
+    ``estimate_failure``; a subclass of :class:`AccuracyWarning` (the accuracy of
+    the run is unknown), so filtering that filters both.
+    """
 
 
 def requested_accuracy(rtol: float | None, atol: float | None) -> float:
@@ -82,27 +99,45 @@ def estimate(
     options: Options,
     rerun: Callable[[Options], SimulationResult | BatchResult],
 ) -> ErrorEstimate | None:
+    """The estimated global error of ``result``, or None (see :func:`attempt` for why)."""
+    return attempt(result, options, rerun)[0]
+
+
+def attempt(
+    result: SimulationResult | BatchResult,
+    options: Options,
+    rerun: Callable[[Options], SimulationResult | BatchResult],
+    stacklevel: int = 3,
+) -> tuple[ErrorEstimate | None, str | None]:
     """The estimated global error of ``result`` from ``rerun(second_options(options))``.
 
     Args:
         result: the run (q of shape (N, nv), or (B, N, nv) for a batch).
         options: the options it ran with.
         rerun: runs the same problem with other options.
+        stacklevel: of the warning, as :func:`warnings.warn`'s.
 
     Returns:
-        The estimate, or None when the second run could not be made (tolerance at
-        its floor, or it failed; logged).
+        (the estimate, None), or (None, why there is none). No estimate when the
+        tolerance is at its floor already (said on the ``rrt_pin`` logger, at INFO),
+        or when the comparison run failed: the first run is returned as it is (it
+        passed every check of its own), with an :class:`EstimateWarning` and the
+        reason in ``result.estimate_failure``, e.g. ``"the comparison run (rk4 at
+        step 0.005 s, Richardson (order 4)) failed: simulation diverged at …"``.
     """
     tight = second_options(options)
     if tight is None:
-        _logger.info("no error estimate: rtol=%g cannot be tightened", options.rtol)
-        return None
+        why = f"rtol={options.rtol:.3g} cannot be tightened (it is at the method's floor)"
+        _logger.info("no error estimate: %s", why)
+        return None, why
     start = time.perf_counter()
     try:
         other = rerun(tight)
     except (InputError, DivergenceError) as e:
-        _logger.warning("no error estimate: the comparison run failed: %s", e)
-        return None
+        why = f"the comparison run ({_how(tight)}) failed: {e}"
+        _logger.warning("no error estimate: %s", why)  # the CLI's line on stderr
+        warnings.warn(f"no error estimate: {why}", EstimateWarning, stacklevel=stacklevel)
+        return None, why
     wall_time = time.perf_counter() - start
     method = options.method
     if method.adaptive:
@@ -123,7 +158,7 @@ def estimate(
         n_evals=int(other.n_evals),
         wall_time=wall_time,
         variants=per if batch else None,
-    )
+    ), None
 
 
 def describe(estimate: ErrorEstimate, names: tuple[str, ...]) -> str:

@@ -11,10 +11,22 @@ from rrt_pin import backends, methods, validate
 from rrt_pin.errors import InputError
 from rrt_pin.methods import Method
 
-__all__ = ["JACOBIANS", "Options", "resolve"]
+__all__ = ["JACOBIANS", "MAX_FIXED_STEPS", "ODEPACK_MIN_FIRST_INTERVAL", "Options", "resolve"]
 
 #: How the implicit methods get their Jacobian.
 JACOBIANS = ("analytic", "finite-difference")
+
+#: The steps a fixed-step run may take, by backend, counted before it starts (a run
+#: cannot be interrupted once it is in a solver or in machine code). Measured on the
+#: chapter's arm with rk4: ~40 µs a step on Pinocchio (10⁶ steps ≈ 40 s), ~0.3 µs
+#: compiled (10⁷ steps ≈ 3 s, the compiled loop's own step budget,
+#: :data:`rrt_pin.compiled.integrate.MAX_STEPS`). The error estimate's run takes
+#: twice as many (half the step).
+MAX_FIXED_STEPS = {"pinocchio": 1_000_000, "compiled": 10_000_000}
+#: The shortest first output interval ODEPACK's LSODA starts on [s]: below ~1e-148 s
+#: its first-step estimate underflows (it returns NaN and says "Integration
+#: successful"), and it refuses an interval under a few float64 epsilons of t.
+ODEPACK_MIN_FIRST_INTERVAL = 1e-100
 
 
 @dataclass(frozen=True)
@@ -68,13 +80,57 @@ def resolve(
     except TypeError:  # an unhashable value: resolved (and refused) below
         key, known = None, None
     if known is not None:
+        _check_grid(t, known)
         return known
     options = _resolve(t, backend, method, rtol, atol, step, jacobian, batch)
+    _check_grid(t, options)
     if key is not None and (options.method.adaptive or step is not None):  # not from t
         if len(_RESOLVED) >= 64:
             _RESOLVED.clear()
         _RESOLVED[key] = options
     return options
+
+
+def fixed_steps(t: np.ndarray, step: float) -> float:
+    """The steps a fixed-step run over the output times ``t`` takes with ``step`` [s].
+
+    Each output interval is cut into ceil(interval / step) equal steps (as
+    :func:`rrt_pin.integrators.integrate_fixed_step` does); a float, as it may be huge.
+    """
+    with np.errstate(over="ignore"):
+        per = np.ceil(np.diff(t) / step * (1.0 - 1e-12))
+    return float(np.maximum(per, 1.0).sum())
+
+
+def _check_grid(t: np.ndarray, options: Options) -> None:
+    """Refuse, before any work, a run its method cannot do in bounded time, or at all.
+
+    Raises:
+        InputError: a fixed-step run of more than :data:`MAX_FIXED_STEPS` steps, or an
+            ``odepack`` run whose first output interval LSODA cannot start on.
+    """
+    m = options.method
+    if not m.adaptive and options.step is not None:
+        limit = MAX_FIXED_STEPS.get(options.backend, MAX_FIXED_STEPS["pinocchio"])
+        steps = fixed_steps(t, options.step)
+        if steps > limit:
+            span = float(t[-1] - t[0])
+            raise InputError(
+                f"method {m.name!r} would take {steps:.3g} steps ({span:.6g} s of output "
+                f"times at step={options.step:.3g} s): more than the {limit:,} a run may take "
+                f"on backend {options.backend!r}; use a longer step (or fewer output times)"
+            )
+    if m.name == "odepack" and t.size >= 2:
+        first = float(t[1] - t[0])
+        least = max(
+            ODEPACK_MIN_FIRST_INTERVAL, 8 * np.finfo(float).eps * float(np.abs(t[:2]).max())
+        )
+        if first < least:
+            raise InputError(
+                f"method 'odepack' cannot start on a first output interval of {first:.3g} s "
+                f"(LSODA needs at least {least:.3g} s there); use a longer interval, or "
+                "another method (e.g. DOP853)"
+            )
 
 
 #: Options resolved before, by their arguments (and their types: ``True`` is not ``1``),

@@ -179,7 +179,7 @@ def run_batch(
                 f, y0, t, rtol, atol, width - 1, label, on_rows if efforts else None
             )
         else:
-            counted = Counted(f, eval_budget(float(t[-1] - t[0])))
+            counted = Counted(f, eval_budget(float(t[-1] - t[0])), width)
             Y, message, ok, _ = run_solve_ivp(counted, y0, t, method.name, rtol, atol, None)
             n_evals = counted.calls
             if counted.too_much_work():

@@ -97,6 +97,10 @@ class _Run:
             rad, rad, m); velocities and efforts follow (rad/s, N·m; m/s, N).
         estimate: the estimate of the global error in q (:class:`ErrorEstimate`),
             or None (``estimate_error=False``, or no second run possible).
+        estimate_failure: why ``estimate`` is None although it was asked for (the
+            comparison run failed, with its error; or the tolerance cannot be
+            tightened), else None. A failed comparison run also warns
+            (:class:`~rrt_pin.simulate.estimate.EstimateWarning`).
     """
 
     t: np.ndarray
@@ -117,6 +121,7 @@ class _Run:
     tau_names: tuple[str, ...] = ("T01x", "T12y", "F23z")
     coordinate_units: tuple[str, ...] = ("rad", "rad", "m")
     estimate: ErrorEstimate | None = None
+    estimate_failure: str | None = None
 
     def __post_init__(self) -> None:
         for name in ("t", "q", "qd", "tau"):
@@ -258,4 +263,5 @@ class BatchResult(_Run):
             tau_names=self.tau_names,
             coordinate_units=self.coordinate_units,
             estimate=None if self.estimate is None else self.estimate.variant(i),
+            estimate_failure=self.estimate_failure,
         )

@@ -48,6 +48,33 @@ class _TooMuchWork(Exception):
     pass
 
 
+class _RaisedByRhs(Exception):
+    """An error raised by the right-hand side or the Jacobian (a law's, or a check's).
+
+    Carried through the solver so that it is raised as it is, never reported as the
+    integrator's failure (scipy turns some errors of its callbacks into a status).
+    """
+
+    def __init__(self, error: Exception) -> None:
+        super().__init__(error)
+        self.error = error
+
+
+def _guarded(g: Callable[..., Any] | None) -> Callable[..., Any] | None:
+    if g is None:
+        return None
+
+    def h(*args: Any) -> Any:
+        try:
+            return g(*args)
+        except (_TooMuchWork, _NonFinite):
+            raise
+        except Exception as e:
+            raise _RaisedByRhs(e) from e
+
+    return h
+
+
 class _NonFinite(Exception):
     def __init__(self, t: float, index: int) -> None:
         super().__init__(t, index)
@@ -134,13 +161,16 @@ def run_solve_ivp(
     from scipy.integrate import solve_ivp
 
     implicit = methods.get(method).implicit
-    options: dict[str, Any] = {"jac": jac} if implicit and jac is not None else {}
+    options: dict[str, Any] = {"jac": _guarded(jac)} if implicit and jac is not None else {}
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
         try:
             sol = solve_ivp(
-                f, (t[0], t[-1]), y0, method=method, t_eval=t, rtol=rtol, atol=atol, **options
-            )
+                _guarded(f), (t[0], t[-1]), y0, method=method, t_eval=t, rtol=rtol, atol=atol,
+                **options,
+            )  # fmt: skip
+        except _RaisedByRhs as e:  # the law's (or a check's) own error, as it is
+            raise e.error from None
         except (ValueError, ArithmeticError, np.linalg.LinAlgError) as e:
             # e.g. an implicit method's LU of a non-finite Jacobian
             return np.empty((0, y0.size)), f"{type(e).__name__}: {e}", False, 0
@@ -150,11 +180,12 @@ def run_solve_ivp(
     return sol.y.T, sol.message, ok, int(sol.njev)
 
 
-#: What LSODA's failures mean for a user, by the words of its status message.
+#: What LSODA's failures mean for a user, by the words of its status message. LSODA
+#: switches to BDF by itself when the motion is stiff: stiffness is not what exhausts it.
 _LSODA_CAUSES = {
-    "Excess work done": "more than {mxstep:,} internal steps between two output times: the "
-    "scene is stiff or the tolerances too tight for it (try looser --rtol, or --method "
-    "Radau or BDF)",
+    "Excess work done": "more than {mxstep:,} internal steps between two output times (LSODA "
+    "switches to BDF on stiff motion by itself): the tolerances are too tight for this "
+    "motion, or it is not smooth there (a discontinuous law?); loosen rtol/atol",
     "Excess accuracy requested": "the tolerances are tighter than float64 can meet there "
     "(loosen --rtol/--atol)",
     "Illegal input": "the first step would be shorter than float64 can resolve: the "
@@ -197,15 +228,86 @@ def too_much_work(
     watch.last = counted.last
     index = _fastest(watch, rtol, atol)
     where = label(index) if label is not None else names[index]
-    implicit = "odepack, Radau or BDF" if not methods.get(method).implicit else "odepack"
-    return DivergenceError(
-        t_stop, where,
+    spent = (
         f"{method} gave up after {counted.budget:,} evaluations ({EVALS_PER_SECOND:,} per "
         f"simulated second of {span:g} s, plus {EVALS_BASE:,}), fastest-changing "
-        f"coordinate {where}: the scene is stiff for an explicit method; use --method "
-        f"{implicit} (implicit), or looser tolerances",
-        verb="stopped",
-    )  # fmt: skip
+        f"coordinate {where}"
+    )
+    return DivergenceError(t_stop, where, f"{spent}: {_work_hint(method, counted)}", verb="stopped")
+
+
+#: Right-hand-side evaluations per step of the explicit methods, and the reach of their
+#: stability region along the negative real axis (h·|λ| beyond it is unstable).
+_EXPLICIT = {"RK45": (6, 3.3), "DOP853": (12, 6.0)}
+#: An explicit run whose mean step times the fastest rate exceeds this fraction of its
+#: stability reach is limited by stability, i.e. stiff.
+STIFF_FRACTION = 0.3
+
+
+def _work_hint(method: str, counted: Counted) -> str:
+    """Why a run spent its budget, by the kind of method (stiffness only when measured)."""
+    if method not in _EXPLICIT:  # implicit methods and odepack cope with stiffness
+        return (
+            f"{method} handles stiff motion, so the tolerances are too tight for this motion, "
+            "or it is not smooth (a discontinuous law?), or its Jacobian is poor "
+            "(jacobian='finite-difference', or a law's inexact jacobian()); loosen rtol/atol"
+        )
+    stages, reach = _EXPLICIT[method]
+    rate = _fastest_rate(counted)
+    steps = max(1, counted.calls // stages)
+    mean_step = abs(_elapsed(counted)) / steps
+    if rate is not None and mean_step * rate > STIFF_FRACTION * reach:
+        return (
+            f"the motion is stiff (fastest rate {rate:.3g} 1/s measured, so {method}'s "
+            f"steps of about {mean_step:.3g} s are at its stability limit); use an implicit "
+            "method: Radau, BDF or odepack (looser tolerances do not lift a stability limit)"
+        )
+    measured = (
+        f" (fastest rate {rate:.3g} 1/s: steps of {mean_step:.3g} s are stable)"
+        if (rate is not None)
+        else ""
+    )
+    return (
+        f"{method}'s steps are limited by accuracy, not stability{measured}: the tolerances "
+        "are too tight for this motion or it is not smooth (a discontinuous law?); loosen "
+        "rtol/atol"
+    )
+
+
+def _elapsed(counted: Counted) -> float:
+    """Simulated time covered before the budget ran out [s]."""
+    if counted.last is None or counted.first is None:
+        return 0.0
+    return float(counted.last[0]) - float(counted.first)
+
+
+def _fastest_rate(counted: Counted) -> float | None:
+    """The spectral radius [1/s] of ∂f/∂y at the last state, by finite differences.
+
+    A batch's Jacobian is block diagonal (each variant its own block of ``counted.width``):
+    all blocks are perturbed at once, one column each, and the largest radius returned.
+    """
+    if counted.last is None:
+        return None
+    t, y, dy = counted.last
+    y = np.array(y, dtype=float)
+    dy = np.array(dy, dtype=float)
+    width = counted.width or y.size
+    blocks = y.size // width
+    J = np.empty((blocks, width, width))
+    with np.errstate(all="ignore"):
+        for j in range(width):
+            h = 1e-7 * max(1.0, float(np.abs(y[j::width]).max()))
+            yp = y.copy()
+            yp[j::width] += h
+            col = (np.asarray(counted.f(t, yp), dtype=float) - dy) / h
+            J[:, :, j] = col.reshape(blocks, width)
+        if not np.isfinite(J).all():
+            return None
+        try:
+            return float(np.abs(np.linalg.eigvals(J)).max())
+        except np.linalg.LinAlgError:  # pragma: no cover
+            return None
 
 
 def diagnose(
@@ -250,8 +352,8 @@ def diagnose(
                 e.t, label(e.index), "the state or its derivative became non-finite"
             )
         except _TooMuchWork:
-            counted = Counted(f, watch.budget)
-            counted.calls, counted.last = watch.calls, watch.last
+            counted = Counted(f, watch.budget, width)
+            counted.calls, counted.last, counted.first = watch.calls, watch.last, float(t[0])
             return too_much_work(method, counted, float(t[-1] - t[0]), names, rtol, atol, label)
     if ok and states is not None:  # the checked rerun went through: the first run's output
         bad = np.argwhere(~np.isfinite(states))
@@ -265,6 +367,15 @@ def diagnose(
         return DivergenceError(
             t_fail, label(index), f"{method} failed once and not when rerun", verb="stopped"
         )
+    if "successful" in message:  # it said so, yet its output is not finite: its own arithmetic
+        gap = float(np.diff(t).min())
+        return DivergenceError(
+            t_fail, label(index),
+            f"{method} returned non-finite states although it reported success, while every "
+            f"derivative it asked for was finite: its step arithmetic breaks down on an output "
+            f"interval of {gap:.3g} s; use longer output intervals, or another method",
+            verb="stopped",
+        )  # fmt: skip
     cause = _cause(method, message, watch, rtol, atol, names)
     return DivergenceError(t_fail, label(index), cause, verb="stopped")
 
@@ -277,9 +388,13 @@ class Counted:
     """
 
     def __init__(
-        self, f: Callable[[float, np.ndarray], np.ndarray], budget: int = MAX_EVALS
+        self,
+        f: Callable[[float, np.ndarray], np.ndarray],
+        budget: int = MAX_EVALS,
+        width: int | None = None,
     ) -> None:
-        self.f, self.calls, self.budget = f, 0, budget
+        self.f, self.calls, self.budget, self.width = f, 0, budget, width
+        self.first: float | None = None
         self.last: tuple[float, np.ndarray, np.ndarray] | None = None
 
     def __call__(self, t: float, y: np.ndarray) -> np.ndarray:
@@ -288,6 +403,8 @@ class Counted:
         if self.calls > self.budget:
             raise _TooMuchWork(t)
         dy = self.f(t, y)
+        if self.first is None:
+            self.first = t
         self.last = (t, y, dy)
         return dy
 
