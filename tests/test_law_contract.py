@@ -1,4 +1,4 @@
-"""A user's law is held to its contract, and a run says what really happened (issue 31).
+"""A user's law is held to its contract, and a run says what really happened.
 
 Each bad law is refused in one line naming the law, what it returned and what
 was expected (``ControllerError``, an ``InputError``), never reported as the
@@ -54,7 +54,7 @@ def _one_line(e: BaseException, *words: str) -> None:
         assert w in text, text
 
 
-# --- efforts_many (issue item 10) ---------------------------------------------------------
+# --- efforts_many: checked as efforts is, and against it -------------------------------
 def test_a_batch_form_of_the_wrong_shape_is_refused(arm):
     law = _Law(lambda self, t, q, qd: np.zeros(3))
     with pytest.raises(ControllerError) as info:
