@@ -4,8 +4,11 @@ from __future__ import annotations
 
 import argparse
 import math
-from collections.abc import Callable
-from typing import IO, TYPE_CHECKING
+import signal
+import threading
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from typing import IO, TYPE_CHECKING, Any
 
 from rrt_pin._logging import note
 from rrt_pin.params import PARAM_DOCS, Params
@@ -14,6 +17,8 @@ if TYPE_CHECKING:
     from rrt_pin.robot import Robot
 
 __all__ = [
+    "Terminated",
+    "add_config_argument",
     "add_output_arguments",
     "add_robot_arguments",
     "add_scene_arguments",
@@ -25,9 +30,11 @@ __all__ = [
     "positive_float",
     "positive_int",
     "positive_seconds",
+    "refuse_run_file_params",
     "resolve_backend",
     "robot_from_args",
     "run_metadata",
+    "termination_as_interrupt",
     "write_run_outputs",
 ]
 
@@ -113,6 +120,63 @@ def add_scene_arguments(parser: argparse.ArgumentParser) -> None:
         "[options] table of defaults for this command's long options (--scene is the old "
         "name of this flag)",
     )
+
+
+def add_config_argument(parser: argparse.ArgumentParser, command: str) -> None:
+    """Add ``--config PATH`` for a command without the chapter's parameters (no ``--set``).
+
+    Its run file's ``[options]`` and ``[command]`` tables give the command's long
+    options; a ``[params]`` table is refused (:func:`refuse_run_file_params`).
+    """
+    parser.add_argument(
+        "--config",
+        dest="scene",
+        type=nonempty,
+        metavar="PATH",
+        help=f"TOML run file: defaults for this command's long options from its [{command}] "
+        "table (and [options]); no [params]",
+    )
+
+
+def refuse_run_file_params(args: argparse.Namespace, command: str, why: str) -> None:
+    """Refuse a run file's ``[params]`` where the command takes none (never ignore them).
+
+    Raises:
+        SceneError: the run file has a ``[params]`` table.
+    """
+    scene = getattr(args, "scene_obj", None)
+    if scene is not None and scene.params:
+        from rrt_pin.errors import SceneError
+
+        raise SceneError(
+            f"run file {args.scene!r}: [params] do not apply to 'rrt-pin {command}' ({why})"
+        )
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM or SIGHUP, handled like Ctrl-C."""
+
+
+@contextmanager
+def termination_as_interrupt() -> Iterator[None]:
+    """Turn SIGTERM and SIGHUP into :class:`Terminated` (a KeyboardInterrupt).
+
+    Cleanup runs and the command ends as Ctrl-C ends it (main thread only).
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def handler(signum: int, frame: Any) -> None:
+        raise Terminated()
+
+    signums = [signal.SIGTERM] + ([signal.SIGHUP] if hasattr(signal, "SIGHUP") else [])
+    previous = {s: signal.signal(s, handler) for s in signums}
+    try:
+        yield
+    finally:
+        for s, h in previous.items():
+            signal.signal(s, h)
 
 
 def params_from_args(args: argparse.Namespace) -> Params:

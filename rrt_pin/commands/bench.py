@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import argparse
 
+from rrt_pin.commands._common import add_config_argument, refuse_run_file_params
+
 HELP = (
     "benchmark run time against error (direct dynamics), inverse-dynamics backends, energy "
     "drift, kernels against the machine's FMA limit"
@@ -22,12 +24,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="folder for work_precision.csv/.png, inverse.csv, energy_drift.csv, kernels.csv "
         "(default bench-out/)",
     )
+    add_config_argument(parser, "bench")
 
 
 def run(args: argparse.Namespace) -> int:
     """Run the benchmarks; progress on stderr, summary on stdout."""
     from rrt_pin.extras import require
 
+    refuse_run_file_params(args, "bench", "the benchmarks run the chapter's values")
     # Checked before anything runs or is written (not halfway through).
     require("sympy", "symbolic", "the benchmark's 30-digit reference")
     require("mpmath", "symbolic", "the benchmark's 30-digit reference")
