@@ -22,6 +22,7 @@ from rrt_pin.errors import InputError
 
 __all__ = [
     "choice",
+    "shown",
     "positive_int",
     "real",
     "samples",
@@ -34,6 +35,21 @@ __all__ = [
 
 def _unit(unit: str) -> str:
     return f" [{unit}]" if unit else ""
+
+
+def shown(value: Any, width: int = 60) -> str:
+    """``value`` as a message shows it: Python's repr, never numpy's.
+
+    A numpy scalar or 0-d array prints as the Python number it holds (``0.5``,
+    not ``np.float64(0.5)``); a repr longer than ``width`` characters is cut
+    with "…".
+    """
+    if isinstance(value, np.ndarray) and value.ndim == 0:
+        value = value[()]
+    if isinstance(value, np.generic):
+        value = value.item()
+    text = repr(value)
+    return text if len(text) <= width else text[: width - 1] + "…"
 
 
 def real(
@@ -53,19 +69,19 @@ def real(
     if isinstance(value, np.ndarray) and value.ndim == 0:
         value = value[()]
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, Real):
-        raise InputError(f"{name}={value!r} must be a real number{_unit(unit)}")
+        raise InputError(f"{name}={shown(value)} must be a real number{_unit(unit)}")
     try:
         x = float(value)
     except OverflowError:
-        raise InputError(f"{name}={value!r} is too large{_unit(unit)}") from None
+        raise InputError(f"{name}={shown(value)} is too large{_unit(unit)}") from None
     if not math.isfinite(x):
-        raise InputError(f"{name}={value!r} must be finite{_unit(unit)}")
+        raise InputError(f"{name}={shown(value)} must be finite{_unit(unit)}")
     if positive and x <= 0.0:
-        raise InputError(f"{name}={value!r} must be > 0{_unit(unit)}")
+        raise InputError(f"{name}={shown(value)} must be > 0{_unit(unit)}")
     if nonnegative and x < 0.0:
-        raise InputError(f"{name}={value!r} must be >= 0{_unit(unit)}")
+        raise InputError(f"{name}={shown(value)} must be >= 0{_unit(unit)}")
     if below is not None and x >= below:
-        raise InputError(f"{name}={value!r} must be < {below:g}{_unit(unit)}")
+        raise InputError(f"{name}={shown(value)} must be < {below:g}{_unit(unit)}")
     return x
 
 
@@ -85,7 +101,7 @@ def positive_int(name: str, value: Any) -> int:
         InputError: otherwise.
     """
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, Integral) or value < 1:
-        raise InputError(f"{name}={value!r} must be an integer >= 1")
+        raise InputError(f"{name}={shown(value)} must be an integer >= 1")
     return int(value)
 
 
@@ -96,7 +112,7 @@ def choice(name: str, value: Any, choices: Sequence[str]) -> str:
         InputError: naming the valid choices.
     """
     if not isinstance(value, str) or value not in choices:
-        raise InputError(f"{name}={value!r} is not one of {', '.join(choices)}")
+        raise InputError(f"{name}={shown(value)} is not one of {', '.join(choices)}")
     return value
 
 
@@ -104,7 +120,7 @@ def _array(name: str, value: Any, unit: str) -> np.ndarray:
     if type(value) is np.ndarray and value.dtype == np.float64:
         return value  # the common case, without the checks below
     if isinstance(value, (str, bytes)) or value is None:
-        raise InputError(f"{name}={value!r} is not an array of numbers{_unit(unit)}")
+        raise InputError(f"{name}={shown(value)} is not an array of numbers{_unit(unit)}")
     try:
         arr = np.asarray(value)  # no copy of a float array: callers copy where they keep it
     except (TypeError, ValueError) as e:

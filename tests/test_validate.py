@@ -55,3 +55,13 @@ def test_vectors_states_samples_and_times():
     assert validate.positive_int("threads", np.int32(2)) == 2
     with pytest.raises(InputError, match="threads=True must be an integer >= 1"):
         validate.positive_int("threads", True)
+
+
+@pytest.mark.parametrize(
+    "value", [np.float64(-0.5), np.int32(-3), np.array(-2.0), np.float32(-1.25)]
+)
+def test_messages_show_numpy_scalars_as_python_numbers(value):
+    with pytest.raises(InputError) as info:
+        validate.real("dt", value, "s", positive=True)
+    assert "np." not in str(info.value) and "array(" not in str(info.value)
+    assert str(info.value) == f"dt={np.asarray(value).item()!r} must be > 0 [s]"
