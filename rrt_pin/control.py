@@ -49,6 +49,7 @@ from rrt_pin.errors import (
     InputError,
     ParameterError,
 )
+from rrt_pin.memory import check_data
 from rrt_pin.params import PLANT_FIELDS, Params
 
 if TYPE_CHECKING:
@@ -734,6 +735,7 @@ class PDGravityController(_PDGravity):
         if model.nq != n and np.shape(self.qf) == (model.nq,):
             object.__setattr__(self, "qf", tuple(self.robot.coordinates(np.asarray(self.qf))))
         object.__setattr__(self, "qf", _target("qf", self.qf, n))
+        check_data(model, f"a controller of a {n}-joint model")
         object.__setattr__(self, "_data", model.createData())
 
     @property
@@ -831,6 +833,7 @@ class TrackingController(Controller):
                 raise InputError(f"the motion has {self.motion.n} coordinates but the robot {n}")
         elif not callable(self.motion):
             raise InputError("motion must be a Trajectory or a function of time returning one")
+        check_data(self.robot.model, f"a controller of a {n}-joint model")
         object.__setattr__(self, "_data", self.robot.model.createData())
 
     @property

@@ -166,16 +166,15 @@ def test_the_cli_refuses_a_chain_too_large_for_the_cap_in_one_line(tmp_path):
     assert not out.exists()
 
 
-def test_a_memory_error_the_estimates_missed_is_one_line_in_the_cli(tmp_path):
-    # The regulator's own Data (rrt_pin/control.py) is made without an estimate: its
-    # MemoryError reaches the CLI, which says it in one line.
+def test_a_controller_too_large_for_the_cap_is_refused_before_its_data(tmp_path):
+    # The regulator's own Data (rrt_pin/control.py) is checked before it is made.
     ones = ",".join(["1"] * 300)
     args = ["-m", "rrt_pin", "simulate", *_chain_files(tmp_path, 300), "--kp", ones, "--kd", ones]
     done = _capped([*args, "--tf", "0.01", "--csv", str(tmp_path / "o.csv")], 1 * GB, tmp_path)
     assert done.returncode == 2, done.stderr
     assert done.stderr.count("\n") == 1 and "Traceback" not in done.stderr, done.stderr
     assert done.stderr.startswith("rrt-pin: error:"), done.stderr
-    assert "out of memory" in done.stderr or "needs" in done.stderr, done.stderr
+    assert "a controller of a 300-joint model needs" in done.stderr, done.stderr
     assert not (tmp_path / "o.csv").exists()
 
 

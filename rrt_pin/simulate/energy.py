@@ -38,6 +38,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from rrt_pin.errors import DivergenceError
+from rrt_pin.memory import check_data
 
 if TYPE_CHECKING:
     from rrt_pin.robot import Robot
@@ -63,6 +64,7 @@ class _Rule:
         model = robot.model
         self.robot = robot
         self.model = model
+        check_data(model, f"the energy of a {model.nv}-joint model")
         self.data = model.createData()
         self.kp, self.qf = kp, qf
         armature = getattr(model, "armature", None)
