@@ -299,3 +299,34 @@ def test_no_numpy_reprs_in_grid_messages():
     with pytest.raises(InputError) as info:
         time_grid(np.float64(1.0), np.float64(2.0))
     _one_line(info.value, "dt=2.0 is larger than tf - t0 = 1.0")
+
+
+def test_the_summary_says_why_the_estimate_is_missing(arm):
+    from rrt_pin.commands.simulate import summary, summary_text
+
+    def trap(t, q, qd):
+        return np.full(3, np.nan) if abs(t - 0.025) < 1e-12 else -10.0 * qd
+
+    t = np.linspace(0.0, 0.5, 6)
+    with pytest.warns(EstimateWarning):
+        run = simulate(arm, trap, arm.defaults.q0, None, t, method="rk4", step=0.1)
+    facts = summary(arm, run)
+    assert facts["error_estimate"] is None
+    assert facts["error_estimate_failure"] == run.estimate_failure
+    line = next(s for s in summary_text(facts).splitlines() if "estimated global error" in s)
+    assert line.endswith(f"not computed: {run.estimate_failure}")
+
+
+def test_the_compiled_backend_never_runs_a_subclass_as_the_chapter_law(arm):
+    pytest.importorskip("numba")
+    from rrt_pin.control import ChapterController, chapter_controller
+
+    base = chapter_controller()
+
+    class Braking(ChapterController):
+        def efforts(self, t, q, qd):
+            return -50.0 * np.asarray(qd)
+
+    law = Braking(kp=base.kp, kd=base.kd, qf=base.qf, params=base.params)
+    with pytest.raises(InputError, match="not Braking"):
+        simulate(arm, law, arm.defaults.q0, None, T, backend="compiled", estimate_error=False)

@@ -298,7 +298,8 @@ def _estimate_facts(robot: Robot, result: SimulationResult) -> dict | None:
 def _estimate_line(facts: dict) -> str:
     est = facts.get("error_estimate")
     if est is None:
-        return "estimated global error of q(t): not computed"
+        why = facts.get("error_estimate_failure")
+        return "estimated global error of q(t): not computed" + (f": {why}" if why else "")
     from rrt_pin.text import duration
 
     per = ", ".join(f"{e['name']} {e['value']:.2g} {e['unit']}" for e in est["per_coordinate"])
@@ -387,6 +388,7 @@ def summary(robot: Robot, result: SimulationResult) -> dict:
         "evaluations": int(result.n_evals),
         "wall_time": float(result.wall_time),
         "error_estimate": _estimate_facts(robot, result),
+        "error_estimate_failure": result.estimate_failure,
         "settling_band": SETTLING_BAND,
         "joints": joints,
         "peaks": peaks,

@@ -141,7 +141,8 @@ def _controller_arrays(controller: Any, plant: Params, p: np.ndarray) -> tuple[i
         return codes.KIND_NONE, c
     from rrt_pin.control import ChapterController, PDGravityController
 
-    if isinstance(controller, ChapterController):
+    # The exact classes only: a subclass may override efforts() with another law.
+    if type(controller) is ChapterController:
         c[:3], c[3:6], c[6:9] = controller.kp, controller.kd, controller.qf
         law = controller.params
         if (law.g, law.m2, law.m3, law.L2) == (plant.g, plant.m2, plant.m3, plant.L2):
@@ -151,7 +152,7 @@ def _controller_arrays(controller: Any, plant: Params, p: np.ndarray) -> tuple[i
             return codes.KIND_CHAPTER_FOLDED, c
         c[9:] = param_array(controller.params)
         return codes.KIND_CHAPTER, c
-    if isinstance(controller, PDGravityController):
+    if type(controller) is PDGravityController:
         if controller.nv != 3 or not controller.compensates_gravity_of(_rrt_model(plant)):
             raise InputError(
                 "backend 'compiled' compensates the gravity of the RRT arm only: the "
