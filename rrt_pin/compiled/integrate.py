@@ -208,10 +208,10 @@ def _raise_status(
     name = _NAMES[coordinate] if 0 <= coordinate < 6 else "q1"
     if variant is not None:
         name = f"{name} (variant {variant})"
-    stiff = (
-        f"{method} is explicit, so a stiff scene (large gains or damping against small "
-        "masses) forces steps too short for it; use --backend pinocchio with --method "
-        "odepack, Radau or BDF (implicit)"
+    stiff = (  # not measured here: both causes named
+        f"{method} is explicit: either the scene is stiff (large gains or damping against "
+        "small masses), which needs an implicit method (--backend pinocchio with --method "
+        "odepack, Radau or BDF), or the tolerances are tighter than the motion allows"
     )
     if step is not None:
         stiff = (
