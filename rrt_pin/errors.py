@@ -8,6 +8,7 @@ from __future__ import annotations
 
 __all__ = [
     "ArgumentTypeError",
+    "ClusterError",
     "ControllerError",
     "DivergenceError",
     "InputError",
@@ -117,3 +118,17 @@ class ControllerError(InputError):
 
 class ViewerError(RrtPinError, RuntimeError):
     """The viewer could not start, serve or render."""
+
+
+class ClusterError(RrtPinError, RuntimeError):
+    """A Dask cluster cannot be used: unreachable, not speaking Dask, or without workers.
+
+    Attributes:
+        address: the scheduler's address (``tcp://host:port``; the local cluster's).
+        seconds: how long was waited [s] (None: it failed at once).
+    """
+
+    def __init__(self, address: str, message: str, seconds: float | None = None) -> None:
+        self.address = address
+        self.seconds = seconds
+        super().__init__(message)

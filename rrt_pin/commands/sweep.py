@@ -3,10 +3,18 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 
 from rrt_pin._logging import note
-from rrt_pin.commands._common import nonempty, positive_int
+from rrt_pin.commands._common import (
+    add_config_argument,
+    nonempty,
+    positive_float,
+    positive_int,
+    refuse_run_file_params,
+    termination_as_interrupt,
+)
 
 HELP = "run a sweep spec (TOML): many variants, metrics to Parquet, locally or on Dask (SI units)"
 
@@ -34,10 +42,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``rrt-pin sweep``."""
     parser.formatter_class = argparse.RawDescriptionHelpFormatter
     parser.epilog = _EPILOG
-    parser.add_argument("spec", metavar="SPEC.toml", help="the sweep spec")
+    parser.add_argument(
+        "spec", metavar="SPEC.toml", nargs="?", type=nonempty,
+        help="the sweep spec (or spec = \"...\" in the run file's [sweep] table)",
+    )  # fmt: skip
     parser.add_argument(
         "--out",
-        required=True,
         type=nonempty,
         metavar="DIR",
         help="output folder: new or empty (created), or a sweep to --resume; one run at a time",
@@ -57,20 +67,57 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "written to OUT/METRIC.png",
     )
     parser.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
+    parser.add_argument(
+        "--worker-timeout",
+        type=positive_float,
+        default=60.0,
+        metavar="SECONDS",
+        help="stop when the Dask cluster has had no worker for this long (the chunks done "
+        "are kept: --resume continues) [s] (default 60)",
+    )
+    add_config_argument(parser, "sweep")
 
 
 def run(args: argparse.Namespace) -> int:
-    """Run the sweep, print its summary, draw the plot."""
+    """Run the sweep, print its summary, draw the plot.
+
+    SIGTERM and SIGHUP end it as Ctrl-C does: the chunks stored stay, and one line
+    says so and how to continue.
+    """
+    from rrt_pin.errors import InputError
+
+    refuse_run_file_params(args, "sweep", "the spec's [base] sets the values")
+    if args.spec is None:
+        raise InputError('sweep needs a spec: SPEC.toml (or spec = "..." in a run file\'s [sweep])')
+    if args.out is None:
+        raise InputError('sweep needs --out DIR (or out = "..." in a run file\'s [sweep])')
+    if args.plot:  # before any work: a sweep must not run for a plot it cannot draw
+        from rrt_pin.sweeps.plot import check_metric
+
+        check_metric(args.spec, args.plot)
     from rrt_pin.sweeps.run import sweep
 
-    result = sweep(
-        args.spec,
-        args.out,
-        scheduler=args.scheduler,
-        workers=args.workers,
-        resume=args.resume,
-        progress=not args.no_progress,
-    )
+    try:
+        with termination_as_interrupt():
+            result = sweep(
+                args.spec,
+                args.out,
+                scheduler=args.scheduler,
+                workers=args.workers,
+                resume=args.resume,
+                progress=not args.no_progress,
+                worker_timeout=args.worker_timeout,
+            )
+    except KeyboardInterrupt:
+        from pathlib import Path
+
+        from rrt_pin.sweeps.store import MANIFEST
+
+        hint = ""
+        if os.path.isfile(Path(args.out) / MANIFEST):
+            hint = f"; the chunks done are kept in {args.out!r}: add --resume to continue"
+        print(f"rrt-pin: interrupted{hint}", file=sys.stderr)
+        return 130
     sys.stdout.write(result.summary())
     if args.plot:
         from rrt_pin.sweeps.plot import plot_metric

@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from rrt_pin.errors import InputError, RrtPinError, SceneError
+from rrt_pin.errors import ClusterError, InputError, RrtPinError, SceneError
 from rrt_pin.sweeps.spec import Spec, load_spec, spec_from_dict
 from rrt_pin.text import duration
 
@@ -38,8 +38,14 @@ __all__ = ["SweepResult", "sweep"]
 IN_FLIGHT = 2
 #: Worst variants listed in the summary.
 WORST = 3
-#: How long to try reaching a scheduler before saying it cannot be reached.
-CONNECT_TIMEOUT = "5s"
+#: How long to wait for a scheduler: the connection and Dask's handshake, together [s].
+CONNECT_TIMEOUT = 5.0
+#: How long a sweep waits while its cluster has no worker before it stops (default) [s].
+WORKER_TIMEOUT = 60.0
+#: How often a sweep waiting for chunks looks whether its cluster still has workers [s].
+POLL = 1.0
+#: Transports a scheduler elsewhere may be reached by.
+_SCHEMES = ("tcp", "tls", "ws", "wss", "ucx")
 
 
 @dataclass
@@ -116,7 +122,16 @@ def _spec(spec: Spec | str | Path | Mapping[str, Any]) -> Spec:
         return spec
     if isinstance(spec, Mapping):
         return spec_from_dict(spec)
-    return load_spec(spec)
+    if isinstance(spec, (str, os.PathLike)) and not isinstance(spec, bytes):
+        if not os.fspath(spec):
+            raise SceneError("spec='' must name a TOML file")
+        return load_spec(spec)
+    from rrt_pin.errors import ArgumentTypeError
+
+    raise ArgumentTypeError(
+        "spec",
+        f"spec= must be a Spec, a dict or a TOML file's path, not {type(spec).__name__}",
+    )
 
 
 def _check_extremes(spec: Spec) -> None:
@@ -142,11 +157,9 @@ def _check_extremes(spec: Spec) -> None:
 
 
 def _ends(spec: Spec, axis: Any) -> np.ndarray:
-    if not axis.random:
-        grid = axis.grid()
-        return np.array([grid.min(), grid.max()])
-    if axis.kind in ("uniform", "lhs"):
-        return np.array(axis.args)
+    """The smallest and largest values an axis reaches (a grid's without making it)."""
+    if axis.kind != "normal":
+        return np.array(axis.ends())
     col = spec.random_table()[axis.name]
     return np.array([col.min(), col.max()])
 
@@ -194,6 +207,79 @@ def _units(spec: Spec) -> dict[str, str]:
     return out
 
 
+def _reach(address: str, timeout: float) -> None:
+    """Connect to ``address`` and finish Dask's handshake within ``timeout`` seconds, or say why.
+
+    ``Client(timeout=)`` bounds the TCP connection only: a port that accepts and says
+    nothing would hold it forever. Here the whole exchange has one deadline.
+
+    Raises:
+        ClusterError: one line naming the address and what went wrong.
+    """
+    import asyncio
+
+    from distributed.comm import connect
+    from distributed.comm.core import CommClosedError
+    from distributed.security import Security
+
+    def fail(why: str) -> ClusterError:
+        return ClusterError(address, f"cannot reach the Dask scheduler {address!r}: {why}", timeout)
+
+    scheme = address.split("://", 1)[0] if "://" in address else "tcp"
+    if scheme not in _SCHEMES:
+        raise fail(f"not an address like tcp://host:port (schemes: {', '.join(_SCHEMES)})")
+    try:
+        args = Security().get_connection_args("client")
+    except Exception as e:  # a TLS configuration that does not load
+        raise fail(f"Dask's TLS settings do not load: {_one_line(e)}") from None
+
+    async def probe() -> None:
+        # the connection's own deadline comes first: a port that refuses is told apart
+        comm = await connect(address, timeout=0.8 * timeout, **args)
+        await comm.close()
+
+    try:
+        asyncio.run(asyncio.wait_for(probe(), timeout))
+    except TimeoutError as e:
+        if str(e).startswith("Timed out trying to connect"):
+            raise fail(f"no connection within {timeout:g} s") from None
+        raise fail(
+            f"it accepted the connection but gave no Dask handshake within {timeout:g} s "
+            "(is it a Dask scheduler's port?)"
+        ) from None
+    except CommClosedError:
+        raise fail("it closed the connection without a Dask handshake") from None
+    except OSError as e:
+        if str(e).startswith("Timed out trying to connect"):
+            raise fail(f"no connection within {timeout:g} s") from None
+        raise fail(_one_line(e)) from None
+    except ValueError as e:
+        if "address" in str(e) or "port" in str(e) or "scheme" in str(e):
+            raise fail(f"not an address like tcp://host:port ({_one_line(e)})") from None
+        raise fail(f"it answered, but not in Dask's protocol ({_one_line(e)})") from None
+    except (TypeError, ImportError) as e:
+        if scheme == "tls":
+            raise fail(
+                "tls:// needs Dask's TLS settings (distributed.comm.tls: ca-file, and the "
+                "client's cert and key)"
+            ) from None
+        if scheme == "ucx":
+            raise fail(
+                "the ucx:// transport is not available here (UCX and its Dask package)"
+            ) from None
+        raise fail(f"the {scheme}:// transport cannot be used ({_one_line(e)})") from None
+    except MemoryError:  # garbage read as the sizes of Dask's frames
+        raise fail("it answered, but not in Dask's protocol (frames of absurd sizes)") from None
+    except Exception as e:  # garbage read as Dask's messages: bad msgpack …
+        raise fail(f"it answered, but not in Dask's protocol ({_one_line(e)})") from None
+
+
+def _one_line(e: BaseException, limit: int = 120) -> str:
+    """An exception as a short line: its type when it has no message."""
+    text = " ".join(str(e).split()) or type(e).__name__
+    return text if len(text) <= limit else text[: limit - 1] + "…"
+
+
 def _client(scheduler: str | None, workers: int) -> tuple[Any, Any]:
     try:
         from distributed import Client, LocalCluster
@@ -201,14 +287,17 @@ def _client(scheduler: str | None, workers: int) -> tuple[Any, Any]:
         from rrt_pin.extras import MissingExtra
 
         raise MissingExtra("distributed", "sweep", "sweeps") from e
-    for name in ("distributed", "tornado", "bokeh"):  # Dask's chatter stays off the terminal
+    for name in ("distributed", "tornado", "bokeh", "asyncio"):  # Dask's chatter stays quiet
         if logging.getLogger(name).getEffectiveLevel() < logging.ERROR:
             logging.getLogger(name).setLevel(logging.ERROR)
     if scheduler is not None:
+        _reach(scheduler, CONNECT_TIMEOUT)
         try:
             return Client(scheduler, timeout=CONNECT_TIMEOUT), None
-        except (OSError, TimeoutError, ValueError) as e:
-            raise InputError(f"cannot reach the Dask scheduler {scheduler!r}: {e}") from e
+        except Exception as e:  # reached a moment ago: whatever broke since, one line
+            raise ClusterError(
+                scheduler, f"cannot reach the Dask scheduler {scheduler!r}: {_one_line(e)}"
+            ) from None
     # One worker with a thread per core: the compiled batch and the metrics release the GIL,
     # so threads need no copies between processes; measured in scripts/bench_sweep.py.
     cluster = LocalCluster(
@@ -221,6 +310,18 @@ def _client(scheduler: str | None, workers: int) -> tuple[Any, Any]:
     return Client(cluster), cluster
 
 
+def _workers(client: Any, address: str) -> int:
+    """How many workers the cluster has now."""
+    if client.status in ("closing", "closed"):
+        raise ClusterError(address, f"lost the Dask scheduler {address!r}: the sweep stopped")
+    try:
+        return len(client.nthreads())
+    except Exception as e:  # the scheduler went away while we asked
+        raise ClusterError(
+            address, f"lost the Dask scheduler {address!r}: {_one_line(e)}"
+        ) from None
+
+
 def _in_process(
     spec: Spec, jobs: Iterator[tuple[int, int, int, dict]]
 ) -> Iterator[tuple[int, dict]]:
@@ -231,11 +332,18 @@ def _in_process(
 
 
 def _on_dask(client: Any, spec: Spec, jobs: Iterator[tuple[int, int, int, dict]],
-             workers: int) -> Iterator[tuple[int, dict]]:  # fmt: skip
+             workers: int, address: str, worker_timeout: float) -> Iterator[tuple[int, dict]]:  # fmt: skip
+    """Chunks on the cluster, yielded as they finish.
+
+    While nothing finishes, the cluster is looked at every :data:`POLL` seconds: with no
+    worker for ``worker_timeout`` seconds (all lost, or none ever came) the sweep stops
+    with a :class:`ClusterError`; the chunks yielded so far are stored by then.
+    """
+    import itertools
     import uuid
     from concurrent.futures import CancelledError  # what a lost future raises
 
-    from distributed import as_completed
+    from distributed import wait
 
     from rrt_pin.sweeps.compute import run_chunk
 
@@ -243,8 +351,9 @@ def _on_dask(client: Any, spec: Spec, jobs: Iterator[tuple[int, int, int, dict]]
     run = uuid.uuid4().hex[:12]  # keys unique to this call: a scheduler may serve many sweeps
     pending: dict[int, tuple[int, int, int, dict]] = {}
     attempts: dict[int, int] = {}
+    running: list[Any] = []
 
-    def submit(job: tuple[int, int, int, dict]) -> Any:
+    def submit(job: tuple[int, int, int, dict]) -> None:
         k, start, stop, rows = job
         pending[k] = job
         attempts[k] = attempts.get(k, 0) + 1
@@ -253,26 +362,58 @@ def _on_dask(client: Any, spec: Spec, jobs: Iterator[tuple[int, int, int, dict]]
             key=f"rrt-pin-sweep-{run}-chunk-{k}-{attempts[k]}", retries=3, pure=False,
         )  # fmt: skip
         future.chunk = k
-        return future
+        running.append(future)
 
-    running = as_completed([submit(j) for _, j in zip(range(IN_FLIGHT * workers), queue,
-                                                      strict=False)])  # fmt: skip
-    for future in running:
-        k = future.chunk
+    for job in itertools.islice(queue, IN_FLIGHT * workers):
+        submit(job)
+    alone_since: float | None = None  # since when the cluster has had no worker
+    while running:
         try:
-            result = future.result()
-        except CancelledError:
-            # the result died with its worker between computing and gathering: again
-            if attempts[k] > 3:
-                raise
-            running.add(submit(pending[k]))
+            done = wait(
+                running, timeout=min(POLL, worker_timeout), return_when="FIRST_COMPLETED"
+            ).done
+        except TimeoutError:
+            done = set()
+        if not done:
+            if _workers(client, address):
+                alone_since = None
+            elif alone_since is None:
+                alone_since = time.monotonic()
+            elif time.monotonic() - alone_since >= worker_timeout:
+                raise ClusterError(
+                    address,
+                    f"the Dask cluster {address!r} has had no worker for {worker_timeout:g} s: "
+                    "the sweep stopped; the chunks done are kept (resume the sweep to continue)",
+                    worker_timeout,
+                )
             continue
-        future.release()
-        del pending[k]
-        nxt = next(queue, None)
-        if nxt is not None:
-            running.add(submit(nxt))
-        yield k, result
+        alone_since = None
+        for future in [f for f in running if f in done]:
+            running.remove(future)
+            k = future.chunk
+            try:
+                result = future.result()
+            except CancelledError:
+                # the result died with its worker between computing and gathering: again
+                if attempts[k] > 3:
+                    raise ClusterError(
+                        address, f"chunk {k} was lost {attempts[k]} times on {address!r}"
+                    ) from None
+                submit(pending[k])
+                continue
+            except Exception as e:
+                if type(e).__name__ != "KilledWorker":
+                    raise
+                raise ClusterError(
+                    address, f"chunk {k} killed every worker that ran it on {address!r}: "
+                    f"{_one_line(e)}",
+                ) from None  # fmt: skip
+            future.release()
+            del pending[k]
+            nxt = next(queue, None)
+            if nxt is not None:
+                submit(nxt)
+            yield k, result
 
 
 def sweep(
@@ -284,6 +425,7 @@ def sweep(
     resume: bool = False,
     progress: bool = True,
     on_chunk: Callable[[int, dict[str, Any]], object] | None = None,
+    worker_timeout: float = WORKER_TIMEOUT,
 ) -> SweepResult:
     """Run a sweep: every variant of ``spec``, chunk by chunk, into ``out``.
 
@@ -296,6 +438,8 @@ def sweep(
         progress: a progress bar on stderr (variants, rate, ETA).
         on_chunk: called with (chunk index, its result: ``index``, ``values``, ``columns``,
             ``seconds`` of compute) after each chunk is stored.
+        worker_timeout: how long the sweep waits while the cluster has no worker before
+            it stops [s]; the chunks stored by then stay, and ``resume`` continues.
 
     Returns:
         A :class:`SweepResult` (counts, worst cases, ``.table()`` of every row).
@@ -308,6 +452,10 @@ def sweep(
             holds another spec's sweep or a stray file in ``chunks/``; the scheduler
             is unreachable; or the extra ``sweep`` is not installed. A chunk that
             fails its check on ``resume`` is recomputed, with a warning.
+        ClusterError: the scheduler cannot be reached, or gives no Dask handshake,
+            within :data:`CONNECT_TIMEOUT` s; the cluster has had no worker for
+            ``worker_timeout`` s; a chunk killed every worker that ran it.
+        ArgumentTypeError: ``spec`` is not a Spec, a dict or a path.
     """
     from rrt_pin.sweeps.compute import BLOCK, plan
     from rrt_pin.sweeps.store import Store, folder_path
@@ -327,6 +475,9 @@ def sweep(
         if int(workers) < 1:
             raise InputError(f"workers={int(workers)} must be an integer >= 1")
         workers = int(workers)
+    if (isinstance(worker_timeout, bool) or not isinstance(worker_timeout, (int, float))
+            or not 0 < worker_timeout < math.inf):  # fmt: skip
+        raise InputError(f"worker_timeout={worker_timeout!r} must be a number > 0 [s]")
     from rrt_pin import cpus
 
     n_workers = workers or cpus.available()
@@ -361,7 +512,8 @@ def sweep(
         if client is None:
             stream = _in_process(spec, jobs)
         else:
-            stream = _on_dask(client, spec, jobs, n_workers)
+            address = scheduler or cluster.scheduler_address
+            stream = _on_dask(client, spec, jobs, n_workers, address, float(worker_timeout))
         for k, chunk in stream:
             store.write_chunk(k, chunk, units)
             cols = chunk["columns"]
