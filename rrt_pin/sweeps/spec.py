@@ -397,7 +397,9 @@ def _count_text(n: int) -> str:
     """A count for a message: exact up to 15 digits, else its power of ten."""
     if n < 10**15:
         return f"{n:,}"
-    return f"about 1e{int(n.bit_length() * math.log10(2))}"
+    if n < 10**300:
+        return f"about {float(n):.2g}"
+    return f"about 1e+{int(n.bit_length() * math.log10(2))}"
 
 
 def spec_from_dict(data: Mapping[str, Any], where: str = "spec") -> Spec:
