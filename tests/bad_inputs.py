@@ -41,6 +41,16 @@ def make_files(tmp: Path) -> None:
     (tmp / "opt_q0.toml").write_text('[options]\nq0 = "a,b"\n')
     (tmp / "twice.csv").write_text("t,q1,q1,q2,q3\n0,0,0,0,0\n1,1,1,1,1\n")
     (tmp / "huge.csv").write_text("t,q1,q2,q3\n0,0,0,0\n1,1e308,0,0\n")
+    # viewer and CSV reading
+    head = "t,q1,q2,q3\n0,0,0,0\n"
+    (tmp / "word.csv").write_text(head + "1,0,abc,0\n")
+    (tmp / "gap.csv").write_text(head + "1,0,,0\n")
+    (tmp / "short.csv").write_text(head + "1,0,0\n")
+    (tmp / "long.csv").write_text(head + "1,0,0,0,7\n")
+    (tmp / "blank_nan.csv").write_text("t,q1,q2,q3\n\n0,0,0,0\n\n1,0,0,nan\n")
+    (tmp / "backwards.csv").write_text(head + "2,0,0,0\n1,0,0,0\n")
+    (tmp / "empty.csv").write_text("")
+    (tmp / "folder.csv").mkdir()
     sweep = "[sweep]\ntf = 1.0\ndt = 0.1\n"
     (tmp / "sweep_ok.toml").write_text(sweep + "[vary]\nm3 = [30, 40]\n")
     (tmp / "sweep_unknown.toml").write_text(sweep + "[vary]\nmass = [1, 2]\n")
@@ -63,6 +73,9 @@ def make_files(tmp: Path) -> None:
     (tmp / "chain10000.urdf").write_text(chain_urdf(10_000))
     (tmp / "chain300.urdf").write_text(chain_urdf(300))
     (tmp / "chain65.urdf").write_text(chain_urdf(65))
+    (tmp / "chain1000.urdf").write_text(chain_urdf(1000))
+    zeros = ",".join(["0"] * 1000)
+    (tmp / "chain1000.toml").write_text(f'[options]\nq0 = "{zeros}"\nqf = "{zeros}"\n')
     zeros = ",".join(["0"] * 65)
     (tmp / "chain65.toml").write_text(f'[options]\nq0 = "{zeros}"\nqf = "{zeros}"\n')
     (tmp / "latin1.urdf").write_bytes(
@@ -79,6 +92,48 @@ def make_files(tmp: Path) -> None:
     (tmp / "opt_nobody.toml").write_text("[options]\nfrobnicate = 1\n")
     (tmp / "table_wrong.toml").write_text("[inverse]\nmethod = 'rk4'\n")
     (tmp / "table_unknown.toml").write_text("[simulation]\ndt = 0.1\n")
+    # sweep output folder
+    import json
+
+    from rrt_pin.sweeps.spec import load_spec
+
+    ok = load_spec(tmp / "sweep_ok.toml")
+    started = json.dumps({"spec_hash": ok.digest(), "chunk": ok.chunk, "done": []})
+    (tmp / "sweep_dangling").symlink_to(tmp / "nowhere")
+    (tmp / "sweep_stale" / "chunks").mkdir(parents=True)
+    (tmp / "sweep_stale" / "chunks" / "chunk-000000.parquet").write_bytes(b"old rows")
+    for name, text in (("list", "[]"), ("keys", '{"spec_hash": "x"}'),
+                       ("types", '{"spec_hash": 3, "chunk": 2, "done": []}'),
+                       ("chunksfile", started), ("stray", started)):  # fmt: skip
+        (tmp / f"sweep_{name}").mkdir()
+        (tmp / f"sweep_{name}" / "manifest.json").write_text(text)
+    (tmp / "sweep_chunksfile" / "chunks").write_text("not a folder")
+    (tmp / "sweep_stray" / "chunks").mkdir()
+    (tmp / "sweep_stray" / "chunks" / "extra.parquet").write_bytes(b"someone else's")
+    (tmp / "sweep_link").mkdir()
+    (tmp / "sweep_link" / "manifest.json").symlink_to(tmp / "sweep_ok.toml")
+    # sweep specs, Dask and the sweep command
+    for name, text in (
+        ("aot_vary", sweep + "[[vary]]\nm3 = [1, 2]\n"),
+        ("aot_sweep", "[[sweep]]\ntf = 1.0\n"),
+        ("vary_str", 'vary = "m3"\n' + sweep),
+        ("sweep_int", "sweep = 3\n"),
+        ("base_int", "base = 3\n" + sweep),
+        ("keep_int", "keep = 3\n" + sweep),
+        ("base_list", sweep + "[base]\ng = [1, 2]\n"),
+        ("n1e9", sweep + "[vary]\nm3 = { linspace = [30, 50, 1e9] }\n"),
+        ("n1e18", sweep + "[vary]\nm3 = { linspace = [30, 50, 1e18] }\n"),
+        ("n1e300", sweep + "[vary]\nm3 = { linspace = [30, 50, 1e300] }\n"),
+        ("n2p63", sweep + "[vary]\nm3 = { linspace = [30, 50, 9223372036854775807] }\n"),
+        ("product", sweep + "[vary]\nm3 = { linspace = [30, 50, 100000] }\n"
+         "m2 = { linspace = [1, 5, 100000] }\n"),
+        ("chunks", sweep + "chunk = 1\n[vary]\nm3 = { linspace = [30, 50, 1e6] }\n"),
+        ("deep", sweep + "x = " + "[" * 100_000 + "]" * 100_000 + "\n"),
+        ("bigint", sweep + "[vary]\nm3 = [1" + "0" * 400 + "]\n"),
+    ):  # fmt: skip
+        (tmp / f"spec_{name}.toml").write_text(text)
+    (tmp / "run_params.toml").write_text("[params]\nm3 = 50\n")
+    (tmp / "run_bench_quick.toml").write_text('[bench]\nquick = "yes"\n')
 
 
 #: A "billion laughs" document type declaration.
@@ -114,6 +169,9 @@ class Case:
     words: str
     #: Modules made unimportable for the case (an optional extra not installed).
     missing: tuple[str, ...] = ()
+    #: Patterns of the message that depend on the machine (its free memory): the table
+    #: in docs/bad-input.md shows "…" in their place; ``words`` must not overlap them.
+    machine: tuple[str, ...] = ()
 
     def args(self, tmp: Path) -> list[str]:
         """The argv with ``{tmp}`` filled in."""
@@ -617,5 +675,272 @@ CASES = (
         "a long joint list in a message",
         ("inverse", "--urdf", "{tmp}/chain300.urdf", "--csv", OUT),
         "(300 names))",
+    ),
+    Case(
+        "a model whose Pinocchio data does not fit in memory (1,000 joints)",
+        (
+            "inverse",
+            "--urdf",
+            "{tmp}/chain1000.urdf",
+            "--config",
+            "{tmp}/chain1000.toml",
+            "--csv",
+            OUT,
+        ),
+        "inverse dynamics of a 1000-joint model needs 64.8 GB (32.3 GB a copy of Pinocchio's Data",
+        machine=(r"(?<=more than the )[\d.]+ [kMGT]?B it may use: .*$",),
+    ),
+    # viewer and CSV reading
+    Case(
+        "CSV value that is not a number",
+        ("view", "--trajectory", "{tmp}/word.csv", "--serve-for", "0"),
+        "word.csv' line 3, column 'q2': 'abc' is not a number",
+    ),
+    Case(
+        "CSV value missing (empty field)",
+        ("view", "--trajectory", "{tmp}/gap.csv", "--serve-for", "0"),
+        "gap.csv' line 3, column 'q2': the value is missing",
+    ),
+    Case(
+        "CSV line with too few fields",
+        ("view", "--trajectory", "{tmp}/short.csv", "--serve-for", "0"),
+        "short.csv' line 3 has 3 fields but line 1 names 4 columns: the value of column 'q3' "
+        "is missing",
+    ),
+    Case(
+        "CSV line with too many fields",
+        ("view", "--trajectory", "{tmp}/long.csv", "--serve-for", "0"),
+        "long.csv' line 3 has 5 fields but line 1 names 4 columns: an extra value '7' follows "
+        "the last column 'q3'",
+    ),
+    Case(
+        "CSV NaN after blank lines (line numbers as an editor counts)",
+        ("view", "--trajectory", "{tmp}/blank_nan.csv", "--serve-for", "0"),
+        "blank_nan.csv' line 5, column 'q3': 'nan' is not a finite number",
+    ),
+    Case(
+        "CSV times that go back",
+        ("view", "--trajectory", "{tmp}/backwards.csv", "--serve-for", "0"),
+        "backwards.csv' line 4, column 't': times must increase strictly, but 1 s follows 2 s "
+        "(line 3)",
+    ),
+    Case(
+        "empty CSV",
+        ("view", "--trajectory", "{tmp}/empty.csv", "--serve-for", "0"),
+        "empty.csv' is empty: line 1 must name the columns",
+    ),
+    Case(
+        "CSV that is a folder",
+        ("view", "--trajectory", "{tmp}/folder.csv", "--serve-for", "0"),
+        "folder.csv': expected inverse, simulate or the path of a CSV file",
+    ),
+    # sweep output folder
+    Case(
+        "sweep: empty --out",
+        ("sweep", "{tmp}/sweep_ok.toml", "--out", ""),
+        "argument --out: must not be empty",
+    ),
+    Case(
+        "sweep: --out a dangling symbolic link",
+        ("sweep", "{tmp}/sweep_ok.toml", "--out", "{tmp}/sweep_dangling"),
+        "sweep_dangling' is a symbolic link to nothing",
+    ),
+    Case(
+        "sweep: --out a folder with files and no manifest",
+        ("sweep", "{tmp}/sweep_ok.toml", "--out", "{tmp}/sweep_stale"),
+        "sweep_stale' is not empty and holds no sweep",
+    ),
+    Case(
+        "sweep: a manifest that is a JSON list",
+        ("sweep", "{tmp}/sweep_ok.toml", "--out", "{tmp}/sweep_list", "--resume"),
+        "is not a sweep's manifest: a JSON list, not an object",
+    ),
+    Case(
+        "sweep: a manifest missing keys",
+        ("sweep", "{tmp}/sweep_ok.toml", "--out", "{tmp}/sweep_keys", "--resume"),
+        "is not a sweep's manifest: it has no 'chunk'",
+    ),
+    Case(
+        "sweep: a manifest with values of the wrong type",
+        ("sweep", "{tmp}/sweep_ok.toml", "--out", "{tmp}/sweep_types", "--resume"),
+        "is not a sweep's manifest: 'spec_hash' must be a string, not int",
+    ),
+    Case(
+        "sweep: --resume with chunks a file",
+        ("sweep", "{tmp}/sweep_ok.toml", "--out", "{tmp}/sweep_chunksfile", "--resume"),
+        "chunks' is a regular file, not a folder",
+    ),
+    Case(
+        "sweep: --resume with a stray file in chunks",
+        ("sweep", "{tmp}/sweep_ok.toml", "--out", "{tmp}/sweep_stray", "--resume"),
+        "extra.parquet' is not a chunk of this sweep",
+    ),
+    Case(
+        "sweep: a manifest that is a symbolic link",
+        ("sweep", "{tmp}/sweep_ok.toml", "--out", "{tmp}/sweep_link"),
+        "manifest.json': it is a symbolic link (not followed)",
+    ),
+    # user laws, simulation runs and their messages
+    Case(
+        "simulate: an output interval odepack cannot start on (--tf 1e-300 --dt 1e-300)",
+        ("simulate", "--tf", "1e-300", "--dt", "1e-300", "--csv", OUT),
+        "method 'odepack' cannot start on a first output interval of 1e-300 s",
+    ),
+    Case(
+        "simulate: a fixed step of 1e-9 s (1.5e10 steps of rk4)",
+        ("simulate", "--method", "rk4", "--step", "1e-9", "--csv", OUT),
+        "would take 1.5e+10 steps",
+    ),
+    Case(
+        "simulate: a fixed-step grid of more steps than the limit (leapfrog, --dt 1e-5)",
+        ("simulate", "--method", "leapfrog", "--tf", "20", "--dt", "1e-5", "--csv", OUT),
+        "more than the 1,000,000 a run may take on backend 'pinocchio'",
+    ),
+    # sweep specs, Dask and the sweep command
+    Case(
+        "sweep spec: [[vary]], an array of tables",
+        ("sweep", "{tmp}/spec_aot_vary.toml", "--out", "{tmp}/sweep"),
+        "[vary] must be a table of name = values or { kind = [...] }, not an array of tables",
+    ),
+    Case(
+        "sweep spec: [[sweep]], an array of tables",
+        ("sweep", "{tmp}/spec_aot_sweep.toml", "--out", "{tmp}/sweep"),
+        "[sweep] must be a table of options (task, tf, dt, count …), not an array of tables",
+    ),
+    Case(
+        'sweep spec: vary = "m3", a string',
+        ("sweep", "{tmp}/spec_vary_str.toml", "--out", "{tmp}/sweep"),
+        "[vary] must be a table of name = values or { kind = [...] }, not the string 'm3'",
+    ),
+    Case(
+        "sweep spec: sweep = 3",
+        ("sweep", "{tmp}/spec_sweep_int.toml", "--out", "{tmp}/sweep"),
+        "[sweep] must be a table of options (task, tf, dt, count …), not int 3",
+    ),
+    Case(
+        "sweep spec: base = 3",
+        ("sweep", "{tmp}/spec_base_int.toml", "--out", "{tmp}/sweep"),
+        "[base] must be a table of name = value, not int 3",
+    ),
+    Case(
+        "sweep spec: keep = 3",
+        ("sweep", "{tmp}/spec_keep_int.toml", "--out", "{tmp}/sweep"),
+        "[keep] must be a table (metrics = [...], trajectories = [...]), not int 3",
+    ),
+    Case(
+        "sweep spec: [base] g = [1, 2] for the arm",
+        ("sweep", "{tmp}/spec_base_list.toml", "--out", "{tmp}/sweep"),
+        "[base] g = [1, 2] must be a number (lists of values per joint are for a URDF sweep)",
+    ),
+    Case(
+        "sweep spec: a grid of 1e9 points (counted, never made)",
+        ("sweep", "{tmp}/spec_n1e9.toml", "--out", "{tmp}/sweep"),
+        "1,000,000,000 variants ([vary] m3: 1,000,000,000) is over the limit of 100,000,000",
+    ),
+    Case(
+        "sweep spec: a grid of 1e18 points",
+        ("sweep", "{tmp}/spec_n1e18.toml", "--out", "{tmp}/sweep"),
+        "about 1e+18 variants ([vary] m3: about 1e+18) is over the limit",
+    ),
+    Case(
+        "sweep spec: a grid of 1e300 points",
+        ("sweep", "{tmp}/spec_n1e300.toml", "--out", "{tmp}/sweep"),
+        "about 1e+300 variants ([vary] m3: about 1e+300) is over the limit",
+    ),
+    Case(
+        "sweep spec: a grid of 2**63-1 points",
+        ("sweep", "{tmp}/spec_n2p63.toml", "--out", "{tmp}/sweep"),
+        "about 9.2e+18 variants ([vary] m3: about 9.2e+18) is over the limit",
+    ),
+    Case(
+        "sweep spec: two grids whose product is over the limit",
+        ("sweep", "{tmp}/spec_product.toml", "--out", "{tmp}/sweep"),
+        "10,000,000,000 variants ([vary] m3: 100,000 × [vary] m2: 100,000) is over the limit",
+    ),
+    Case(
+        "sweep spec: chunks of 1 variant, a million of them",
+        ("sweep", "{tmp}/spec_chunks.toml", "--out", "{tmp}/sweep"),
+        "chunk=1 makes 1,000,000 chunks of 1,000,000 variants, over the limit of 100,000",
+    ),
+    Case(
+        "sweep spec: arrays nested 100,000 deep",
+        ("sweep", "{tmp}/spec_deep.toml", "--out", "{tmp}/sweep"),
+        "is not valid TOML: nested too deeply",
+    ),
+    Case(
+        "sweep spec: an integer of 401 digits",
+        ("sweep", "{tmp}/spec_bigint.toml", "--out", "{tmp}/sweep"),
+        "vary.m3[0] is an integer of about 401 digits, beyond TOML's 64-bit range",
+    ),
+    Case(
+        "sweep --plot: not a column (checked before the sweep)",
+        ("sweep", "{tmp}/sweep_ok.toml", "--out", "{tmp}/sweep", "--plot", "nope"),
+        "--plot 'nope' is not a column; valid: final_error_q1",
+    ),
+    Case(
+        "sweep --plot: a column of text",
+        ("sweep", "{tmp}/sweep_ok.toml", "--out", "{tmp}/sweep", "--plot", "diverged_reason"),
+        "--plot 'diverged_reason' is a column of text; plot one of numbers",
+    ),
+    Case(
+        "sweep --scheduler tls:// without TLS settings",
+        (
+            "sweep",
+            "{tmp}/sweep_ok.toml",
+            "--out",
+            "{tmp}/sweep",
+            "--scheduler",
+            "tls://127.0.0.1:9",
+        ),
+        "tls:// needs Dask's TLS settings",
+    ),
+    Case(
+        "sweep --scheduler ucx:// without UCX",
+        (
+            "sweep",
+            "{tmp}/sweep_ok.toml",
+            "--out",
+            "{tmp}/sweep",
+            "--scheduler",
+            "ucx://127.0.0.1:9",
+        ),
+        "the ucx:// transport is not available here",
+    ),
+    Case(
+        "sweep --scheduler with an unknown scheme",
+        ("sweep", "{tmp}/sweep_ok.toml", "--out", "{tmp}/sweep", "--scheduler", "foo://host:1"),
+        "'foo://host:1': not an address like tcp://host:port",
+    ),
+    Case(
+        "sweep without --out",
+        ("sweep", "{tmp}/sweep_ok.toml"),
+        "sweep needs --out DIR",
+    ),
+    Case(
+        "sweep --worker-timeout 0",
+        ("sweep", "{tmp}/sweep_ok.toml", "--out", "{tmp}/sweep", "--worker-timeout", "0"),
+        "argument --worker-timeout",
+    ),
+    Case(
+        "sweep --config: a run file's [params]",
+        (
+            "sweep",
+            "{tmp}/sweep_ok.toml",
+            "--out",
+            "{tmp}/sweep",
+            "--config",
+            "{tmp}/run_params.toml",
+        ),
+        "[params] do not apply to 'rrt-pin sweep'",
+    ),
+    Case(
+        "bench --config: a run file's [params]",
+        ("bench", "--config", "{tmp}/run_params.toml", "--out", "{tmp}/bench"),
+        "[params] do not apply to 'rrt-pin bench'",
+    ),
+    Case(
+        'bench --config: [bench] quick = "yes"',
+        ("bench", "--config", "{tmp}/run_bench_quick.toml", "--out", "{tmp}/bench"),
+        "[bench]: --quick = 'yes' must be true or false",
     ),
 )

@@ -43,6 +43,9 @@ def test_bad_input(case, tmp_path, capsys, monkeypatch):
     assert code == 2, err
     assert err.count("\n") == 1 and err.startswith("rrt-pin"), err
     assert case.words in err, err
+    for pattern in case.machine:  # the machine's figures are found, and apart from the words
+        found = re.search(pattern, err.strip())
+        assert found and case.words not in found.group(0), (pattern, err)
     assert "Traceback" not in err and out == ""
     assert not long_decimals(err), f"digits a CPU may not reproduce: {err}"
     assert sorted(p.name for p in tmp_path.rglob("*")) == before

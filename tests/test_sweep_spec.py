@@ -115,7 +115,7 @@ def test_grid_sizes_are_counted_before_any_array_is_made():
     assert "1,000,000,000 variants" in lines[0]
     assert "about 1e+18 variants" in lines[1] and "about 1e+300 variants" in lines[2]
     assert "about 9.2e+18 variants" in lines[3]
-    assert "100,000 × 100,000" in lines[4]
+    assert "m3: 100,000 × [vary] m2: 100,000" in lines[4]
 
 
 def test_chunks_are_counted_too():

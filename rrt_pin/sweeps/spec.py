@@ -464,11 +464,16 @@ def spec_from_dict(data: Mapping[str, Any], where: str = "spec") -> Spec:
     # counted as Python ints from the axes' sizes, before any value is made
     variants = math.prod(a.size for a in axes if not a.random) * ints.get("count", 1)
     if variants > MAX_VARIANTS:
-        sizes = " × ".join(_count_text(a.size) for a in axes if not a.random)
+        factors = [
+            f"[vary] {name}: {_count_text(a.size)}"
+            for name, a in zip(vary, axes, strict=True)
+            if not a.random
+        ]
         if random:
-            sizes = f"{sizes} × count {_count_text(ints['count'])}" if sizes else "count"
+            factors.append(f"count {_count_text(ints['count'])}")
+        sizes = f" ({' × '.join(factors)})"
         raise SceneError(
-            f"{where}: {_count_text(variants)} variants ({sizes}) is over the limit of "
+            f"{where}: {_count_text(variants)} variants{sizes} is over the limit of "
             f"{MAX_VARIANTS:,}"
         )
     chunks = -(-variants // ints["chunk"])
