@@ -4,12 +4,9 @@ from __future__ import annotations
 
 import argparse
 import os
-import signal
 import sys
 import threading
 import time
-from collections.abc import Iterator
-from contextlib import contextmanager
 from typing import TYPE_CHECKING, Any
 
 from rrt_pin._logging import note
@@ -21,6 +18,7 @@ from rrt_pin.commands._common import (
     params_from_args,
     positive_float,
     robot_from_args,
+    termination_as_interrupt,
 )
 
 if TYPE_CHECKING:
@@ -165,29 +163,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 # ---------------------------------------------------------------------------
 # Serving
 # ---------------------------------------------------------------------------
-class _Terminated(KeyboardInterrupt):
-    """SIGTERM or SIGHUP, handled like Ctrl-C."""
-
-
-@contextmanager
-def _termination_as_interrupt() -> Iterator[None]:
-    """Turn SIGTERM and SIGHUP into KeyboardInterrupt, so that cleanup runs (main thread only)."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-
-    def handler(signum: int, frame: Any) -> None:
-        raise _Terminated()
-
-    signums = [signal.SIGTERM] + ([signal.SIGHUP] if hasattr(signal, "SIGHUP") else [])
-    previous = {s: signal.signal(s, handler) for s in signums}
-    try:
-        yield
-    finally:
-        for s, h in previous.items():
-            signal.signal(s, h)
-
-
 def run(args: argparse.Namespace) -> int:
     """Build the scene, serve it, screenshot it."""
     if args.screenshot:
@@ -226,7 +201,7 @@ def run(args: argparse.Namespace) -> int:
         return 0
     start = time.monotonic()
     with (
-        _termination_as_interrupt(),
+        termination_as_interrupt(),
         ViewerServer(args.host, args.port, page=prepared.page) as server,
     ):
         for command in prepared.commands:
