@@ -156,3 +156,56 @@ def test_a_truncated_module_is_rebuilt_by_the_next_run(real_cache, tmp_path):
     assert _aot.damage(module) is None  # rebuilt, with its record
     again = _simulate(base, tmp_path)
     assert again.returncode == 0 and "not loaded" not in again.stderr
+
+
+# --- the generated RNEA kernels' numba files --------------------------------------------
+
+_KERNEL = r"""
+import json, sys
+import numpy as np
+import pinocchio as pin
+from tests.bad_inputs import chain_urdf
+from rrt_pin.compiled import rnea
+
+model = pin.buildModelFromXML(chain_urdf(3))
+kernel = rnea.kernel_for(model)
+rng = np.random.default_rng(1)
+q, qd, qdd = (rng.normal(size=(64, 3)) for _ in range(3))
+tau, finite = rnea.inverse_dynamics(model, q, qd, qdd, num_threads=1)
+data = model.createData()
+ref = np.array([pin.rnea(model, data, *row) for row in zip(q, qd, qdd)])
+print(json.dumps({"origin": kernel.origin, "err": float(np.max(np.abs(tau - ref))),
+                  "finite": bool(finite)}))
+"""
+
+
+def _kernel_run(base: Path) -> dict:
+    env = dict(os.environ, RRT_PIN_CACHE_DIR=str(base), PYTHONPATH=str(ROOT))
+    done = subprocess.run(
+        [sys.executable, "-c", _KERNEL], capture_output=True, text=True, env=env, cwd=ROOT,
+        timeout=300, check=False,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr[-2000:]
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+@pytest.mark.parametrize("damage", ["truncated", "altered", "unrecorded"])
+def test_a_generated_kernels_damaged_numba_files_are_compiled_again(tmp_path, damage):
+    first = _kernel_run(tmp_path)
+    assert first["origin"] == "compiled" and first["err"] < 1e-12 and first["finite"]
+    assert _kernel_run(tmp_path)["origin"] == "loaded"  # its files match their record
+    data = sorted((tmp_path / "generated").rglob("*.nbc"))
+    assert len(data) == 1
+    blob = data[0].read_bytes()
+    if damage == "truncated":
+        data[0].write_bytes(blob[: len(blob) // 3])
+    elif damage == "altered":  # same size, other bytes in the machine code's middle
+        middle = len(blob) // 2
+        data[0].write_bytes(blob[:middle] + bytes(b ^ 0xFF for b in blob[middle:middle + 64])
+                            + blob[middle + 64:])  # fmt: skip
+    else:
+        for record in (tmp_path / "generated").glob("*.cache.json"):
+            record.unlink()
+    again = _kernel_run(tmp_path)
+    assert again["origin"] == "compiled" and again["err"] < 1e-12 and again["finite"]
+    assert _kernel_run(tmp_path)["origin"] == "loaded"

@@ -9,7 +9,10 @@ directory is ``generated/`` under the base cache directory of
 :mod:`rrt_pin.compiled._cache` (``$RRT_PIN_CACHE_DIR``, ``$NUMBA_CACHE_DIR/rrt_pin``,
 ``~/.cache/rrt_pin/numba``, …); numba keeps the machine code beside it, in
 ``__pycache__`` (or under ``$NUMBA_CACHE_DIR``), keyed by the file's contents, the
-CPU and the toolchain, so a second process loads it instead of compiling. Each
+CPU and the toolchain, so a second process loads it instead of compiling. The
+SHA-256 of numba's files is recorded beside the source when a kernel is compiled
+(``rnea_<digest>.cache.json``) and checked before numba reads them: a damaged or
+unrecorded file is deleted and the kernel compiled again. Each
 process keeps one kernel per source in memory.
 
 :func:`inverse_dynamics` splits a batch over threads as the compiled batches do
@@ -23,13 +26,16 @@ rad/s² or m/s²; efforts in N·m (revolute) or N (prismatic).
 
 from __future__ import annotations
 
+import glob
 import hashlib
 import importlib.util
+import json
 import logging
 import os
 import sys
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -187,6 +193,63 @@ def _import(path: Path, name: str) -> Any:
     return module
 
 
+def _numba_files(dispatcher: Any) -> Callable[[], list[Path]]:
+    """The index and data files numba keeps for ``dispatcher`` (a function listing them now)."""
+    index = Path(dispatcher._cache._cache_file._index_path)
+    stem = index.name[: -len(".nbi")]
+
+    def files() -> list[Path]:
+        return sorted([index, *index.parent.glob(glob.escape(stem) + ".*.nbc")])
+
+    return files
+
+
+def _record_path(path: Path) -> Path:
+    return path.with_name(f"{path.stem}.cache.json")
+
+
+def _digests(files: list[Path]) -> dict[str, str]:
+    return {str(f): hashlib.sha256(f.read_bytes()).hexdigest() for f in files if f.is_file()}
+
+
+def _record(path: Path, files: Callable[[], list[Path]]) -> None:
+    """Record the SHA-256 of numba's files of a kernel just compiled (beside its source)."""
+    record = _record_path(path)
+    tmp = record.with_name(f".{record.name}.{os.getpid()}.{threading.get_ident()}.tmp")
+    try:
+        tmp.write_text(json.dumps(_digests(files()), indent=1), encoding="utf-8")
+        os.replace(tmp, record)
+    except OSError:
+        tmp.unlink(missing_ok=True)
+
+
+def _discard_unverified(path: Path, files: Callable[[], list[Path]]) -> None:
+    """Delete numba's files of a kernel unless they are the ones recorded when it was compiled.
+
+    numba would read a truncated or altered file (a crash, a full disk, another
+    program): only files whose SHA-256 match the record are loaded; others, and
+    files without a record, are deleted, and the kernel is compiled again.
+    """
+    present = files()
+    if not present:
+        return
+    try:
+        recorded = json.loads(_record_path(path).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        recorded = None
+    try:
+        if isinstance(recorded, dict) and _digests(present) == recorded:
+            return
+    except OSError:
+        pass
+    for f in [*present, _record_path(path)]:
+        f.unlink(missing_ok=True)
+    _logger.info(
+        "generated RNEA %s: numba's cached files did not match their record; compiling again",
+        path.stem,
+    )
+
+
 def _signature(numba: Any) -> Any:
     """kernel(Q, V, A, out) -> float64: inputs C-ordered and read-only accepted (no copy)."""
     f8 = numba.float64
@@ -210,8 +273,16 @@ def _compile(source: str, digest: str, gen: codegen.GeneratedRnea) -> Kernel:
     if path is not None and _write(path, source):
         try:
             fn = _import(path, name).kernel
-            dispatcher = numba.njit(signature, cache=True, nogil=True, error_model="numpy")(fn)
+            # Lazy, so that numba's files are checked before it reads them; then
+            # compiled for the one signature, as njit(signature) does.
+            dispatcher = numba.njit(cache=True, nogil=True, error_model="numpy")(fn)
+            files = _numba_files(dispatcher)
+            _discard_unverified(path, files)
+            dispatcher.compile(signature.args)
+            dispatcher.disable_compile()
             origin = "loaded" if sum(dispatcher.stats.cache_hits.values()) else "compiled"
+            if origin == "compiled":
+                _record(path, files)
         except Exception as exc:  # a damaged or unwritable numba cache: compile in memory
             from rrt_pin.compiled._cache import warn_once
 
