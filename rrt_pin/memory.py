@@ -253,6 +253,20 @@ def limits() -> list[Limit]:
     return out
 
 
+def check_bytes(need: int, what: str, each: str) -> None:
+    """Refuse before allocating ``need`` bytes that would not fit in memory.
+
+    Args:
+        need: the bytes about to be allocated [bytes].
+        what: the work, for messages ("the random samples of 100,000,000 variants").
+        each: what the bytes are, for messages ("3 axes of 800 MB").
+
+    Raises:
+        MemoryLimitError: naming the need and the limit.
+    """
+    threads_that_fit(1, Cost(need), what=what, each=each)
+
+
 def check_data(model: Any, what: str) -> None:
     """Refuse before making one ``Data`` of ``model`` that would not fit in memory.
 

@@ -315,3 +315,42 @@ def test_run_files_for_sweep_and_bench(tmp_path, capsys, command, table, words):
     err = capsys.readouterr().err
     assert code == 2 and err.count("\n") == 1 and words in err, err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["run.toml", "s.toml"]
+
+
+_RANDOM = """
+import sys
+from rrt_pin.errors import MemoryLimitError
+from rrt_pin.sweeps.spec import spec_from_dict
+uniform = {"uniform": [30.0, 50.0]}
+spec = spec_from_dict({"sweep": {"tf": 1.0, "dt": 0.1, "count": int(sys.argv[1])},
+                       "vary": {"m3": uniform, "m2": uniform, "m1": {"lhs": [1.0, 5.0]}}})
+try:
+    table = spec.random_table()
+except MemoryLimitError as e:
+    print("refused:", e)
+else:
+    print("drawn", sorted((k, v.size) for k, v in table.items()))
+"""
+
+
+@pytest.mark.parametrize("count, refused", [(100_000_000, True), (1000, False)])
+def test_random_samples_are_refused_before_they_exceed_memory(count, refused):
+    """4 columns of 10^8 samples (3.2 GB) under a 1.5 GB cap: refused before any is drawn."""
+    import resource
+
+    def cap() -> None:
+        limit = 1536 << 20
+        resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
+
+    proc = subprocess.run(
+        [sys.executable, "-c", _RANDOM, str(count)], capture_output=True, text=True, cwd=ROOT,
+        preexec_fn=cap, timeout=120, env={**os.environ, "OPENBLAS_NUM_THREADS": "1"},
+    )  # fmt: skip
+    assert proc.returncode == 0, proc.stderr
+    if refused:
+        assert proc.stdout.startswith(
+            "refused: drawing the random samples of 100,000,000 variants needs 3.2 GB "
+            "(3 random axes of 800 MB each, and the Latin hypercube they come from)"
+        ), proc.stdout
+    else:
+        assert proc.stdout.startswith("drawn [('m1', 1000), ('m2', 1000), ('m3', 1000)]")

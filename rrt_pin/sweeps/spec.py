@@ -51,6 +51,7 @@ from typing import Any
 
 import numpy as np
 
+from rrt_pin import memory
 from rrt_pin._read import check_int64, load_toml
 from rrt_pin.errors import SceneError
 
@@ -250,6 +251,13 @@ class Spec:
         rng = np.random.default_rng(self.seed)
         out: dict[str, np.ndarray] = {}
         lhs = [a for a in self.random_axes if a.kind == "lhs"]
+        columns = len(self.random_axes) + len(lhs)  # lhs: its unit cube, then the values
+        memory.check_bytes(
+            8 * self.count * columns,
+            f"drawing the random samples of {self.count:,} variants",
+            f"{len(self.random_axes)} random axes of {memory.describe(8 * self.count)} each"
+            + (", and the Latin hypercube they come from" if lhs else ""),
+        )
         if lhs:
             from scipy.stats import qmc
 
