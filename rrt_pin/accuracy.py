@@ -4,7 +4,7 @@ Two things live here, both about how far a simulated q(t) is from the exact one:
 
 * :data:`SCENES`, the accuracy catalogue: runs of the chapter's arm chosen to be
   hard for error-controlled integrators (light damping over long horizons, stiff
-  gains, fast motions, small and large masses). Tests, ``scripts/bench_accuracy.py``
+  gains, fast motions, small and large masses). Tests, ``scripts/bench/accuracy.py``
   and ``docs/benchmarks.md`` all read it; :func:`reference` integrates a scene at
   rtol 1e-13 to judge the defaults against.
 * :func:`estimate`, the estimate of the global error of a run that

@@ -43,7 +43,7 @@ class Backend:
             [s per simulated second].
 
     The three costs are medians on the reference machine (``docs/benchmarks.md``,
-    ``scripts/bench_auto.py`` measures them); ``auto`` compares them, nothing else.
+    ``scripts/bench/auto.py`` measures them); ``auto`` compares them, nothing else.
     """
 
     name: str

@@ -94,7 +94,7 @@ def busy() -> int:
 
 
 #: Seconds a reading of :func:`free` is reused: back-to-back parallel calls do not each
-#: read /proc (~50 µs), and a job starting beside them is seen within this time [s].
+#: read /proc, and a job starting beside them is seen within this time [s].
 FRESH = 0.02
 _last = (-1.0, 0)
 

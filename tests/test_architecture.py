@@ -219,3 +219,63 @@ def test_deprecated_aliases_still_work(name):
     import rrt_pin.control as control
 
     assert getattr(control, name) in (control.chapter_controller, control.ChapterController)
+
+
+# --- no measured timings in docstrings or --help: they live in docs/benchmarks.md ------
+
+#: A measured duration as docs write it ("~0.2 ms", "1.5 µs", "~0.4 s"); settings such
+#: as "every 50 ms" are told apart by the words before them (see _TIMING_ALLOWED).
+_TIMING = re.compile(r"(?:~ ?|about |\b)\d+(?:\.\d+)? ?(?:ms|µs|us|ns)\b|~ ?\d+(?:\.\d+)? ?s\b")
+_TIMING_ALLOWED = ("looked up again every", "as a person would write it", "The estimate, ~0.3 ns")
+
+
+def _timings(text: str) -> list[str]:
+    return [
+        m.group(0)
+        for line in text.splitlines()
+        for m in _TIMING.finditer(line)
+        if not any(allowed in line for allowed in _TIMING_ALLOWED)
+    ]
+
+
+def _docstrings(path: Path) -> list[tuple[int, str]]:
+    """Every docstring of a module and the ``#:`` doc-comments of its constants."""
+    source = path.read_text(encoding="utf-8")
+    tree = ast.parse(source)
+    out = []
+    for node in ast.walk(tree):
+        if isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef)):
+            doc = ast.get_docstring(node, clean=False)
+            if doc:
+                out.append((getattr(node, "lineno", 1), doc))
+    for number, line in enumerate(source.splitlines(), 1):
+        if line.lstrip().startswith("#:"):
+            out.append((number, line))
+    return out
+
+
+def test_docstrings_hold_no_measured_timings():
+    found = [
+        f"{path.relative_to(PACKAGE)}:{line}: {hit}"
+        for path in sorted(PACKAGE.rglob("*.py"))
+        for line, doc in _docstrings(path)
+        for hit in _timings(doc)
+    ]
+    assert not found, "timings belong in docs/benchmarks.md: " + "; ".join(found)
+
+
+def test_help_holds_no_measured_timings(capsys):
+    from rrt_pin.cli import main
+
+    commands = ("urdf", "joints", "inverse", "simulate", "equations", "sweep", "view", "bench")
+    for command in commands:
+        with pytest.raises(SystemExit):
+            main([command, "--help"])
+        text = capsys.readouterr().out
+        assert "usage:" in text and not _timings(text), (command, _timings(text))
+
+
+def test_the_timing_detector_can_fail():
+    assert _timings('"""A run then takes ~0.2 ms instead of ~3 ms."""') == ["~0.2 ms", "~3 ms"]
+    assert _timings("costs about 1 µs an output time; loads in ~0.8 s") == ["about 1 µs", "~0.8 s"]
+    assert _timings("dt: time step [s]; 3×3 matrices; at most 15 s of output") == []

@@ -1,4 +1,4 @@
-"""scripts/bench_peers.py without its peers: one line naming the 'bench' extra, exit 2.
+"""scripts/bench/peers.py without its peers: one line naming the 'bench' extra, exit 2.
 
 The peers themselves (mujoco, drake) are never needed here: they are hidden from the
 script even where they are installed.
@@ -11,19 +11,20 @@ import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-SCRIPT = ROOT / "scripts" / "bench_peers.py"
+MODULE = "scripts.bench.peers"  # run as python -m scripts.bench.peers from the checkout
 
 _HIDDEN = """
 import runpy, sys
 for name in {hidden!r}:
     sys.modules[name] = None  # importlib.util.find_spec(name) is then None
-sys.argv = [{script!r}, "--quick"]
-runpy.run_path({script!r}, run_name="__main__")
+sys.path.insert(0, {root!r})
+sys.argv = [{module!r}, "--quick"]
+runpy.run_module({module!r}, run_name="__main__", alter_sys=True)
 """
 
 
 def _run(hidden: tuple[str, ...]) -> subprocess.CompletedProcess:
-    code = _HIDDEN.format(hidden=hidden, script=str(SCRIPT))
+    code = _HIDDEN.format(hidden=hidden, module=MODULE, root=str(ROOT))
     return subprocess.run(
         [sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, timeout=120
     )

@@ -449,7 +449,7 @@ def resolve_backend(
     its generated kernel), and one line on stderr says how long it
     took, so that the run's own time excludes it; with the dynamics and single
     runs built ahead of time (:func:`rrt_pin.compiled.aot_built`) that is skipped
-    (their start-up is ~20 ms).
+    (they load without numba).
 
     Raises:
         InputError: ``compiled`` was asked for but numba is missing.

@@ -108,11 +108,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="; ".join(
             f"{b.name}: {b.summary}" for b in backends.BACKENDS.values() if b.runs("inverse")
         )
-        + " (loading compiled costs ~1 s per process, reported on stderr; another robot's "
-        "kernel is compiled once, in 1-3 s, then loaded from the disk cache); auto: compiled "
+        + " (compiled: loaded per process and reported on stderr; another robot's "
+        "kernel is compiled once, then loaded from the disk cache); auto: compiled "
         "only for the chapter's arm, when its code is already built and the job is large "
-        "enough for it to be at least twice as fast, start-up included (about 6 million "
-        "samples), else pinocchio; -v says why (default: pinocchio)",
+        "enough for it to be at least twice as fast, start-up included (docs/benchmarks.md "
+        "gives the threshold), else pinocchio; -v says why (default: pinocchio)",
     )
     add_robot_arguments(parser, "inverse")
     add_scene_arguments(parser)

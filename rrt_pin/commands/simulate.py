@@ -148,8 +148,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="; ".join(
             f"{b.name}: {b.summary}" for b in backends.BACKENDS.values() if b.runs("simulate")
         )
-        + " (loading compiled costs ~1 s per process, compiling it ~15 s once, both reported "
-        "on stderr; a run then takes ~0.2 ms instead of ~3 ms); auto: compiled only when its "
+        + " (compiled: built once, loaded per process, both reported on stderr; its run "
+        "times against pinocchio's are in docs/benchmarks.md); auto: compiled only when its "
         "code is already built, it runs the method asked for (auto never changes the "
         "method or tolerances) and the job is long enough for it to be at least twice as "
         "fast, start-up included, else pinocchio; -v says why (default: pinocchio)",

@@ -214,8 +214,9 @@ def aot_built() -> bool:
 
     Cheap: looks for the ahead-of-time module of the current sources
     (:mod:`rrt_pin.compiled._aot`); :func:`inverse_dynamics`,
-    :func:`forward_dynamics` and :func:`simulate_compiled` then cost a process
-    ~20 ms of start-up instead of ~0.8 s (batches still load numba's JIT).
+    :func:`forward_dynamics` and :func:`simulate_compiled` then start without
+    importing numba (batches still load numba's JIT; ``scripts/bench/aot.py``
+    measures both).
     """
     from rrt_pin.compiled import _aot
 

@@ -1,14 +1,14 @@
 """Ahead-of-time machine code of the dynamics and of single runs: no numba in the processes that use it.
 
 The JIT path (:mod:`rrt_pin.compiled._jit`) makes every process import numba and
-load its cache: ~0.65 s before the first sample, for a kernel that then takes
-10 ns a sample. This module builds the same functions (:data:`EXPORTS`: the
+load its cache before the first sample, which for a short run costs far more
+than the run (``scripts/bench/aot.py``). This module builds the same functions (:data:`EXPORTS`: the
 closed-form dynamics of :mod:`rrt_pin.compiled._jit_dynamics` and the single-run
 integrator of :mod:`rrt_pin.compiled._jit_integrators`; the same Python source,
 the same inlined callees, compiled by numba for this CPU) into a plain extension module with
 ``numba.pycc``, once, next to the JIT cache (same fingerprint directory, so a change
 of the sources, Python, numba or CPU gets a new one and the old one is pruned with
-its directory). Importing it needs numpy only: measured by ``scripts/bench_aot.py``,
+its directory). Importing it needs numpy only: measured by ``scripts/bench/aot.py``,
 a process that loads it and runs the chapter's 15,001 samples costs what
 ``import numpy`` does, against 0.82 s with the JIT cache, at the same ns/sample and
 with the same efforts bit for bit.
@@ -107,7 +107,7 @@ def damage(path: Path, contents: bool = True) -> str | None:
     """What is wrong with the module file at ``path`` (None: it is the one built).
 
     Compares its size, and with ``contents`` its SHA-256 (reading the whole file,
-    ~0.8 MB: about a millisecond), with its record; never imports it.
+    under a megabyte), with its record; never imports it.
     """
     record = _recorded(path)
     if record is None:

@@ -103,7 +103,7 @@ def _version(dist: str) -> str:
     """The installed version of ``dist`` (``"absent"``), without importing it.
 
     Read from the name of its ``.dist-info`` directory beside the package (a few
-    file-system calls); ``importlib.metadata`` (~20 ms to import) only when
+    file-system calls); ``importlib.metadata`` (slow to import) only when
     there is none.
     """
     try:

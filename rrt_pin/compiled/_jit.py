@@ -257,8 +257,7 @@ def wide_vectors(typingctx):
     LLVM vectorizes for 256-bit registers on CPUs whose 512-bit instructions once
     lowered the clock (its ``prefer-256-bit`` tuning); the batch's loops over lanes and
     samples are long and regular enough to gain from 512 bits (8 doubles) where the
-    CPU has them (batches of 32 lanes ~20–25 % faster on this machine's AVX-512 cores,
-    docs/benchmarks.md). A function attribute: only the calling function's
+    CPU has them (measured in docs/benchmarks.md, "512-bit vectors"). A function attribute: only the calling function's
     loops (with what is inlined into it), not other code of the process, and the same
     operations per element (the same bits). Without AVX-512 it changes nothing.
     """

@@ -92,9 +92,9 @@ __all__ = ["LANES", "integrate_fixed", "integrate_lanes"]
 
 #: Variants a thread integrates side by side (adaptive methods). 32 fill the vector
 #: units several times over and spread each round's fixed costs (a loop's setup and
-#: its run-time overlap checks, per stage) over more variants: 13–17 % faster than 16
-#: keeping final states, 6–9 % keeping metrics (whose scratch runs, 9 × T values a
-#: lane, then spill from L2 to L3); ``scripts/bench_compiled.py --only lanes`` measures others.
+#: its run-time overlap checks, per stage) over more variants: faster than 16 keeping
+#: final states or metrics (whose scratch runs, 9 × T values a lane, then spill from L2
+#: to L3); ``scripts/bench/compiled.py --only lanes`` measures each count.
 LANES = 32
 
 _vec = float64[::1]

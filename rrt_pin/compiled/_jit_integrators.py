@@ -368,8 +368,8 @@ def dense_dop853_rows(F, y, t_eval, t, h, start, end, rows, xs):
     divided once into the scratch ``xs`` (≥ end − start + DENSE_PAD, finite), and each
     component's samples are contiguous, so every loop vectorizes without gathers or
     scatters. A step covers a few dozen samples: their count is rounded up to a
-    multiple of DENSE_PAD, so that the loops have no scalar remainder (~25 % of
-    their time); the samples past ``end`` take stale fractions, and are written
+    multiple of DENSE_PAD, so that the loops have no scalar remainder (a large
+    share of their time at a few dozen samples); the samples past ``end`` take stale fractions, and are written
     again by the steps that cover them (or lie past T).
     """
     _step_fractions(t_eval, t, h, start, end, xs)

@@ -775,9 +775,9 @@ def integrate_arrays(
 
 
 #: Variants laid out before the other threads start, then at a time while they
-#: integrate those before: a part's layout (~1.5 µs a variant, and ~15 µs a part)
-#: is short beside its integration (≥ ~18 µs a variant), so they never wait after
-#: the first part, which is small so that they start at once.
+#: integrate those before: a part's layout is short beside its integration (an order
+#: of magnitude a variant), so they never wait after the first part, which is small
+#: so that they start at once.
 _FIRST_PART = 64
 _PART = 256
 

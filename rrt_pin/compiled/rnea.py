@@ -59,8 +59,8 @@ __all__ = [
 ]
 
 #: Work a thread needs to be worth starting [s]: handing slices to a second thread
-#: costs ~30 µs on an idle core and ~100 µs as measured on a 2-core VM
-#: (scripts/bench_threads.py), so each thread gets at least this much.
+#: costs tens of microseconds, more on a busy machine (``scripts/bench/threads.py``
+#: measures it), so each thread gets at least this much.
 MIN_SECONDS_PER_THREAD = 150e-6
 #: The fewest samples a thread takes, whatever the kernel.
 MIN_SAMPLES_PER_THREAD = 256

@@ -1,8 +1,8 @@
 """ODEPACK's LSODA (``scipy.integrate.odeint``) without importing all of ``scipy.integrate``.
 
-``import scipy.integrate`` costs ~0.4 s (it imports scipy.special, optimize,
+``import scipy.integrate`` is slow (it imports scipy.special, optimize,
 sparse.linalg …) for a run that needs one Fortran routine. This module loads
-scipy's ``_odepack`` extension module by itself (~3 ms) and calls it exactly as
+scipy's ``_odepack`` extension module by itself and calls it exactly as
 ``scipy.integrate.odeint(..., full_output=True)`` does: same routine, same
 arguments, the same bits (``tests/test_simulate.py`` compares both). If the
 extension cannot be loaded that way, or its call signature differs in this

@@ -270,8 +270,9 @@ def _with_units(result: Any, robot: Robot) -> Any:
 def _prepare(robot: Robot, backend: Any, method: Any = None, batch: bool = False) -> None:
     """Imports and model building, which are not simulation time.
 
-    Only what the method runs on is imported: ODEPACK's extension alone (a few
-    ms) for ``odepack``, all of ``scipy.integrate`` (~0.4 s) for ``solve_ivp``'s methods.
+    Only what the method runs on is imported: ODEPACK's extension alone for
+    ``odepack``, all of ``scipy.integrate`` (much slower to import) for ``solve_ivp``'s
+    methods.
     """
     if backend == "pinocchio":
         from rrt_pin import methods

@@ -27,7 +27,7 @@ evenly spaced, and the last); :data:`BATCH_CHECKED` output times of each variant
 a batch (then the failing variant's as a single run's, to name the first; a batch
 with ``keep="final"`` has its last output time only). Other laws may add
 energy legitimately and are not checked; nor is a compiled batch whose variants
-have parameters of their own. Costs about 1 µs an output time checked.
+have parameters of their own.
 """
 
 from __future__ import annotations

@@ -13,9 +13,8 @@ it with a second run of the same method on the same backend:
   e(h) ≈ |q(h) − q(h/2)| / (1 − 2⁻ᵖ).
 
 The estimate is the max over the output times, per coordinate [rad or m].
-It costs the second run (0.2–1.9 times the first for the default adaptive
-methods on the accuracy catalogue, 2 times for fixed steps; ``estimate_error=False``
-skips it).
+It costs the second run (its share for each method on the accuracy catalogue:
+docs/benchmarks.md; ``estimate_error=False`` skips it).
 """
 
 from __future__ import annotations

@@ -17,11 +17,10 @@ __all__ = ["JACOBIANS", "MAX_FIXED_STEPS", "ODEPACK_MIN_FIRST_INTERVAL", "Option
 JACOBIANS = ("analytic", "finite-difference")
 
 #: The steps a fixed-step run may take, by backend, counted before it starts (a run
-#: cannot be interrupted once it is in a solver or in machine code). Measured on the
-#: chapter's arm with rk4: ~40 µs a step on Pinocchio (10⁶ steps ≈ 40 s), ~0.3 µs
-#: compiled (10⁷ steps ≈ 3 s, the compiled loop's own step budget,
-#: :data:`rrt_pin.compiled.integrate.MAX_STEPS`). The error estimate's run takes
-#: twice as many (half the step).
+#: cannot be interrupted once it is in a solver or in machine code): each limit keeps
+#: the chapter's arm with rk4 under a minute on its backend (compiled: the compiled
+#: loop's own step budget, :data:`rrt_pin.compiled.integrate.MAX_STEPS`). The error
+#: estimate's run takes twice as many (half the step).
 MAX_FIXED_STEPS = {"pinocchio": 1_000_000, "compiled": 10_000_000}
 #: The shortest first output interval ODEPACK's LSODA starts on [s]: below ~1e-148 s
 #: its first-step estimate underflows (it returns NaN and says "Integration

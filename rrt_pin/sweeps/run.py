@@ -2,7 +2,7 @@
 
 Without a scheduler address a :class:`distributed.LocalCluster` runs the
 chunks: one worker in this process with a thread per core, since the compiled
-batch and the metrics release the GIL (``scripts/bench_sweep.py`` measures it
+batch and the metrics release the GIL (``scripts/bench/sweep.py`` measures it
 against worker processes and a plain process pool; ``workers=1`` runs the
 chunks in this process without Dask); with ``scheduler="tcp://host:port"`` the
 same chunks go to that cluster, whose workers need only ``pip install
@@ -299,7 +299,7 @@ def _client(scheduler: str | None, workers: int) -> tuple[Any, Any]:
                 scheduler, f"cannot reach the Dask scheduler {scheduler!r}: {_one_line(e)}"
             ) from None
     # One worker with a thread per core: the compiled batch and the metrics release the GIL,
-    # so threads need no copies between processes; measured in scripts/bench_sweep.py.
+    # so threads need no copies between processes; measured in scripts/bench/sweep.py.
     cluster = LocalCluster(
         n_workers=1,
         threads_per_worker=workers,

@@ -23,7 +23,7 @@ independent FMAs over an L1-resident array (2 flops an FMA, one core). Last,
 each backend's worst relative error against the 30-digit reference
 (``rrt_pin.bench.mpmath_inverse_reference``) at every --stride-th sample.
 
-    .venv/bin/python scripts/bench_kernel.py [--repeat 15] [--big 1000000] [--stride 50] [--check]
+    .venv/bin/python -m scripts.bench.kernel [--repeat 15] [--big 1000000] [--stride 50] [--check]
 
 Targets: compiled ≤ 12 ns/sample on the chapter's run and at 10⁶, ≥ 120×
 the loop; every backend within 1e-15 of the reference. ``--check`` exits 1 when one
@@ -33,36 +33,16 @@ is missed.
 from __future__ import annotations
 
 import argparse
-import statistics
 import sys
-import time
 from collections.abc import Callable
 
 import numpy as np
 
+from scripts.bench.common import interleaved
+
 TARGET_NS = 12.0
 TARGET_SPEEDUP = 120.0
 TARGET_AGREEMENT = 1e-15
-
-
-def interleaved(
-    funcs: dict[str, Callable[[], object]], repeat: int, inner: int = 3
-) -> dict[str, float]:
-    """Median wall time [s] of each side, the sides alternating round by round.
-
-    In a round a side runs ``inner`` + 1 times back to back and its first call
-    is not counted: each side is timed in its steady state, not just after
-    another side has evicted its data from the caches.
-    """
-    times: dict[str, list[float]] = {k: [] for k in funcs}
-    for _ in range(repeat):
-        for name, f in funcs.items():
-            for i in range(inner + 1):
-                start = time.perf_counter()
-                f()
-                if i:
-                    times[name].append(time.perf_counter() - start)
-    return {k: statistics.median(v) for k, v in times.items()}
 
 
 def rnea_loop(model, q, qd, qdd) -> np.ndarray:

@@ -16,7 +16,7 @@ applied efforts at every sample.
 Rows are plain (label, callable) pairs: to add a backend, append rows in
 ``compiled_rows`` / ``compiled_batch_rows`` below.
 
-    .venv/bin/python scripts/bench_direct.py [--all] [--repeat 7] [--batch 1000]
+    .venv/bin/python -m scripts.bench.direct [--all] [--repeat 7] [--batch 1000]
 """
 
 from __future__ import annotations
@@ -39,6 +39,7 @@ from rrt_pin.model import rrt_model
 from rrt_pin.params import Params
 from rrt_pin.reference import chapter_reference, reference_run
 from rrt_pin.simulate import simulate, simulate_batch
+from scripts.bench.compiled import batch_rows, direct_rows
 
 TARGET_ERROR = 1e-8  # max |q error| the defaults must reach [rad, m]
 TARGET_SPEEDUP = 3.0  # single run, against the baseline
@@ -101,7 +102,7 @@ def _sim(model, controller, p, t, method=None, jacobian="analytic"):
 
 
 # --- compiled backend: its single-run rows here -----------------------------
-# (section owned by the compiled backend; the rows are defined in scripts/bench_compiled.py)
+# (section owned by the compiled backend; the rows are defined in scripts/bench/compiled.py)
 def compiled_rows(model, controller, p: Params, t: np.ndarray) -> list[Row]:
     """Rows of the numba backend (``simulate(..., backend="compiled")``), if numba imports."""
     from rrt_pin import compiled
@@ -109,25 +110,25 @@ def compiled_rows(model, controller, p: Params, t: np.ndarray) -> list[Row]:
     if not compiled.available():
         print("compiled backend: numba not available, no rows")
         return []
-    from bench_compiled import direct_rows
 
     return [Row(label, run) for label, run in direct_rows(model, controller, p, t)]
 
 
 # --- compiled backend: its batch rows here ----------------------------------
-# (section owned by the compiled backend; the rows are defined in scripts/bench_compiled.py)
+# (section owned by the compiled backend; the rows are defined in scripts/bench/compiled.py)
 def compiled_batch_rows(model, controllers, q0s, qd0s, t: np.ndarray) -> list[Row]:
     """Batch rows of the numba backend; ``run()`` returns q of shape (B, N, 3)."""
     from rrt_pin import compiled
 
     if not compiled.available():
         return []
-    from bench_compiled import batch_rows
 
     return [Row(label, run) for label, run in batch_rows(model, controllers, q0s, qd0s, t)]
 
 
-def interleaved(rows: list[Row], repeat: int) -> dict[str, tuple[list[float], np.ndarray, int]]:
+def interleaved_runs(
+    rows: list[Row], repeat: int
+) -> dict[str, tuple[list[float], np.ndarray, int]]:
     """Run every row once per round, ``repeat`` rounds: a changing machine load hits all
     rows alike. Returns, per label, the wall times [s] and the last output."""
     out: dict[str, tuple[list[float], np.ndarray, int]] = {}
@@ -190,7 +191,7 @@ def main() -> int:
 
     rows = single_rows(model, controller, p, t, args.all) + compiled_rows(model, controller, p, t)
     print(f"{'single run':<38} {'time [ms]':>10} {'evals':>7} {'max|q err|':>11} {'speed-up':>9}")
-    results = interleaved(rows, args.repeat)
+    results = interleaved_runs(rows, args.repeat)
     base_time = statistics.median(results[rows[0].label][0])
     for row in rows:
         times, q, n_evals = results[row.label]
@@ -243,7 +244,7 @@ def main() -> int:
             start = time.perf_counter()
             baseline(model, controllers[i % B], q0s[i % B], qd0s[i % B], t)
             base_times.append(time.perf_counter() - start)
-        for label, value in interleaved(batch_rows, 1).items():
+        for label, value in interleaved_runs(batch_rows, 1).items():
             times, _, _ = results.setdefault(label, ([], *value[1:]))
             times += value[0]
             results[label] = (times, *value[1:])

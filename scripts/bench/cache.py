@@ -13,7 +13,7 @@ a private, new cache directory, so the user's cache is neither used nor touched:
    into numba's import and the load, the first function's load apart (numba's own
    start-up: LLVM's target, the runtime).
 
-    .venv/bin/python scripts/bench_cache.py [--repeat 7]
+    .venv/bin/python -m scripts.bench.cache [--repeat 7]
 """
 
 from __future__ import annotations
@@ -28,7 +28,7 @@ import tempfile
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 ENSURE = """
 import json, time

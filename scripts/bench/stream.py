@@ -13,7 +13,7 @@ The sides run interleaved, round by round, so machine noise hits them alike. For
 each it prints the wall time, rows/s, peak resident memory of the child process
 (``os.wait4``'s ``ru_maxrss``) and the file size, then the baseline's ratios.
 
-    .venv/bin/python scripts/bench_stream.py [--rows 1e5,1e6,1e7] [--repeat 1]
+    .venv/bin/python -m scripts.bench.stream [--rows 1e5,1e6,1e7] [--repeat 1]
         [--baseline /work/main] [--baseline-max 1e6] [--check]
 
 Target: 10⁷ rows under 500 MB peak RSS; ``--check`` exits 1 when it is missed.
@@ -30,7 +30,7 @@ import tempfile
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 TARGET_MB = 500.0
 DT = 0.001
 

@@ -24,7 +24,7 @@ A third table times the default against one thread on the chapter's arm for smal
 batches (--sizes): the thread count follows the problem size, so the default should
 never be slower than one thread (default/1 ≤ 1, within noise).
 
-    .venv/bin/python scripts/bench_threads.py [--repeat 15] [--sizes 64,256,512,1024,4096]
+    .venv/bin/python -m scripts.bench.threads [--repeat 15] [--sizes 64,256,512,1024,4096]
 """
 
 from __future__ import annotations

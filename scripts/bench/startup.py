@@ -9,7 +9,7 @@ bytecode cache (``PYTHONDONTWRITEBYTECODE`` is dropped from their environment; a
 installed package has its ``.pyc`` files, and the first, untimed round writes them
 for a source checkout), otherwise every run would recompile rrt-pin's modules (~40 ms).
 
-    .venv/bin/python scripts/bench_startup.py [--repeat 15]
+    .venv/bin/python -m scripts.bench.startup [--repeat 15]
 """
 
 from __future__ import annotations

@@ -12,7 +12,7 @@ already: more breaks the triangle inequality), drawn at random, metrics only.
    peak of the summed RSS of this process and its children (sampled every 0.1 s);
 3. accuracy: sampled variants' metrics against single ``simulate`` runs.
 
-    .venv/bin/python scripts/bench_sweep.py [--max 1000000] [--workers 2]
+    .venv/bin/python -m scripts.bench.sweep [--max 1000000] [--workers 2]
 
 Targets: 10^6 variants <= 5 min, peak memory <= 1 GiB, efficiency >= 90 %,
 metrics equal to single runs to 1e-9.
@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import argparse
 import shutil
-import sys
 import tempfile
 import threading
 import time
@@ -31,12 +30,10 @@ from pathlib import Path
 import numpy as np
 import psutil
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-from rrt_pin.params import Params  # noqa: E402
-from rrt_pin.sweeps.compute import run_chunk  # noqa: E402
-from rrt_pin.sweeps.run import sweep  # noqa: E402
-from rrt_pin.sweeps.spec import spec_from_dict  # noqa: E402
+from rrt_pin.params import Params
+from rrt_pin.sweeps.compute import run_chunk
+from rrt_pin.sweeps.run import sweep
+from rrt_pin.sweeps.spec import spec_from_dict
 
 
 def bench_spec(count: int, chunk: int = 16384) -> dict:

@@ -16,7 +16,7 @@ each side from the loop (per effort, relative to that effort's peak |value|),
 then the whole-process time of ``rrt-pin inverse --csv`` (interpreter start
 included; median of --process-runs runs).
 
-    .venv/bin/python scripts/bench_inverse.py [--repeat 7] [--process-runs 7] [--check]
+    .venv/bin/python -m scripts.bench.inverse [--repeat 7] [--process-runs 7] [--check]
 
 Targets: batched ≥ 5× faster than the loop, same values to 1e-12 relative;
 ``rrt-pin inverse --csv`` < 1 s. ``--check`` exits 1 when one is missed.
@@ -41,6 +41,7 @@ from rrt_pin.inverse import default_num_threads, inverse_dynamics
 from rrt_pin.model import rrt_model
 from rrt_pin.params import Params
 from rrt_pin.trajectory import rest_to_rest
+from scripts.bench.compiled import inverse_verdict
 
 TARGET_SPEEDUP = 5.0
 TARGET_AGREEMENT = 1e-12
@@ -97,12 +98,11 @@ def sides(params: Params, model: pin.Model, traj) -> dict[str, Callable[[], np.n
 
 
 # --- compiled backend: its targets ---------------------------------------------------------
-# (section owned by the compiled backend; the verdict is defined in scripts/bench_compiled.py)
+# (section owned by the compiled backend; the verdict is defined in scripts/bench/compiled.py)
 def compiled_targets(medians: dict[str, float], results: dict[str, np.ndarray]) -> dict[str, bool]:
     """The compiled side's targets: <= 1 ms, >= 50x the loop, same values to 1e-12."""
     if "compiled" not in medians:
         return {}
-    from bench_compiled import inverse_verdict
 
     return inverse_verdict(medians, results)
 

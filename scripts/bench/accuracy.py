@@ -16,7 +16,7 @@ Sections:
    scenes against its total time; the script marks the settings on each backend's
    Pareto front (nothing on that backend is both faster and more accurate).
 
-    .venv/bin/python scripts/bench_accuracy.py [--repeat 3] [--scenes a,b] [--sections 2,3] [--markdown]
+    .venv/bin/python -m scripts.bench.accuracy [--repeat 3] [--scenes a,b] [--sections 2,3] [--markdown]
 """
 
 from __future__ import annotations

@@ -7,7 +7,7 @@ same interpreter without it), inverse dynamics of the chapter's arm [ns/sample],
 and the chapter's direct run with the backend's default method [ms per simulated
 second]. Both backends are timed interleaved in one run; medians of --repeat.
 
-    .venv/bin/python scripts/bench_auto.py [--repeat 7]
+    .venv/bin/python -m scripts.bench.auto [--repeat 7]
 """
 
 from __future__ import annotations

@@ -30,11 +30,11 @@ back to back, see :func:`interleaved`):
 7. lanes: the batch of section 4 (final states and metrics, one thread) with each
    count of variants integrated side by side (``rrt_pin.compiled._jit_batch.LANES``).
 
-``scripts/bench_direct.py`` and ``scripts/bench_inverse.py`` import
+``scripts/bench/direct.py`` and ``scripts/bench/inverse.py`` import
 :func:`direct_rows`, :func:`batch_rows` and :func:`inverse_verdict` from here for
 their compiled rows.
 
-    .venv/bin/python scripts/bench_compiled.py [--repeat 21] [--batch 2000] [--check]
+    .venv/bin/python -m scripts.bench.compiled [--repeat 21] [--batch 2000] [--check]
         [--only direct,batch,busy,inverse,physics,process,lanes] [--lanes 16]
 """
 
@@ -53,6 +53,8 @@ from pathlib import Path
 
 import numpy as np
 
+from scripts.bench.common import interleaved, verdict
+
 TARGET_ERROR = 1e-8  # [rad, m]
 TARGET_DIRECT_S = 0.5e-3
 TARGET_DIRECT_SPEEDUP = 40.0
@@ -70,39 +72,11 @@ TARGET_PROCESS_S = 1.0
 Run = Callable[[], tuple[np.ndarray, int]]
 
 
-def interleaved(
-    funcs: dict[str, Callable[[], object]],
-    repeat: int,
-    inner: int = 5,
-    rounds: dict[str, list[float]] | None = None,
-) -> dict[str, float]:
-    """Median wall time [s] of each callable over ``repeat`` rounds of ``inner`` back-to-back calls.
-
-    Rounds alternate the sides, so that machine noise hits them alike; within a
-    round a side runs several times in a row and its first call is not counted,
-    so that each is timed in its steady state, not just after another side has
-    evicted its caches (which penalizes sub-millisecond sides the most).
-    """
-    times: dict[str, list[float]] = {k: [] for k in funcs}
-    for _ in range(repeat):
-        for name, f in funcs.items():
-            for i in range(inner + 1):
-                start = time.perf_counter()
-                f()
-                if i:
-                    times[name].append(time.perf_counter() - start)
-    if rounds is not None:  # every timed call, in order: with inner=1 one a round per side
-        rounds.update(times)
-    return {k: statistics.median(v) for k, v in times.items()}
-
-
-def verdict(ok: bool) -> str:
-    return "met" if ok else "MISSED"
-
-
 # --------------------------------------------------------------------------------------------
-# Pieces used by scripts/bench_direct.py and scripts/bench_inverse.py
+# Pieces used by scripts/bench/direct.py and scripts/bench/inverse.py
 # --------------------------------------------------------------------------------------------
+
+
 def compile_line() -> str:
     """Compile (or load) the backend and describe what it cost."""
     from rrt_pin import compiled

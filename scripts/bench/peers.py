@@ -21,7 +21,7 @@ MuJoCo refuses the rods' zero axial moments (I1z = I2z = 0): its model is the UR
 printed, and the same model with the moments set back to 0 after compilation shows that
 it is the whole difference). Drake takes the chapter's URDF as it is.
 
-    /work/peers-venv/bin/python scripts/bench_peers.py [--repeat 5] [--quick]
+    /work/peers-venv/bin/python -m scripts.bench.peers [--repeat 5] [--quick]
         [--batch 1000] [--markdown] [--csv PATH]
 """
 
@@ -37,11 +37,11 @@ import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
+from scripts.bench.common import interleaved
+from scripts.bench.compiled import baseline_direct, seed_variants
 
 TARGET_ERROR = 1e-8  # max |q − q_ref| of "matched accuracy" [rad, m]
 MIN_INERTIA = 1e-6  # [kg·m²] the rods' axial moments in MuJoCo's model
@@ -67,7 +67,7 @@ def require_peers() -> None:
             " extras" if len(extras) > 1 else " extra"
         )
         print(
-            f"bench_peers.py: {', '.join(name for name, _ in missing)} not installed, "
+            f"scripts.bench.peers: {', '.join(name for name, _ in missing)} not installed, "
             f"install the {which}: {install_hint(','.join(extras))}",
             file=sys.stderr,
         )
@@ -336,7 +336,6 @@ def drake_run(diagram, plant, q0, qd0, t: np.ndarray, scheme: str, accuracy: flo
 def section_inverse(repeat: int) -> tuple[list[Row], list[str]]:
     import mujoco
     import pinocchio as pin
-    from bench_compiled import interleaved
     from pydrake.multibody.tree import MultibodyForces
 
     from rrt_pin.inverse import inverse_dynamics
@@ -465,7 +464,6 @@ RTOLS = (1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-11, 1e-12)
 
 
 def direct_sides(p, robot, law, t, quick: bool) -> list[Side]:
-    from bench_compiled import baseline_direct
 
     from rrt_pin.simulate import simulate
 
@@ -577,7 +575,6 @@ def direct_sides(p, robot, law, t, quick: bool) -> list[Side]:
 
 
 def section_direct(repeat: int, quick: bool) -> tuple[list[Row], list[str], dict]:
-    from bench_compiled import interleaved
 
     from rrt_pin import compiled
     from rrt_pin.control import chapter_controller
@@ -656,7 +653,6 @@ def section_direct(repeat: int, quick: bool) -> tuple[list[Row], list[str], dict
 # 3. batch
 # --------------------------------------------------------------------------------------------
 def section_batch(count: int, repeat: int, chosen: dict, scipy_seconds: float):
-    from bench_compiled import interleaved, seed_variants
 
     from rrt_pin.model import rrt_model
     from rrt_pin.reference import reference_run

@@ -15,7 +15,7 @@ processes, interleaved (medians of --repeat rounds):
 and in one process the kernel's ns/sample on the chapter's 15,001 samples both ways
 (the efforts must agree bit for bit). It also reports the one-time build cost.
 
-    .venv/bin/python scripts/bench_aot.py [--repeat 9]
+    .venv/bin/python -m scripts.bench.aot [--repeat 9]
 """
 
 from __future__ import annotations

@@ -1,0 +1,20 @@
+"""Benchmarks: one module a question, each timing both sides in one interleaved run.
+
+Run one from the checkout as ``.venv/bin/python -m scripts.bench.NAME [--help]``;
+the figures in docs/benchmarks.md come from these. Shared timing helpers are in
+:mod:`scripts.bench.common`.
+
+- ``accuracy``: the accuracy catalogue: the defaults' global error, its estimate and cost;
+- ``aot``: ahead-of-time compiled code against the JIT cache: what a process pays;
+- ``auto``: the costs ``--backend auto`` compares, next to the registry's values;
+- ``cache``: the compiled backend's import, cache load and compilation;
+- ``compiled``: the compiled backend against its baselines (direct, inverse, batches);
+- ``direct``: direct dynamics of the chapter's run against the plain scipy baseline;
+- ``inverse``: inverse dynamics of the chapter's run: speed and agreement;
+- ``kernel``: the inverse-dynamics kernels: ns a sample, flops, the FMA rate;
+- ``peers``: rrt-pin against MuJoCo, Drake and scipy at matched accuracy;
+- ``startup``: whole-process time of the CLI's two jobs against ``import pinocchio``;
+- ``stream``: peak memory and rows/s of streamed ``rrt-pin inverse`` outputs;
+- ``sweep``: throughput, scaling and memory of sweeps;
+- ``threads``: batched Pinocchio inverse dynamics and its thread choice.
+"""
