@@ -15,9 +15,12 @@ from rrt_pin._version import __version__
 from rrt_pin.errors import (
     DivergenceError,
     InputError,
+    OverrideError,
     ParameterError,
     RrtPinError,
+    RunFileError,
     SceneError,
+    SpecError,
     UrdfError,
     ViewerError,
 )
@@ -30,8 +33,8 @@ _LAZY = {
     "rrt_model": "rrt_pin.model",
     "load_urdf_model": "rrt_pin.model",
     "model_from_xml": "rrt_pin.model",
-    "load_scene": "rrt_pin.scene",
-    "resolve_params": "rrt_pin.scene",
+    "load_runfile": "rrt_pin.runfile",
+    "resolve_params": "rrt_pin.runfile",
     "rest_to_rest": "rrt_pin.trajectory",
     "RestToRest": "rrt_pin.trajectory",
     "Trajectory": "rrt_pin.trajectory",
@@ -53,6 +56,8 @@ _LAZY = {
     "load_spec": "rrt_pin.sweeps.spec",
     "show": "rrt_pin.viewer.show",
 }
+#: Deprecated names (kept for one release), importable but not in ``__all__``.
+_DEPRECATED = {"load_scene": "rrt_pin.scene"}
 #: Subpackages and modules reachable as attributes (``rrt_pin.simulate`` is callable).
 _MODULES = ("simulate", "robots", "methods", "backends", "control", "compiled")
 
@@ -61,8 +66,11 @@ __all__ = [
     "InputError",
     "ParameterError",
     "Params",
+    "OverrideError",
     "RrtPinError",
+    "RunFileError",
     "SceneError",
+    "SpecError",
     "UrdfError",
     "ViewerError",
     "__version__",
@@ -74,7 +82,7 @@ __all__ = [
 def __getattr__(name: str) -> Any:
     if name in _MODULES:
         return importlib.import_module(f"rrt_pin.{name}")
-    module = _LAZY.get(name)
+    module = _LAZY.get(name) or _DEPRECATED.get(name)
     if module is None:
         raise AttributeError(f"module 'rrt_pin' has no attribute {name!r}")
     value = getattr(importlib.import_module(module), name)

@@ -16,10 +16,10 @@ from types import ModuleType
 from typing import TYPE_CHECKING
 
 from rrt_pin.commands import COMMANDS
-from rrt_pin.errors import RrtPinError, SceneError
+from rrt_pin.errors import RrtPinError, RunFileError
 
 if TYPE_CHECKING:
-    from rrt_pin.scene import Scene
+    from rrt_pin.runfile import RunFile
 
 __all__ = ["main"]
 
@@ -87,29 +87,31 @@ def _option_value(where: str, action: argparse.Action, value: object) -> object:
     if isinstance(action, (argparse._StoreTrueAction, argparse._StoreFalseAction,
                            argparse.BooleanOptionalAction)):  # fmt: skip
         if not isinstance(value, bool):
-            raise SceneError(f"{where}: {flag} = {value!r} must be true or false")
+            raise RunFileError(f"{where}: {flag} = {value!r} must be true or false")
         if isinstance(action, argparse._StoreFalseAction):
             return not value
         return value
     if isinstance(value, bool) or not isinstance(value, (str, int, float, list)):
-        raise SceneError(f"{where}: {flag} = {value!r} is not a value of {flag}")
+        raise RunFileError(f"{where}: {flag} = {value!r} is not a value of {flag}")
     if isinstance(value, list):
         if not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value):
-            raise SceneError(f"{where}: {flag} = {value!r} must be a list of numbers")
+            raise RunFileError(f"{where}: {flag} = {value!r} must be a list of numbers")
         text = ",".join(repr(float(v)) for v in value)
     else:
         text = str(value)
     try:
         converted = action.type(text) if action.type is not None else text
     except (argparse.ArgumentTypeError, TypeError, ValueError) as e:
-        raise SceneError(f"{where}: {flag} = {value!r}: {e}") from None
+        raise RunFileError(f"{where}: {flag} = {value!r}: {e}") from None
     if action.choices is not None and converted not in action.choices:
         valid = ", ".join(map(str, action.choices))
-        raise SceneError(f"{where}: {flag} = {value!r} is not one of {valid}")
+        raise RunFileError(f"{where}: {flag} = {value!r} is not one of {valid}")
     return converted
 
 
-def _apply_scene(args: argparse.Namespace, subparsers: dict[str, argparse.ArgumentParser]) -> Scene:
+def _apply_runfile(
+    args: argparse.Namespace, subparsers: dict[str, argparse.ArgumentParser]
+) -> RunFile:
     """Load ``--config`` and make its options the command's defaults.
 
     ``[options]`` apply to every command that has them (a key no command has is
@@ -118,40 +120,40 @@ def _apply_scene(args: argparse.Namespace, subparsers: dict[str, argparse.Argume
     choices): a value from a file is held to what the same value on the command
     line is.
     """
-    from rrt_pin.scene import load_scene
+    from rrt_pin.runfile import load_runfile
 
-    scene = load_scene(args.scene)
-    where = f"run file {args.scene!r}"
+    runfile = load_runfile(args.config, tables=COMMANDS)
+    where = f"run file {args.config!r}"
 
     def actions(command: str) -> dict[str, argparse.Action]:
-        skip = ("help", "scene", "overrides", "verbose", "quiet")
+        skip = ("help", "config", "overrides", "verbose", "quiet")
         return {a.dest: a for a in subparsers[command]._actions if a.dest not in skip}
 
     mine = actions(args.command)
     everyone = {dest for command in subparsers for dest in actions(command)}
-    for key in scene.options:
+    for key in runfile.options:
         if key.replace("-", "_") not in everyone:
-            raise SceneError(
+            raise RunFileError(
                 f"{where}: [options] {key!r} is not an option of any command; "
                 f"valid: {', '.join(sorted(everyone))}"
             )
-    for command, table in scene.commands.items():
+    for command, table in runfile.commands.items():
         valid = actions(command) if command in subparsers else {}
         for key in table:
             if key.replace("-", "_") not in valid:
-                raise SceneError(
+                raise RunFileError(
                     f"{where}: [{command}] {key!r} is not an option of 'rrt-pin {command}'; "
                     f"valid: {', '.join(sorted(valid))}"
                 )
     defaults = {}
-    own = scene.commands.get(args.command, {})
-    for key, value in scene.options_for(args.command).items():
+    own = runfile.commands.get(args.command, {})
+    for key, value in runfile.options_for(args.command).items():
         dest = key.replace("-", "_")
         if dest in mine:
             label = f"{where} [{args.command if key in own else 'options'}]"
             defaults[dest] = _option_value(label, mine[dest], value)
     subparsers[args.command].set_defaults(**defaults)
-    return scene
+    return runfile
 
 
 #: Options whose value is a comma-separated list that may start with a minus sign.
@@ -245,10 +247,10 @@ def _main(argv: list[str], set_level: Callable[[int], None]) -> int:
             parser.print_help(sys.stderr)
             return EXIT_USAGE
         set_level(verbosity_level(args.verbose, args.quiet))
-        if getattr(args, "scene", None):
-            scene = _apply_scene(args, subparsers)
-            args = parser.parse_args(argv)  # explicit flags win over the scene's options
-            args.scene_obj = scene
+        if getattr(args, "config", None):
+            runfile = _apply_runfile(args, subparsers)
+            args = parser.parse_args(argv)  # explicit flags win over the run file's options
+            args.runfile = runfile
         args.argv = ["rrt-pin", *argv]  # the command line, for the outputs' metadata
         return int(args._run(args) or 0)
     except _OneLineError as e:

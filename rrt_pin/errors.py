@@ -13,9 +13,12 @@ __all__ = [
     "DivergenceError",
     "InputError",
     "MemoryLimitError",
+    "OverrideError",
     "ParameterError",
     "RrtPinError",
+    "RunFileError",
     "SceneError",
+    "SpecError",
     "UrdfError",
     "ViewerError",
 ]
@@ -41,11 +44,31 @@ class ParameterError(RrtPinError, ValueError):
 
 
 class SceneError(RrtPinError, ValueError):
-    """A scene file or ``--set`` override cannot be used."""
+    """Deprecated name, kept for one release: catch its subclasses instead.
+
+    It used to name run-file, sweep-spec and override errors at once; it is now the
+    base of :class:`RunFileError`, :class:`SpecError` and :class:`OverrideError`.
+    """
+
+
+class RunFileError(SceneError):
+    """A run file (``--config``) cannot be used: unreadable, not TOML, or a bad entry."""
+
+
+class SpecError(SceneError):
+    """A sweep spec (a TOML file, a dict or a :class:`~rrt_pin.sweeps.Spec`) cannot be used."""
 
 
 class InputError(RrtPinError, ValueError):
     """An array, time grid, CSV or command-line value is invalid."""
+
+
+class OverrideError(InputError, SceneError):
+    """A parameter override or a number typed as text cannot be used.
+
+    ``--set NAME=VALUE``, ``Params.with_overrides`` and values such as ``"pi/3"``:
+    an unknown name, or text that is not a number.
+    """
 
 
 class UrdfError(RrtPinError, ValueError):

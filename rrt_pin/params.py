@@ -14,7 +14,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field, fields, replace
 from typing import Any
 
-from rrt_pin.errors import ParameterError, SceneError
+from rrt_pin.errors import OverrideError, ParameterError
 
 __all__ = [
     "PARAM_DOCS",
@@ -208,7 +208,7 @@ class Params:
         """
         unknown = sorted(set(overrides) - set(PARAM_DOCS))
         if unknown:
-            raise SceneError(
+            raise OverrideError(
                 f"unknown parameter {unknown[0]!r}; valid names: {', '.join(param_names())}"
             )
         values = dict(overrides)
@@ -318,27 +318,27 @@ def parse_number(text: str, name: str = "value") -> float:
     nesting, so ``9**9**9`` is refused at once instead of computed for ever.
 
     Raises:
-        SceneError: the text is not such an expression, or it overflows, is
+        OverrideError: the text is not such an expression, or it overflows, is
             complex, or is too long or too deeply nested; the message names
             ``name`` and the text.
     """
     from rrt_pin.expr import MAX_LENGTH, ExpressionError, evaluate
 
     if isinstance(text, str) and len(text.strip()) > MAX_LENGTH:
-        raise SceneError(
+        raise OverrideError(
             f"{name}={_shorten(text)} is not a number ({len(text.strip())} characters long; "
             f"at most {MAX_LENGTH} are allowed)"
         )
     try:
         return float(text)
     except OverflowError:
-        raise SceneError(f"{name}={_shorten(text)} is not a number (too large)") from None
+        raise OverrideError(f"{name}={_shorten(text)} is not a number (too large)") from None
     except (TypeError, ValueError):
         pass
     try:
         return evaluate(str(text))
     except ExpressionError as e:
-        raise SceneError(f"{name}={_shorten(text)} is not a number ({e})") from None
+        raise OverrideError(f"{name}={_shorten(text)} is not a number ({e})") from None
 
 
 def _shorten(value: object, limit: int = 60) -> str:
@@ -361,7 +361,7 @@ def parse_overrides(items: list[str] | None) -> dict[str, float]:
     """Parse ``NAME=VALUE`` strings (from ``--set``) into a dict.
 
     Raises:
-        SceneError: an item has no ``=``, names an unknown parameter, or its
+        OverrideError: an item has no ``=``, names an unknown parameter, or its
             value is not a number.
     """
     out: dict[str, float] = {}
@@ -369,9 +369,9 @@ def parse_overrides(items: list[str] | None) -> dict[str, float]:
         name, sep, value = item.partition("=")
         name = name.strip()
         if not sep:
-            raise SceneError(f"--set {item!r}: expected NAME=VALUE")
+            raise OverrideError(f"--set {item!r}: expected NAME=VALUE")
         if name not in PARAM_DOCS:
-            raise SceneError(
+            raise OverrideError(
                 f"--set {name}: unknown parameter; valid names: {', '.join(param_names())}"
             )
         out[name] = parse_number(value, name)

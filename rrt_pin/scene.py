@@ -1,127 +1,24 @@
-"""Run files (``--config``): a TOML description of a run's setup, reusable by every command.
+"""Deprecated alias of :mod:`rrt_pin.runfile` (kept for one release).
 
-A run file holds parameter values (the chapter's symbols), options shared by
-the commands that have them, and options for one command each::
-
-    # run.toml
-    [params]            # any field of rrt_pin.params.Params, SI units
-    m3 = 50.0
-    q1f = "pi/3"        # strings may be small expressions (pi, tau, e, + - * / **)
-
-    [options]           # for every command that has the option (others ignore it)
-    tf = 15.0           # [s]
-
-    [inverse]           # for `rrt-pin inverse` only
-    dt = 0.001          # [s] sample interval
-    [simulate]          # for `rrt-pin simulate` only
-    dt = 0.01           # [s] output interval
-
-Precedence: the chapter's values < ``[options]`` < the command's table < ``--set``
-and explicit flags. A key of ``[options]`` must be an option of at least one
-command, and a key of a command's table an option of that command.
+Run files are :class:`rrt_pin.runfile.RunFile`, read by
+:func:`rrt_pin.runfile.load_runfile`; their errors are
+:class:`rrt_pin.errors.RunFileError`.
 """
 
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass, field
-from pathlib import Path
-from typing import Any
+import warnings
 
-from rrt_pin.commands import COMMANDS
-from rrt_pin.errors import SceneError
-from rrt_pin.params import PARAM_DOCS, Params, param_names, parse_number
+from rrt_pin.runfile import MAX_RUNFILE_BYTES, RunFile, load_runfile, resolve_params
+
+warnings.warn(
+    "rrt_pin.scene is deprecated: import from rrt_pin.runfile (RunFile, load_runfile)",
+    DeprecationWarning,
+    stacklevel=2,
+)
 
 __all__ = ["MAX_SCENE_BYTES", "Scene", "load_scene", "resolve_params"]
 
-
-@dataclass(frozen=True)
-class Scene:
-    """A parsed run file: parameter overrides and command-option defaults.
-
-    Attributes:
-        params: the chapter's symbols -> values (SI units).
-        options: ``[options]``, shared by every command that has the option.
-        commands: command name -> its own table of options.
-    """
-
-    params: dict[str, float] = field(default_factory=dict)
-    options: dict[str, Any] = field(default_factory=dict)
-    commands: dict[str, dict[str, Any]] = field(default_factory=dict)
-
-    def options_for(self, command: str) -> dict[str, Any]:
-        """The options ``command`` takes from the file: ``[options]`` then its own table."""
-        return {**self.options, **self.commands.get(command, {})}
-
-
-#: Largest scene file accepted [bytes].
-MAX_SCENE_BYTES = 1 << 20
-
-
-def load_scene(path: str | Path) -> Scene:
-    """Read a TOML scene file (UTF-8, a byte-order mark allowed, at most 1 MB).
-
-    Raises:
-        SceneError: the file cannot be read, is larger than 1 MB, is not UTF-8
-            or not TOML, has an unknown table or parameter, or a value that is
-            not a finite number where one is due (or an integer beyond 64 bits).
-    """
-    from rrt_pin._read import load_toml
-
-    path = Path(path)
-    data = load_toml(path, cap=MAX_SCENE_BYTES, what="scene file", error=SceneError)
-    unknown = sorted(set(data) - {"params", "options", *COMMANDS})
-    if unknown:
-        raise SceneError(
-            f"scene file {str(path)!r}: unknown table {unknown[0]!r}; valid: params, options "
-            f"or a command's name ({', '.join(COMMANDS)})"
-        )
-    raw = data.get("params", {})
-    if not isinstance(raw, dict):
-        raise SceneError(f"scene file {str(path)!r}: 'params' must be a table")
-    params: dict[str, float] = {}
-    for name, value in raw.items():
-        if name not in PARAM_DOCS:
-            raise SceneError(
-                f"scene file {str(path)!r}: unknown parameter {name!r}; "
-                f"valid names: {', '.join(param_names())}"
-            )
-        if isinstance(value, str):
-            try:
-                value = parse_number(value, name)
-            except SceneError as e:
-                raise SceneError(f"scene file {str(path)!r}: {e}") from None
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise SceneError(f"scene file {str(path)!r}: {name}={value!r} is not a number")
-        _check_int(path, name, value)
-        params[name] = float(value)
-    tables = {}
-    for table in ("options", *COMMANDS):
-        options = data.get(table, {})
-        if not isinstance(options, dict):
-            raise SceneError(f"scene file {str(path)!r}: {table!r} must be a table")
-        for name, value in options.items():
-            if isinstance(value, float) and not math.isfinite(value):
-                raise SceneError(
-                    f"scene file {str(path)!r}: [{table}] {name}={value!r} must be finite"
-                )
-            _check_int(path, f"[{table}] {name}", value)
-        tables[table] = dict(options)
-    options = tables.pop("options")
-    return Scene(params=params, options=options, commands={k: v for k, v in tables.items() if v})
-
-
-def _check_int(path: Path, name: str, value: object) -> None:
-    """Refuse integers beyond TOML's 64-bit range (tomllib returns them unbounded)."""
-    from rrt_pin._read import check_int64
-
-    check_int64(f"scene file {str(path)!r}", name, value, SceneError)
-
-
-def resolve_params(scene: Scene | None = None, overrides: dict[str, float] | None = None) -> Params:
-    """The seed's parameters, updated by a scene, then by ``--set`` overrides."""
-    values: dict[str, float] = {}
-    if scene is not None:
-        values.update(scene.params)
-    values.update(overrides or {})
-    return Params().with_overrides(values)
+Scene = RunFile
+load_scene = load_runfile
+MAX_SCENE_BYTES = MAX_RUNFILE_BYTES

@@ -261,13 +261,13 @@ CASES = (
     ),
     Case("unknown method", ("simulate", "--method", "euler", "--csv", OUT), "euler"),
     Case(
-        "scene file not TOML",
-        ("inverse", "--scene", "{tmp}/bad.toml", "--csv", OUT),
+        "run file not TOML",
+        ("inverse", "--config", "{tmp}/bad.toml", "--csv", OUT),
         "not valid TOML",
     ),
     Case(
-        "unknown name in a scene file",
-        ("simulate", "--scene", "{tmp}/unknown.toml", "--csv", OUT),
+        "unknown name in a run file",
+        ("simulate", "--config", "{tmp}/unknown.toml", "--csv", OUT),
         "unknown parameter 'mass'",
     ),
     Case(
@@ -390,28 +390,28 @@ CASES = (
         "it is a folder",
     ),
     Case(
-        "scene file larger than 1 MB",
-        ("inverse", "--scene", "{tmp}/huge.toml", "--csv", OUT),
+        "run file larger than 1 MB",
+        ("inverse", "--config", "{tmp}/huge.toml", "--csv", OUT),
         "larger than the 1 MB allowed",
     ),
     Case(
-        "scene file not UTF-8",
-        ("inverse", "--scene", "{tmp}/latin1.toml", "--csv", OUT),
+        "run file not UTF-8",
+        ("inverse", "--config", "{tmp}/latin1.toml", "--csv", OUT),
         "not UTF-8",
     ),
     Case(
-        "scene file nested too deeply",
-        ("inverse", "--scene", "{tmp}/deep.toml", "--csv", OUT),
+        "run file nested too deeply",
+        ("inverse", "--config", "{tmp}/deep.toml", "--csv", OUT),
         "nested too deeply",
     ),
     Case(
-        "scene integer beyond 64 bits",
-        ("inverse", "--scene", "{tmp}/bigint.toml", "--csv", OUT),
+        "run-file integer beyond 64 bits",
+        ("inverse", "--config", "{tmp}/bigint.toml", "--csv", OUT),
         "beyond TOML's 64-bit range",
     ),
     Case(
-        "power tower in a scene file",
-        ("inverse", "--scene", "{tmp}/power.toml", "--csv", OUT),
+        "power tower in a run file",
+        ("inverse", "--config", "{tmp}/power.toml", "--csv", OUT),
         "m3='9**9**9' is not a number",
     ),
     # output paths

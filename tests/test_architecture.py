@@ -279,3 +279,28 @@ def test_the_timing_detector_can_fail():
     assert _timings('"""A run then takes ~0.2 ms instead of ~3 ms."""') == ["~0.2 ms", "~3 ms"]
     assert _timings("costs about 1 µs an output time; loads in ~0.8 s") == ["about 1 µs", "~0.8 s"]
     assert _timings("dt: time step [s]; 3×3 matrices; at most 15 s of output") == []
+
+
+def test_run_files_and_specs_have_their_own_names_and_the_old_ones_still_work(tmp_path):
+    from rrt_pin import errors
+    from rrt_pin.runfile import RunFile, load_runfile
+
+    for new in (errors.RunFileError, errors.SpecError, errors.OverrideError):
+        assert issubclass(new, errors.SceneError) and issubclass(new, ValueError)
+    assert issubclass(errors.OverrideError, errors.InputError)
+    assert not issubclass(errors.SpecError, errors.RunFileError)
+    with pytest.warns(DeprecationWarning, match="rrt_pin.runfile"):
+        import importlib
+        import sys
+
+        sys.modules.pop("rrt_pin.scene", None)
+        scene = importlib.import_module("rrt_pin.scene")
+    assert scene.Scene is RunFile and scene.load_scene is load_runfile
+    path = tmp_path / "run.toml"
+    path.write_text("[inverse]\ndt = 0.01\n")
+    with pytest.raises(
+        errors.RunFileError, match="unknown table 'inverse'; valid: params, options$"
+    ):
+        load_runfile(path)  # a library caller names the tables it takes
+    assert load_runfile(path, tables=("inverse",)).commands == {"inverse": {"dt": 0.01}}
+    assert "load_scene" not in rrt_pin.__all__ and "load_runfile" in rrt_pin.__all__

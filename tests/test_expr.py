@@ -11,10 +11,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rrt_pin.errors import ParameterError, SceneError
+from rrt_pin.errors import OverrideError, ParameterError, RunFileError
 from rrt_pin.expr import MAX_LENGTH, ExpressionError, evaluate
 from rrt_pin.params import Params, parse_number, parse_overrides
-from rrt_pin.scene import load_scene, resolve_params
+from rrt_pin.runfile import load_runfile, resolve_params
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -69,7 +69,7 @@ def test_allowed_expressions(text, value):
 def test_refused_expressions(text, words):
     with pytest.raises(ExpressionError, match=words):
         evaluate(text)
-    with pytest.raises(SceneError) as info:
+    with pytest.raises(OverrideError) as info:
         parse_number(text, "L1")
     message = str(info.value)
     assert message.startswith("L1=") and "\n" not in message and len(message) < 200
@@ -84,7 +84,7 @@ def test_evaluation_is_in_floats():
 
 
 def test_long_text_is_refused_before_parsing():
-    with pytest.raises(SceneError, match=f"at most {MAX_LENGTH}"):
+    with pytest.raises(OverrideError, match=f"at most {MAX_LENGTH}"):
         parse_number("1" * (MAX_LENGTH + 1))
     assert parse_number(" " * 500 + "1") == 1.0
 
@@ -92,7 +92,7 @@ def test_long_text_is_refused_before_parsing():
 def test_plain_floats_still_parse_including_nan_and_inf():
     assert math.isnan(parse_number("nan")) and parse_number("-inf") == -math.inf
     assert parse_number("1e-3") == 1e-3
-    with pytest.raises(SceneError, match="too large"):
+    with pytest.raises(OverrideError, match="too large"):
         parse_number(10**400)  # type: ignore[arg-type]
 
 
@@ -102,11 +102,11 @@ def test_hostile_expressions_finish_in_a_subprocess():
     code = (
         "import sys\n"
         "from rrt_pin.params import parse_number\n"
-        "from rrt_pin.errors import SceneError\n"
+        "from rrt_pin.errors import OverrideError\n"
         f"for text in {HOSTILE!r}:\n"
         "    try:\n"
         "        parse_number(text, 'L1')\n"
-        "    except SceneError as e:\n"
+        "    except OverrideError as e:\n"
         "        print('refused' if 'is not a number' in str(e) else str(e))\n"
         "    else:\n"
         "        sys.exit('accepted ' + text[:20])\n"
@@ -124,12 +124,12 @@ def test_hostile_expressions_finish_in_a_subprocess():
 
 
 def test_overrides_and_scene_strings_use_the_bounded_evaluator(tmp_path):
-    with pytest.raises(SceneError, match="L1='9\\*\\*9\\*\\*9' is not a number"):
+    with pytest.raises(OverrideError, match="L1='9\\*\\*9\\*\\*9' is not a number"):
         parse_overrides(["L1=9**9**9"])
     path = tmp_path / "s.toml"
     path.write_text('[params]\nm3 = "10**10**10"\n')
-    with pytest.raises(SceneError, match="s.toml.*m3='10\\*\\*10\\*\\*10'.*overflows"):
-        load_scene(path)
+    with pytest.raises(RunFileError, match="s.toml.*m3='10\\*\\*10\\*\\*10'.*overflows"):
+        load_runfile(path)
 
 
 # Params ---------------------------------------------------------------------

@@ -2,9 +2,9 @@ import math
 
 import pytest
 
-from rrt_pin.errors import ParameterError, SceneError
+from rrt_pin.errors import OverrideError, ParameterError, RunFileError
 from rrt_pin.params import Params, param_names, parse_number, parse_overrides
-from rrt_pin.scene import load_scene, resolve_params
+from rrt_pin.runfile import load_runfile, resolve_params
 
 
 def test_seed_values():
@@ -66,22 +66,22 @@ def test_parse_number_expressions():
     assert parse_number("1e-3") == 1e-3
     assert math.isnan(parse_number("nan"))
     for bad in ("__import__('os')", "pi/0", "x", "1 if 1 else 2", ""):
-        with pytest.raises(SceneError):
+        with pytest.raises(OverrideError):
             parse_number(bad)
 
 
 def test_parse_overrides():
     assert parse_overrides(["m1=10", "q1f=pi/2"]) == {"m1": 10.0, "q1f": math.pi / 2}
-    with pytest.raises(SceneError, match="unknown parameter.*valid names: L1, L2"):
+    with pytest.raises(OverrideError, match="unknown parameter.*valid names: L1, L2"):
         parse_overrides(["mass=1"])
-    with pytest.raises(SceneError, match="NAME=VALUE"):
+    with pytest.raises(OverrideError, match="NAME=VALUE"):
         parse_overrides(["m1"])
 
 
 def test_scene_file(tmp_path):
     path = tmp_path / "s.toml"
     path.write_text('[params]\nm3 = 50\nq1f = "pi/4"\n[options]\ndt = 0.01\n')
-    scene = load_scene(path)
+    scene = load_runfile(path)
     p = resolve_params(scene, {"m3": 45.0})
     assert p.m3 == 45.0 and p.q1f == math.pi / 4
     assert scene.options == {"dt": 0.01}
@@ -100,8 +100,8 @@ def test_scene_file(tmp_path):
 def test_bad_scene_file(tmp_path, text, words):
     path = tmp_path / "bad.toml"
     path.write_text(text)
-    with pytest.raises(SceneError, match=words):
-        load_scene(path)
+    with pytest.raises(RunFileError, match=words):
+        load_runfile(path)
 
 
 def test_param_names_are_the_seeds_symbols():

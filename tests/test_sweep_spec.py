@@ -18,7 +18,7 @@ import pytest
 
 import rrt_pin._read
 from rrt_pin.cli import main
-from rrt_pin.errors import SceneError
+from rrt_pin.errors import SpecError
 from rrt_pin.sweeps.run import sweep
 from rrt_pin.sweeps.spec import MAX_VARIANTS, Axis, load_spec, spec_from_dict
 
@@ -77,13 +77,13 @@ def test_values_of_any_range_are_those_of_the_full_product():
 
 _HUGE = """
 import sys, time
-from rrt_pin.errors import SceneError
+from rrt_pin.errors import SpecError
 from rrt_pin.sweeps.spec import spec_from_dict
 for n in [10**9, 10**18, 1e300, 2**63 - 1]:
     spec = {"sweep": {"tf": 1.0, "dt": 0.1}, "vary": {"m3": {"linspace": [30, 50, n]}}}
     try:
         spec_from_dict(spec)
-    except SceneError as e:
+    except SpecError as e:
         print(e)
     else:
         print("accepted", n)
@@ -91,7 +91,7 @@ try:
     spec_from_dict({"sweep": {"tf": 1.0, "dt": 0.1},
                     "vary": {"m3": {"linspace": [30, 50, 100_000]},
                              "m2": {"linspace": [1, 5, 100_000]}}})
-except SceneError as e:
+except SpecError as e:
     print(e)
 """
 
@@ -123,7 +123,7 @@ def test_chunks_are_counted_too():
         "sweep": {"tf": 1.0, "dt": 0.1, "chunk": 1},
         "vary": {"m3": {"linspace": [30, 50, 10**6]}},
     }
-    with pytest.raises(SceneError) as info:
+    with pytest.raises(SpecError) as info:
         spec_from_dict(spec)
     assert "chunk=1 makes 1,000,000 chunks" in _one_line(info)
 
@@ -153,14 +153,14 @@ def test_chunks_are_counted_too():
 def test_sections_of_the_wrong_type_are_one_line(tmp_path, toml, words):
     path = tmp_path / "s.toml"
     path.write_text(toml)
-    with pytest.raises(SceneError) as info:
+    with pytest.raises(SpecError) as info:
         load_spec(path)
     assert words in _one_line(info)
 
 
 def test_a_urdf_base_list_is_only_for_per_joint_values():
     spec = {"sweep": {"tf": 1.0, "dt": 0.1, "urdf": "arm.urdf"}, "base": {"g": [1.0, 2.0]}}
-    with pytest.raises(SceneError) as info:
+    with pytest.raises(SpecError) as info:
         spec_from_dict(spec)
     assert (
         "[base] g = [1.0, 2.0] must be a number (lists of values per joint are for a URDF's q0"
@@ -198,7 +198,7 @@ def test_a_device_spec_is_refused_without_reading(tmp_path):
         os.mknod(node, stat.S_IFCHR | 0o600, os.makedev(1, 5))
     except (PermissionError, OSError) as e:
         pytest.skip(f"cannot make a device node here: {e}")
-    with pytest.raises(SceneError) as info:
+    with pytest.raises(SpecError) as info:
         load_spec(node)
     assert "it is a character device, not a regular file" in _one_line(info)
 
@@ -207,7 +207,7 @@ def test_a_fifo_spec_nobody_writes_is_refused_not_waited_for(tmp_path, monkeypat
     monkeypatch.setattr(rrt_pin._read, "FIFO_TIMEOUT", 0.3)
     fifo = tmp_path / "spec.fifo"
     os.mkfifo(fifo)
-    with pytest.raises(SceneError) as info:
+    with pytest.raises(SpecError) as info:
         load_spec(fifo)
     assert "it is a FIFO and nothing came through it for 0.3 s" in _one_line(info)
 
@@ -241,7 +241,7 @@ def test_a_fifo_spec_with_a_writer_is_read(tmp_path):
 def test_the_spec_loader_has_the_run_file_guards(tmp_path, make, words):
     path = tmp_path / "spec.toml"
     make(path)
-    with pytest.raises(SceneError) as info:
+    with pytest.raises(SpecError) as info:
         load_spec(path)
     assert words in _one_line(info)
 

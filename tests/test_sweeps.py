@@ -15,7 +15,7 @@ import pyarrow.parquet as pq
 import pytest
 
 from rrt_pin.cli import main
-from rrt_pin.errors import SceneError
+from rrt_pin.errors import SpecError
 from rrt_pin.sweeps.run import sweep
 from rrt_pin.sweeps.spec import spec_from_dict
 
@@ -285,7 +285,7 @@ def test_cli_summary_and_plot(tmp_path, capsys):
 )
 def test_bad_specs_are_one_line(tmp_path, change, words):
     spec = {**{"sweep": {"tf": 1.0, "dt": 0.1}}, **change}
-    with pytest.raises(SceneError) as info:
+    with pytest.raises(SpecError) as info:
         sweep(spec, tmp_path / "out", workers=1, progress=False)
     assert words in str(info.value) and "\n" not in str(info.value)
     assert not (tmp_path / "out").exists()

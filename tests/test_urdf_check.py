@@ -12,9 +12,9 @@ import pytest
 
 from rrt_pin._quiet import captured_stderr
 from rrt_pin._read import read_text_capped
-from rrt_pin.errors import SceneError, UrdfError
+from rrt_pin.errors import RunFileError, UrdfError
 from rrt_pin.model import build_geometry, load_urdf_model, model_from_xml
-from rrt_pin.scene import load_scene
+from rrt_pin.runfile import load_runfile
 from rrt_pin.urdf import urdf_xml
 from rrt_pin.urdf_check import MAX_DEPTH, MAX_JOINTS, check_urdf_xml, mimic_joints
 from tests.bad_inputs import _LAUGHS, chain_urdf
@@ -211,8 +211,8 @@ def test_a_zero_device_is_refused_at_once(tmp_path, no_pinocchio):
     node = _char_device(tmp_path / "zero")
     with pytest.raises(UrdfError, match="zero.*character device|cannot read URDF"):
         load_urdf_model(node)
-    with pytest.raises(SceneError, match="zero.*character device|cannot read scene file"):
-        load_scene(node)
+    with pytest.raises(RunFileError, match="zero.*character device|cannot read run file"):
+        load_runfile(node)
 
 
 def test_a_fifo_is_read_only_up_to_the_cap(tmp_path):
@@ -262,7 +262,7 @@ def test_folders_and_non_utf8_are_refused(tmp_path):
 def test_byte_order_marks_are_accepted(tmp_path):
     scene = tmp_path / "bom.toml"
     scene.write_bytes(b"\xef\xbb\xbf" + b'[params]\nm3 = 50\nq1f = "pi/4"\n')
-    assert load_scene(scene).params == {"m3": 50.0, "q1f": pytest.approx(0.7853981633974483)}
+    assert load_runfile(scene).params == {"m3": 50.0, "q1f": pytest.approx(0.7853981633974483)}
     urdf = tmp_path / "bom.urdf"
     urdf.write_bytes(b"\xef\xbb\xbf" + GOOD.encode())
     assert load_urdf_model(urdf).nv == 3
@@ -280,8 +280,8 @@ def test_byte_order_marks_are_accepted(tmp_path):
 def test_hostile_run_files_get_one_line(tmp_path, text, words):
     path = tmp_path / "s.toml"
     path.write_text(text)
-    with pytest.raises(SceneError) as info:
-        load_scene(path)
+    with pytest.raises(RunFileError) as info:
+        load_runfile(path)
     assert words in str(info.value) and "\n" not in str(info.value)
 
 

@@ -21,7 +21,7 @@ __all__ = [
     "add_config_argument",
     "add_output_arguments",
     "add_robot_arguments",
-    "add_scene_arguments",
+    "add_param_arguments",
     "check_writable",
     "finite_float",
     "float_list",
@@ -82,14 +82,14 @@ def float_list(text: str) -> list[float]:
 
     Values may be small expressions such as ``pi/3``.
     """
-    from rrt_pin.errors import SceneError
+    from rrt_pin.errors import OverrideError
     from rrt_pin.params import parse_number
 
     out = []
     for item in text.split(","):
         try:
             value = parse_number(item.strip())
-        except SceneError:
+        except OverrideError:
             raise argparse.ArgumentTypeError(
                 f"not a number: {item.strip()!r} in {text!r}"
             ) from None
@@ -99,7 +99,7 @@ def float_list(text: str) -> list[float]:
     return out
 
 
-def add_scene_arguments(parser: argparse.ArgumentParser) -> None:
+def add_param_arguments(parser: argparse.ArgumentParser) -> None:
     """Add ``--set NAME=VALUE`` (repeatable) and ``--config PATH`` (alias ``--scene``)."""
     names = ", ".join(PARAM_DOCS)
     parser.add_argument(
@@ -113,7 +113,7 @@ def add_scene_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--config",
         "--scene",
-        dest="scene",
+        dest="config",
         type=nonempty,
         metavar="PATH",
         help="TOML run file: a [params] table (the chapter's symbols, SI units) and an "
@@ -130,7 +130,7 @@ def add_config_argument(parser: argparse.ArgumentParser, command: str) -> None:
     """
     parser.add_argument(
         "--config",
-        dest="scene",
+        dest="config",
         type=nonempty,
         metavar="PATH",
         help=f"TOML run file: defaults for this command's long options from its [{command}] "
@@ -142,14 +142,14 @@ def refuse_run_file_params(args: argparse.Namespace, command: str, why: str) -> 
     """Refuse a run file's ``[params]`` where the command takes none (never ignore them).
 
     Raises:
-        SceneError: the run file has a ``[params]`` table.
+        RunFileError: the run file has a ``[params]`` table.
     """
-    scene = getattr(args, "scene_obj", None)
-    if scene is not None and scene.params:
-        from rrt_pin.errors import SceneError
+    runfile = getattr(args, "runfile", None)
+    if runfile is not None and runfile.params:
+        from rrt_pin.errors import RunFileError
 
-        raise SceneError(
-            f"run file {args.scene!r}: [params] do not apply to 'rrt-pin {command}' ({why})"
+        raise RunFileError(
+            f"run file {args.config!r}: [params] do not apply to 'rrt-pin {command}' ({why})"
         )
 
 
@@ -182,13 +182,13 @@ def termination_as_interrupt() -> Iterator[None]:
 def params_from_args(args: argparse.Namespace) -> Params:
     """The chapter's parameters < run file [params] < ``--set`` overrides."""
     from rrt_pin.params import parse_overrides
-    from rrt_pin.scene import resolve_params
+    from rrt_pin.runfile import resolve_params
 
-    return resolve_params(getattr(args, "scene_obj", None), parse_overrides(args.overrides))
+    return resolve_params(getattr(args, "runfile", None), parse_overrides(args.overrides))
 
 
 def positive_seconds(flag: str, value: object) -> float:
-    """A time option (e.g. ``--tf`` from a scene file) as a finite float > 0 [s].
+    """A time option (e.g. ``--tf`` from a run file) as a finite float > 0 [s].
 
     Raises:
         InputError: the value is not a finite number > 0.
@@ -302,9 +302,9 @@ def robot_from_args(args: argparse.Namespace, params: Params, task: str) -> Robo
     from rrt_pin.robots import for_task
 
     given = set(parse_overrides(args.overrides))
-    scene = getattr(args, "scene_obj", None)
-    if scene is not None:
-        given |= set(scene.params)
+    runfile = getattr(args, "runfile", None)
+    if runfile is not None:
+        given |= set(runfile.params)
     values = {k: getattr(args, k, None) for k in ("q0", "qd0", "qf", "kp", "kd")}
     return for_task(
         task, params, urdf=args.urdf, name=getattr(args, "robot", None), given=given, **values

@@ -6,7 +6,7 @@ import argparse
 import sys
 from typing import TYPE_CHECKING
 
-from rrt_pin.commands._common import add_scene_arguments, params_from_args
+from rrt_pin.commands._common import add_param_arguments, params_from_args
 
 if TYPE_CHECKING:
     pass
@@ -42,9 +42,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "velocities and accelerations, Q, kinetic energies, and K* (kane) or "
         "d/dt ∂T/∂q̇r − ∂T/∂qr (lagrange)",
     )
-    add_scene_arguments(parser)
+    add_param_arguments(parser)
     parser.epilog = (
-        "Parameters stay symbols (SI units: m, kg, kg·m², m/s²) unless --set or --scene "
+        "Parameters stay symbols (SI units: m, kg, kg·m², m/s²) unless --set or --config "
         "is given, which substitutes the numbers."
     )
 
@@ -56,7 +56,7 @@ def run(args: argparse.Namespace) -> int:
     sp = require("sympy", "symbolic", "'rrt-pin equations'")
     from rrt_pin.symbolic import equations_of_motion
 
-    numeric = bool(args.overrides) or getattr(args, "scene_obj", None) is not None
+    numeric = bool(args.overrides) or getattr(args, "runfile", None) is not None
     params = params_from_args(args) if numeric else None
     eom = equations_of_motion(args.method, params)
     values = _substitution(params) if params is not None else {}

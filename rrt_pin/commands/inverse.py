@@ -16,8 +16,8 @@ from rrt_pin import backends
 from rrt_pin.commands import _chapter
 from rrt_pin.commands._common import (
     add_output_arguments,
+    add_param_arguments,
     add_robot_arguments,
-    add_scene_arguments,
     finite_float,
     params_from_args,
     positive_seconds,
@@ -115,7 +115,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "gives the threshold), else pinocchio; -v says why (default: pinocchio)",
     )
     add_robot_arguments(parser, "inverse")
-    add_scene_arguments(parser)
+    add_param_arguments(parser)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from rrt_pin.commands._common import add_scene_arguments, params_from_args
+from rrt_pin.commands._common import add_param_arguments, params_from_args
 
 HELP = "list a robot's joints: kinds, CSV columns and units (the chapter's arm, a URDF or a known robot)"
 
@@ -20,7 +20,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="a robot known by name: rrt (the chapter's arm), or one of example-robot-data's "
         "(ur5, panda, double_pendulum, double_pendulum_continuous, kinova)",
     )
-    add_scene_arguments(parser)
+    add_param_arguments(parser)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -6,7 +6,7 @@ import argparse
 import sys
 
 from rrt_pin._logging import note
-from rrt_pin.commands._common import add_scene_arguments, nonnegative_float, params_from_args
+from rrt_pin.commands._common import add_param_arguments, nonnegative_float, params_from_args
 
 HELP = "generate the URDF of the RRT arm (SI units: m, kg, kg·m²)"
 
@@ -24,7 +24,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="raise every principal moment of inertia to at least X [kg·m²] for engines "
         "that refuse zero moments (MuJoCo); default 0 keeps the chapter's I1z = I2z = 0",
     )
-    add_scene_arguments(parser)
+    add_param_arguments(parser)
 
 
 def run(args: argparse.Namespace) -> int:

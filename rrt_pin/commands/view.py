@@ -11,8 +11,8 @@ from typing import TYPE_CHECKING, Any
 
 from rrt_pin._logging import note
 from rrt_pin.commands._common import (
+    add_param_arguments,
     add_robot_arguments,
-    add_scene_arguments,
     nonempty,
     nonnegative_float,
     params_from_args,
@@ -154,7 +154,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "prints that server's page URL",
     )
     add_robot_arguments(parser, "view")
-    add_scene_arguments(parser)
+    add_param_arguments(parser)
 
 
 # ---------------------------------------------------------------------------

@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from rrt_pin import text
-from rrt_pin.errors import DivergenceError, InputError, RrtPinError, SceneError
+from rrt_pin.errors import DivergenceError, InputError, RrtPinError, SpecError
 from rrt_pin.sweeps.spec import Spec, spec_from_dict
 
 __all__ = ["BLOCK", "Plan", "metric_names", "plan", "run_chunk"]
@@ -79,11 +79,11 @@ def _arm_base(spec: Spec) -> tuple[Any, dict[str, float]]:
     names = [f.name for f in fields(Params)]
     for name in spec.base:
         if name not in names:
-            raise SceneError(f"[base] {name}: unknown parameter; valid: {text.names(names, 20)}")
+            raise SpecError(f"[base] {name}: unknown parameter; valid: {text.names(names, 20)}")
     try:
         params = Params(**spec.base)
     except RrtPinError as e:
-        raise SceneError(f"[base]: {e}") from e
+        raise SpecError(f"[base]: {e}") from e
     return params, {n: getattr(params, n) for n in names}
 
 
@@ -115,17 +115,17 @@ def _plan(digest: str, source_json: str) -> Plan:
             if key == "g":
                 continue
             if key not in _PREFIXES:
-                raise SceneError(f"[base] {key}: a URDF sweep takes g, {', '.join(_PREFIXES)}")
+                raise SpecError(f"[base] {key}: a URDF sweep takes g, {', '.join(_PREFIXES)}")
             values = [value] * n if not isinstance(value, list) else value
             if len(values) != n:
-                raise SceneError(
+                raise SpecError(
                     f"[base] {key} has {len(values)} values; {robot.name} has {n} joints"
                 )
             base.update({f"{key}_{k + 1}": float(v) for k, v in enumerate(values)})
         backend = "pinocchio"
     for axis in spec.axes:
         if axis.name not in names:
-            raise SceneError(f"[vary] {axis.name}: unknown name; valid: {text.names(names, 20)}")
+            raise SpecError(f"[vary] {axis.name}: unknown name; valid: {text.names(names, 20)}")
     needed = ("q0", "qf", "kp", "kd") if spec.task == "simulate" else ("q0", "qf")
     varied = {a.name for a in spec.axes}
     missing = [
@@ -133,7 +133,7 @@ def _plan(digest: str, source_json: str) -> Plan:
         if math.isnan(v) and n not in varied and n.rsplit("_", 1)[0] in needed
     ]  # fmt: skip
     if missing:
-        raise SceneError(f"[base] needs {missing[0].rsplit('_', 1)[0]} for {robot.name}")
+        raise SpecError(f"[base] needs {missing[0].rsplit('_', 1)[0]} for {robot.name}")
     if spec.task == "inverse" and spec.urdf is None:
         backend = "compiled" if backends.get("compiled").available() else "symbolic"
     t = time_grid(spec.tf, spec.dt)
@@ -145,7 +145,7 @@ def _plan(digest: str, source_json: str) -> Plan:
                 batch=True,
             )  # fmt: skip
         except RrtPinError as e:
-            raise SceneError(f"[sweep]: {e}") from e
+            raise SpecError(f"[sweep]: {e}") from e
         method, rtol, atol, step = options.method.name, options.rtol, options.atol, options.step
     return Plan(spec, robot, names, base, backend, method, rtol, atol, step, t)
 
@@ -170,7 +170,7 @@ def plan(spec: Spec) -> Plan:
     """The shared part of every chunk (cached per process).
 
     Raises:
-        SceneError: a name the robot does not have, a missing base value, or
+        SpecError: a name the robot does not have, a missing base value, or
             options the backend cannot run.
     """
     import json

@@ -37,7 +37,7 @@ def check_metric(spec: Any, metric: str) -> None:
 
     Raises:
         InputError: no such metric column, or a column of text.
-        SceneError: the spec itself is bad (as the sweep would say).
+        SpecError: the spec itself is bad (as the sweep would say).
     """
     from rrt_pin.sweeps.compute import metric_names, plan
     from rrt_pin.sweeps.run import _spec

@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from rrt_pin.errors import ClusterError, InputError, RrtPinError, SceneError
+from rrt_pin.errors import ClusterError, InputError, RrtPinError, SpecError
 from rrt_pin.sweeps.spec import Spec, load_spec, spec_from_dict
 from rrt_pin.text import duration
 
@@ -124,7 +124,7 @@ def _spec(spec: Spec | str | Path | Mapping[str, Any]) -> Spec:
         return spec_from_dict(spec)
     if isinstance(spec, (str, os.PathLike)) and not isinstance(spec, bytes):
         if not os.fspath(spec):
-            raise SceneError("spec='' must name a TOML file")
+            raise SpecError("spec='' must name a TOML file")
         return load_spec(spec)
     from rrt_pin.errors import ArgumentTypeError
 
@@ -144,7 +144,7 @@ def _check_extremes(spec: Spec) -> None:
         for a in spec.axes:
             low = float(np.min(_ends(spec, a)))
             if a.name.startswith(("kp", "kd")) and low < 0:
-                raise SceneError(f"[vary] {a.name} reaches {low:g}: a gain must be >= 0")
+                raise SpecError(f"[vary] {a.name} reaches {low:g}: a gain must be >= 0")
         return
     base = dict(spec.base)
     for a in spec.axes:
@@ -152,7 +152,7 @@ def _check_extremes(spec: Spec) -> None:
             try:
                 Params(**{**base, a.name: float(value)})
             except RrtPinError as e:
-                raise SceneError(f"[vary] {a.name} reaches {float(value):g}: {e}") from e
+                raise SpecError(f"[vary] {a.name} reaches {float(value):g}: {e}") from e
     del p
 
 
@@ -445,7 +445,7 @@ def sweep(
         A :class:`SweepResult` (counts, worst cases, ``.table()`` of every row).
 
     Raises:
-        SceneError: a bad spec (unknown name, empty range, a range that makes a
+        SpecError: a bad spec (unknown name, empty range, a range that makes a
             parameter invalid …).
         InputError: ``out`` is empty or not a path, holds another sweep or other
             files, is being written by another run, cannot be written, or (``resume``)

@@ -53,7 +53,7 @@ import numpy as np
 
 from rrt_pin import memory
 from rrt_pin._read import check_int64, load_toml
-from rrt_pin.errors import SceneError
+from rrt_pin.errors import SpecError
 
 __all__ = ["MAX_SPEC_BYTES", "MAX_VARIANTS", "METRICS", "Spec", "load_spec", "spec_from_dict"]
 
@@ -312,13 +312,13 @@ def _show(value: Any, limit: int = 60) -> str:
 
 def _number(where: str, value: Any) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise SceneError(f"{where}={_show(value)} must be a number")
+        raise SpecError(f"{where}={_show(value)} must be a number")
     try:
         x = float(value)
     except OverflowError:  # an int beyond float's range (a dict spec's)
         x = math.inf
     if not math.isfinite(x):
-        raise SceneError(f"{where}={_show(value)} must be finite")
+        raise SpecError(f"{where}={_show(value)} must be finite")
     return x
 
 
@@ -326,34 +326,32 @@ def _axis(name: str, value: Any) -> Axis:
     where = f"[vary] {name}"
     if isinstance(value, list):
         if not value:
-            raise SceneError(f"{where} is an empty list of values")
+            raise SpecError(f"{where} is an empty list of values")
         return Axis(name, "values", tuple(_number(f"{where}[{i}]", v) for i, v in enumerate(value)))
     if not isinstance(value, dict) or len(value) != 1:
-        raise SceneError(
+        raise SpecError(
             f"{where}={value!r}: expected a list of values or one of "
             f"{{ {', '.join(_GRID + _RANDOM)} = [...] }}"
         )
     ((kind, args),) = value.items()
     if kind not in _GRID + _RANDOM:
-        raise SceneError(f"{where}: unknown kind {kind!r}; valid: {', '.join(_GRID + _RANDOM)}")
+        raise SpecError(f"{where}: unknown kind {kind!r}; valid: {', '.join(_GRID + _RANDOM)}")
     if not isinstance(args, list):
-        raise SceneError(f"{where}: {kind} needs a list, not {args!r}")
+        raise SpecError(f"{where}: {kind} needs a list, not {args!r}")
     want = 3 if kind in _GRID else 2
     if len(args) != want:
-        raise SceneError(f"{where}: {kind} takes {want} numbers, not {len(args)}")
+        raise SpecError(f"{where}: {kind} takes {want} numbers, not {len(args)}")
     nums = tuple(_number(f"{where}.{kind}[{i}]", v) for i, v in enumerate(args))
     if kind in _GRID:
         n = nums[2]
         if n != int(n) or n < 1:
-            raise SceneError(
-                f"{where}: {kind} needs a whole number of values >= 1, not {args[2]!r}"
-            )
+            raise SpecError(f"{where}: {kind} needs a whole number of values >= 1, not {args[2]!r}")
         if kind == "logspace" and max(abs(nums[0]), abs(nums[1])) > 300:
-            raise SceneError(f"{where}: logspace exponents beyond ±300 overflow")
+            raise SpecError(f"{where}: logspace exponents beyond ±300 overflow")
     elif kind in ("uniform", "lhs") and not nums[0] < nums[1]:
-        raise SceneError(f"{where}: {kind} needs low < high, not {list(args)!r}")
+        raise SpecError(f"{where}: {kind} needs low < high, not {list(args)!r}")
     elif kind == "normal" and nums[1] < 0:
-        raise SceneError(f"{where}: normal needs a standard deviation >= 0, not {args[1]!r}")
+        raise SpecError(f"{where}: normal needs a standard deviation >= 0, not {args[1]!r}")
     return Axis(name, kind, nums)
 
 
@@ -368,7 +366,7 @@ def _plain(value: Any, where: str, name: str, depth: int = 0) -> Any:
     mappings dicts.
     """
     if depth > 32:
-        raise SceneError(f"{where}: {name} is nested too deeply")
+        raise SpecError(f"{where}: {name} is nested too deeply")
     if isinstance(value, np.ndarray):
         value = value.tolist()
     elif isinstance(value, np.generic):
@@ -377,12 +375,12 @@ def _plain(value: Any, where: str, name: str, depth: int = 0) -> Any:
         out = {}
         for key, item in value.items():
             if not isinstance(key, str):
-                raise SceneError(f"{where}: {name} has the key {_show(key)}; keys are names")
+                raise SpecError(f"{where}: {name} has the key {_show(key)}; keys are names")
             out[key] = _plain(item, where, f"{name}.{key}" if name else key, depth + 1)
         return out
     if isinstance(value, (list, tuple)):
         return [_plain(v, where, f"{name}[{i}]", depth + 1) for i, v in enumerate(value)]
-    check_int64(where, name, value, SceneError)
+    check_int64(where, name, value, SpecError)
     return value
 
 
@@ -397,7 +395,7 @@ def _kind(value: Any) -> str:
 def _section(data: dict[str, Any], name: str, where: str) -> dict[str, Any]:
     value = data.get(name, {})
     if not isinstance(value, dict):
-        raise SceneError(f"{where}: [{name}] must be {_SECTION_KINDS[name]}, not {_kind(value)}")
+        raise SpecError(f"{where}: [{name}] must be {_SECTION_KINDS[name]}, not {_kind(value)}")
     return value
 
 
@@ -416,59 +414,59 @@ def spec_from_dict(data: Mapping[str, Any], where: str = "spec") -> Spec:
     Values may be numpy scalars or arrays (taken as numbers and lists).
 
     Raises:
-        SceneError: a section that is not a table, an unknown section, key,
+        SpecError: a section that is not a table, an unknown section, key,
             name or metric; an empty range; a negative count; more variants or
             chunks than allowed (counted before anything is made); values that
             make a parameter invalid (e.g. a negative mass), each in one line
             naming it.
     """
     if not isinstance(data, Mapping):
-        raise SceneError(f"{where}: a spec is a table of sections, not {_kind(data)}")
+        raise SpecError(f"{where}: a spec is a table of sections, not {_kind(data)}")
     try:
         data = _plain(data, where, "")
     except RecursionError:
-        raise SceneError(f"{where}: nested too deeply") from None
+        raise SpecError(f"{where}: nested too deeply") from None
     unknown = sorted(set(data) - set(_SECTIONS))
     if unknown:
-        raise SceneError(f"{where}: unknown section [{unknown[0]}]; valid: {', '.join(_SECTIONS)}")
+        raise SpecError(f"{where}: unknown section [{unknown[0]}]; valid: {', '.join(_SECTIONS)}")
     sweep = _section(data, "sweep", where)
     vary = _section(data, "vary", where)
     keep = _section(data, "keep", where)
     base_in = _section(data, "base", where)
     bad = sorted(set(sweep) - set(_SWEEP_KEYS))
     if bad:
-        raise SceneError(
+        raise SpecError(
             f"{where}: unknown key {bad[0]!r} in [sweep]; valid: {', '.join(_SWEEP_KEYS)}"
         )
     task = sweep.get("task", "simulate")
     if not isinstance(task, str) or task not in METRICS:
-        raise SceneError(f"{where}: task={_show(task)} is not one of {', '.join(METRICS)}")
+        raise SpecError(f"{where}: task={_show(task)} is not one of {', '.join(METRICS)}")
     urdf = sweep.get("urdf")
     if urdf is not None and (not isinstance(urdf, str) or not urdf):
-        raise SceneError(f"{where}: urdf={_show(urdf)} must be a path")
+        raise SpecError(f"{where}: urdf={_show(urdf)} must be a path")
     method = sweep.get("method")
     if method is not None and (not isinstance(method, str) or not method):
-        raise SceneError(f"{where}: method={_show(method)} must be a method's name")
+        raise SpecError(f"{where}: method={_show(method)} must be a method's name")
     tf = _number("tf", sweep.get("tf", 15.0))
     dt = _number("dt", sweep.get("dt", 0.01))
     if tf <= 0 or dt <= 0 or dt > tf:
-        raise SceneError(f"{where}: tf={tf:.6g} and dt={dt:.6g} must satisfy 0 < dt <= tf [s]")
+        raise SpecError(f"{where}: tf={tf:.6g} and dt={dt:.6g} must satisfy 0 < dt <= tf [s]")
     if tf / dt > 1_000_000:
-        raise SceneError(f"{where}: tf/dt = {tf / dt:.3g} samples per variant is over 1e6")
+        raise SpecError(f"{where}: tf/dt = {tf / dt:.3g} samples per variant is over 1e6")
     ints = {}
     for key, default, low in (("count", None, 1), ("seed", 0, 0), ("chunk", DEFAULT_CHUNK, 1)):
         value = sweep.get(key, default)
         if value is None:
             continue
         if isinstance(value, bool) or not isinstance(value, int) or value < low:
-            raise SceneError(f"{where}: {key}={_show(value)} must be an integer >= {low}")
+            raise SpecError(f"{where}: {key}={_show(value)} must be an integer >= {low}")
         ints[key] = value
     axes = tuple(_axis(name, value) for name, value in vary.items())
     random = any(a.random for a in axes)
     if random and "count" not in ints:
-        raise SceneError(f"{where}: random axes need count = N in [sweep]")
+        raise SpecError(f"{where}: random axes need count = N in [sweep]")
     if not random and "count" in ints:
-        raise SceneError(f"{where}: count applies to random axes ([vary] has none)")
+        raise SpecError(f"{where}: count applies to random axes ([vary] has none)")
     # counted as Python ints from the axes' sizes, before any value is made
     variants = math.prod(a.size for a in axes if not a.random) * ints.get("count", 1)
     if variants > MAX_VARIANTS:
@@ -480,25 +478,25 @@ def spec_from_dict(data: Mapping[str, Any], where: str = "spec") -> Spec:
         if random:
             factors.append(f"count {_count_text(ints['count'])}")
         sizes = f" ({' × '.join(factors)})"
-        raise SceneError(
+        raise SpecError(
             f"{where}: {_count_text(variants)} variants{sizes} is over the limit of "
             f"{MAX_VARIANTS:,}"
         )
     chunks = -(-variants // ints["chunk"])
     if chunks > MAX_CHUNKS:
-        raise SceneError(
+        raise SpecError(
             f"{where}: chunk={ints['chunk']} makes {chunks:,} chunks of {variants:,} variants, "
             f"over the limit of {MAX_CHUNKS:,}; use a larger chunk"
         )
     bad = sorted(set(keep) - {"metrics", "trajectories"})
     if bad:
-        raise SceneError(f"{where}: unknown key {bad[0]!r} in [keep]; valid: metrics, trajectories")
+        raise SpecError(f"{where}: unknown key {bad[0]!r} in [keep]; valid: metrics, trajectories")
     metrics = keep.get("metrics", list(METRICS[task]))
     if not isinstance(metrics, list) or not metrics:
-        raise SceneError(f"{where}: [keep] metrics must be a non-empty list")
+        raise SpecError(f"{where}: [keep] metrics must be a non-empty list")
     for m in metrics:
         if not isinstance(m, str) or m not in METRICS[task]:
-            raise SceneError(
+            raise SpecError(
                 f"{where}: metric {_show(m)} is not one of task {task}'s: "
                 f"{', '.join(METRICS[task])}"
             )
@@ -506,16 +504,16 @@ def spec_from_dict(data: Mapping[str, Any], where: str = "spec") -> Spec:
     if not isinstance(trajectories, list) or any(
         isinstance(i, bool) or not isinstance(i, int) or i < 0 for i in trajectories
     ):
-        raise SceneError(f"{where}: [keep] trajectories must be a list of variant indices >= 0")
+        raise SpecError(f"{where}: [keep] trajectories must be a list of variant indices >= 0")
     for i in trajectories:
         if i >= variants:
-            raise SceneError(f"{where}: trajectory of variant {i}, but there are {variants}")
+            raise SpecError(f"{where}: trajectory of variant {i}, but there are {variants}")
     base = {}
     for name, value in base_in.items():
         if isinstance(value, list):
             if urdf is None or name not in _URDF_PREFIXES:
                 lists = f"a URDF's {', '.join(_URDF_PREFIXES)}" if urdf else "a URDF sweep"
-                raise SceneError(
+                raise SpecError(
                     f"{where}: [base] {name} = {_show(value)} must be a number "
                     f"(lists of values per joint are for {lists})"
                 )
@@ -526,7 +524,7 @@ def spec_from_dict(data: Mapping[str, Any], where: str = "spec") -> Spec:
         if key in sweep:
             value = _number(key, sweep[key])
             if not 0 < value < 1:
-                raise SceneError(f"{where}: {key}={value:.6g} must lie in (0, 1)")
+                raise SpecError(f"{where}: {key}={value:.6g} must lie in (0, 1)")
     return Spec(
         task=task,
         urdf=urdf,
@@ -554,7 +552,7 @@ def load_spec(path: str | Path) -> Spec:
     are guarded.
 
     Raises:
-        SceneError: the file cannot be read, is not TOML, or is not a valid spec.
+        SpecError: the file cannot be read, is not TOML, or is not a valid spec.
     """
-    data = load_toml(path, cap=MAX_SPEC_BYTES, what="sweep spec", error=SceneError)
+    data = load_toml(path, cap=MAX_SPEC_BYTES, what="sweep spec", error=SpecError)
     return spec_from_dict(data, where=f"sweep spec {str(path)!r}")
