@@ -736,3 +736,15 @@ def test_the_server_is_a_meshcat_window():
         "[::1]",
         "localhost",
     ]
+
+
+@pytest.mark.parametrize("attempt", range(3))
+def test_a_signal_right_after_the_url_still_stops_the_server_cleanly(attempt):
+    """The URL is the caller's cue: a signal at once must find the server stoppable."""
+    proc, _ = _start_view("--serve-for", "300")
+    try:
+        os.kill(proc.pid, signal.SIGTERM)
+        assert proc.wait(30) == 0
+    finally:
+        proc.kill()
+    assert proc.stderr.read().splitlines()[-1] == "rrt-pin: viewer stopped"

@@ -216,30 +216,34 @@ def run(args: argparse.Namespace) -> int:
             # Before the URL: a caller that waits for the URL and then stops the server
             # (a signal) must not stop it before the hints are out.
             _hints(server)
-        print(server.url, flush=True)
-        if args.host not in ("127.0.0.1", "localhost", "::1"):
-            print(
-                f"rrt-pin: warning: listening on {args.host}: anyone who can reach it can watch "
-                "(no authentication)",
-                file=sys.stderr,
-            )
-        if args.screenshot:
-            from rrt_pin.viewer.browser import screenshot
+        shot = False
+        try:  # from the URL on, a caller may stop the server (Ctrl-C, a signal)
+            print(server.url, flush=True)
+            if args.host not in ("127.0.0.1", "localhost", "::1"):
+                print(
+                    f"rrt-pin: warning: listening on {args.host}: anyone who can reach it can "
+                    "watch (no authentication)",
+                    file=sys.stderr,
+                )
+            if args.screenshot:
+                from rrt_pin.viewer.browser import screenshot
 
-            shown = min(args.screenshot_time, scene.keyframes.duration)
-            screenshot(
-                server.url,
-                args.screenshot,
-                clips=len(scene.keyframes.frames),
-                t=shown,
-                size=args.screenshot_size,
-            )
-            print(f"rrt-pin: wrote {args.screenshot} (t = {shown:g} s)", file=sys.stderr)
-            if args.serve_for is None:
-                return 0
-        try:
+                shown = min(args.screenshot_time, scene.keyframes.duration)
+                screenshot(
+                    server.url,
+                    args.screenshot,
+                    clips=len(scene.keyframes.frames),
+                    t=shown,
+                    size=args.screenshot_size,
+                )
+                shot = True
+                print(f"rrt-pin: wrote {args.screenshot} (t = {shown:g} s)", file=sys.stderr)
+                if args.serve_for is None:
+                    return 0
             _serve(args.serve_for, start)
         except KeyboardInterrupt:
+            if args.screenshot and not shot:
+                raise  # the screenshot was not written: interrupted, not stopped
             print("rrt-pin: viewer stopped", file=sys.stderr)
     return 0
 
