@@ -1,11 +1,11 @@
-"""Accuracy the user can rely on: the catalogue of hard scenes and the global-error estimate.
+"""Accuracy the user can rely on: the catalogue of hard problems and the global-error estimate.
 
 Two things live here, both about how far a simulated q(t) is from the exact one:
 
-* :data:`SCENES`, the accuracy catalogue: runs of the chapter's arm chosen to be
+* :data:`PROBLEMS`, the accuracy catalogue: runs of the chapter's arm chosen to be
   hard for error-controlled integrators (light damping over long horizons, stiff
   gains, fast motions, small and large masses). Tests, ``scripts/bench/accuracy.py``
-  and ``docs/benchmarks.md`` all read it; :func:`reference` integrates a scene at
+  and ``docs/benchmarks.md`` all read it; :func:`reference` integrates a problem at
   rtol 1e-13 to judge the defaults against.
 * :func:`estimate`, the estimate of the global error of a run that
   :func:`rrt_pin.simulate.simulate` attaches to every result
@@ -16,7 +16,7 @@ Two things live here, both about how far a simulated q(t) is from the exact one:
 
 Why a second run: error-controlled integrators bound the error of each step,
 not the error at the end; in lightly damped oscillations the phase error of
-every step adds up, so the global error depends on the scene, silently. The
+every step adds up, so the global error depends on the problem, silently. The
 difference of two runs whose errors are proportional to the tolerance measures
 it: with e(tol) ≈ C·tol, |q(tol) − q(tol/10)| ≈ 0.9·e(tol).
 
@@ -38,12 +38,12 @@ __all__ = [
     "ACCURACY",
     "REFERENCE_ATOL",
     "REFERENCE_RTOL",
-    "SCENES",
-    "Scene",
+    "PROBLEMS",
+    "Problem",
     "reference",
 ]
 
-#: The global accuracy the defaults promise on every scene of :data:`SCENES`:
+#: The global accuracy the defaults promise on every problem of :data:`PROBLEMS`:
 #: max |q − q_exact| over the output times [rad or m].
 ACCURACY = 1e-8
 #: Tolerances of the catalogue's references (relative; absolute [rad, m, rad/s, m/s]).
@@ -52,7 +52,7 @@ REFERENCE_ATOL = 1e-15
 
 
 @dataclass(frozen=True)
-class Scene:
+class Problem:
     """One run of the chapter's arm in the accuracy catalogue.
 
     Attributes:
@@ -62,7 +62,7 @@ class Scene:
         tf: final time [s] (runs start at 0).
         dt: output interval [s].
         tracking: gains (kp, kd) of a computed-torque law along eq. (30) (the
-            scene then runs on Pinocchio only), or None for eq. (31).
+            problem then runs on Pinocchio only), or None for eq. (31).
     """
 
     name: str
@@ -74,7 +74,7 @@ class Scene:
 
     @property
     def arm(self) -> Robot:
-        """The chapter's arm with this scene's parameters."""
+        """The chapter's arm with this problem's parameters."""
         from rrt_pin.params import Params
         from rrt_pin.robots import chapter_arm
 
@@ -92,7 +92,7 @@ class Scene:
         return time_grid(self.tf, self.dt)
 
     def controller(self, robot: Robot | None = None) -> Any:
-        """The scene's law: eq. (31), or computed torque along eq. (30) with Tp from params."""
+        """The problem's law: eq. (31), or computed torque along eq. (30) with Tp from params."""
         from rrt_pin import control
 
         robot = self.arm if robot is None else robot
@@ -105,7 +105,7 @@ class Scene:
         return control.tracking_controller(robot, RestToRest(d.q0, d.qf, d.Tp), kp=kp, kd=kd)
 
     def run(self, **options: Any) -> SimulationResult:
-        """``simulate`` this scene (keyword options as :func:`rrt_pin.simulate.simulate`)."""
+        """``simulate`` this problem (keyword options as :func:`rrt_pin.simulate.simulate`)."""
         from rrt_pin.simulate import simulate
 
         robot = self.arm
@@ -113,8 +113,8 @@ class Scene:
         return simulate(robot, self.controller(robot), d.q0, d.qd0, self.times(), **options)
 
 
-def _scenes(*scenes: Scene) -> dict[str, Scene]:
-    return {s.name: s for s in scenes}
+def _problems(*problems: Problem) -> dict[str, Problem]:
+    return {s.name: s for s in problems}
 
 
 _STIFF_100 = dict(
@@ -123,41 +123,41 @@ _STIFF_100 = dict(
 _STIFF_10K = {k: 100.0 * v for k, v in _STIFF_100.items()}
 
 #: The accuracy catalogue, by name (the defaults must reach :data:`ACCURACY` on each).
-SCENES: dict[str, Scene] = _scenes(
-    Scene("chapter", "the chapter's run, eq. (31), strongly damped"),
-    Scene(
+PROBLEMS: dict[str, Problem] = _problems(
+    Problem("chapter", "the chapter's run, eq. (31), strongly damped"),
+    Problem(
         "slider-150s",
         "lightly damped slider: beta23 = 0.5 N·s/m, gamma23 = 400 N/m, 150 s",
         dict(beta23=0.5, gamma23=400.0),
         tf=150.0,
     ),
-    Scene("long-1000s", "the chapter's gains over a long horizon, 1,000 s", tf=1000.0),
-    Scene(
+    Problem("long-1000s", "the chapter's gains over a long horizon, 1,000 s", tf=1000.0),
+    Problem(
         "light-joint1",
         "lightly damped joint 1: beta01 = 1 N·m·s/rad, 150 s",
         dict(beta01=1.0),
         tf=150.0,
     ),
-    Scene(
+    Problem(
         "light-joint2",
         "lightly damped joint 2: beta12 = 1 N·m·s/rad, 150 s",
         dict(beta12=1.0),
         tf=150.0,
     ),
-    Scene(
+    Problem(
         "light-joint3",
         "lightly damped slider: beta23 = 1 N·s/m, 150 s",
         dict(beta23=1.0),
         tf=150.0,
     ),
-    Scene("stiff-x100", "every gain ×100", _STIFF_100),
-    Scene("stiff-x1e4", "every gain ×10⁴", _STIFF_10K),
-    Scene(
+    Problem("stiff-x100", "every gain ×100", _STIFF_100),
+    Problem("stiff-x1e4", "every gain ×10⁴", _STIFF_10K),
+    Problem(
         "fast-oscillation",
         "fast, lightly damped slider: gamma23 = 4·10⁴ N/m (5 Hz), beta23 = 0.5 N·s/m",
         dict(beta23=0.5, gamma23=4e4),
     ),
-    Scene(
+    Problem(
         "fast-motion",
         "computed torque along eq. (30) with Tp = 0.5 s, kp = 400, kd = 40, 3 s",
         dict(Tp=0.5),
@@ -165,25 +165,29 @@ SCENES: dict[str, Scene] = _scenes(
         dt=0.001,
         tracking=(400.0, 40.0),
     ),
-    Scene(
+    Problem(
         "small-masses",
         "masses and inertias ÷100 (the chapter's gains: fast modes)",
         dict(m1=0.9, m2=0.6, m3=0.4, I3x=0.05, I3y=0.04, I3z=0.01),
     ),
-    Scene(
+    Problem(
         "large-masses",
         "masses and inertias ×100 (slow, barely moving)",
         dict(m1=9000.0, m2=6000.0, m3=4000.0, I3x=500.0, I3y=400.0, I3z=100.0),
     ),
 )
 
+#: Old names of the catalogue and its entries (kept for one release; not in ``__all__``).
+SCENES = PROBLEMS
+Scene = Problem
+
 
 @dataclass(frozen=True, eq=False)
 class Reference:
-    """A scene integrated at :data:`REFERENCE_RTOL`.
+    """A problem integrated at :data:`REFERENCE_RTOL`.
 
     Attributes:
-        q: coordinates at the scene's output times (N, 3) [rad, rad, m].
+        q: coordinates at the problem's output times (N, 3) [rad, rad, m].
         how: backend and method that computed it.
     """
 
@@ -191,26 +195,26 @@ class Reference:
     how: str
 
 
-def reference(scene: Scene, backend: str | None = None) -> Reference:
-    """The scene at rtol 1e-13, atol 1e-15 with DOP853 (order 8).
+def reference(problem: Problem, backend: str | None = None) -> Reference:
+    """The problem at rtol 1e-13, atol 1e-15 with DOP853 (order 8).
 
     Args:
-        scene: a catalogue scene.
-        backend: ``compiled`` (fast; eq. (31) scenes only) or ``pinocchio``
+        problem: a catalogue problem.
+        backend: ``compiled`` (fast; eq. (31) problems only) or ``pinocchio``
             (scipy's DOP853 on ``pin.aba``, :func:`rrt_pin.reference.reference_run`,
             sharing no code with :func:`~rrt_pin.simulate.simulate`); default
-            compiled when the scene and numba allow it.
+            compiled when the problem and numba allow it.
     """
     from rrt_pin import backends
 
     if backend is None:
         backend = (
             "compiled"
-            if "compiled" in scene.backends and backends.get("compiled").available()
+            if "compiled" in problem.backends and backends.get("compiled").available()
             else "pinocchio"
         )
     if backend == "compiled":
-        run = scene.run(
+        run = problem.run(
             backend="compiled",
             method="DOP853",
             rtol=REFERENCE_RTOL,
@@ -220,14 +224,14 @@ def reference(scene: Scene, backend: str | None = None) -> Reference:
         return Reference(q=np.array(run.q), how="compiled DOP853")
     from rrt_pin.reference import reference_run
 
-    robot = scene.arm
+    robot = problem.arm
     d = robot.defaults
     ref = reference_run(
         robot.model,
-        scene.controller(robot),
+        problem.controller(robot),
         d.q0,
         d.qd0,
-        scene.times(),
+        problem.times(),
         rtol=REFERENCE_RTOL,
         atol=REFERENCE_ATOL,
         methods=("DOP853",),

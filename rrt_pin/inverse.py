@@ -8,7 +8,7 @@ from the closed-form equations of motion: ``"symbolic"`` (the generated numpy
 kernel :mod:`rrt_pin.kernel`) and ``"compiled"`` (the numba backend
 :mod:`rrt_pin.compiled`). For any other fixed-base robot whose joints are
 revolute, prismatic or continuous, ``"compiled"`` runs the RNEA generated from
-its Pinocchio model (:mod:`rrt_pin.codegen`, :mod:`rrt_pin.compiled.rnea`).
+its Pinocchio model (:mod:`rrt_pin.rnea_source`, :mod:`rrt_pin.compiled.rnea`).
 
 Units: q in rad (revolute) or m (prismatic), q̇ in rad/s or m/s, q̈ in rad/s²
 or m/s²; efforts in N·m (revolute) or N (prismatic).

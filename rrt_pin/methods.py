@@ -39,7 +39,7 @@ FIXED_STEP = "fixed-step"
 SYMPLECTIC = "symplectic"
 
 #: The global accuracy the defaults keep: max |q − q_exact| over the output times
-#: [rad or m], on every scene of the accuracy catalogue (:data:`rrt_pin.accuracy.SCENES`),
+#: [rad or m], on every problem of the accuracy catalogue (:data:`rrt_pin.accuracy.PROBLEMS`),
 #: with the default method of either backend, one run or a batch. A run whose
 #: estimated error (``result.error_estimate``) exceeds the larger of this and its
 #: tolerances says so.

@@ -458,7 +458,7 @@ def _maybe(name: str, value: Any, n: int) -> tuple[float, ...] | None:
 
 def _generated_backends(model: pin.Model) -> tuple[str, ...]:
     """``("compiled",)`` when its generated RNEA handles every joint of ``model``, else ()."""
-    from rrt_pin.codegen import unsupported_joint
+    from rrt_pin.rnea_source import unsupported_joint
 
     return ("compiled",) if unsupported_joint(model) is None else ()
 

@@ -3,7 +3,7 @@ run's error estimate brackets its true error.
 
 References are computed here at rtol 1e-13 (the compiled DOP853 where it runs, scipy's
 DOP853 on ``pin.aba`` otherwise), and cross-checked against a second, independent
-integration on a few scenes.
+integration on a few problems.
 """
 
 from __future__ import annotations
@@ -14,14 +14,14 @@ import numpy as np
 import pytest
 
 from rrt_pin import methods
-from rrt_pin.accuracy import ACCURACY, SCENES, max_error, reference
+from rrt_pin.accuracy import ACCURACY, PROBLEMS, max_error, reference
 from rrt_pin.cli import main
 from rrt_pin.compiled import available
 from rrt_pin.simulate import AccuracyWarning, simulate, simulate_batch
 
 #: The bracket the estimate must keep: true/10 <= estimate <= 10·true.
 BRACKET = 10.0
-#: Below this the references themselves disagree (5e-12 over the 1,000 s scene between
+#: Below this the references themselves disagree (5e-12 over the 1,000 s problem between
 #: the compiled and scipy's DOP853, 5e-11 between odepack and DOP853 on light-joint3):
 #: errors and estimates are compared as max(value, FLOOR) [rad or m].
 FLOOR = 1e-11
@@ -35,9 +35,9 @@ _REFS: dict[str, np.ndarray] = {}
 
 
 def ref(name: str) -> np.ndarray:
-    """The scene's reference q (computed once per session)."""
+    """The problem's reference q (computed once per session)."""
     if name not in _REFS:
-        _REFS[name] = reference(SCENES[name]).q
+        _REFS[name] = reference(PROBLEMS[name]).q
     return _REFS[name]
 
 
@@ -49,18 +49,18 @@ def assert_brackets(estimate: float, error: float, what: str) -> None:
 def quiet_run(name: str, **kw):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", AccuracyWarning)
-        return SCENES[name].run(**kw)
+        return PROBLEMS[name].run(**kw)
 
 
 def test_the_catalogue_covers_the_hard_cases():
-    names = set(SCENES)
+    names = set(PROBLEMS)
     assert {"chapter", "slider-150s", "long-1000s", "stiff-x100", "stiff-x1e4"} <= names
     assert {"light-joint1", "light-joint2", "light-joint3"} <= names
     assert {"fast-motion", "small-masses", "large-masses"} <= names
-    assert max(s.tf for s in SCENES.values()) >= 1000.0
-    slider = SCENES["slider-150s"]
+    assert max(s.tf for s in PROBLEMS.values()) >= 1000.0
+    slider = PROBLEMS["slider-150s"]
     assert (slider.arm.params.beta23, slider.arm.params.gamma23, slider.tf) == (0.5, 400.0, 150.0)
-    assert SCENES["fast-motion"].backends == ("pinocchio",)
+    assert PROBLEMS["fast-motion"].backends == ("pinocchio",)
 
 
 # --- references -----------------------------------------------------------------------
@@ -71,18 +71,18 @@ def test_compiled_reference_agrees_with_scipy_dop853_and_radau():
     chapter = chapter_reference()  # DOP853 and Radau on pin.aba at rtol 1e-13, cached
     assert chapter.difference_q < 1e-12
     assert max_error(ref("chapter"), chapter.q) < 1e-12
-    fast = SCENES["fast-oscillation"]
+    fast = PROBLEMS["fast-oscillation"]
     assert max_error(ref(fast.name), reference(fast, backend="pinocchio").q) < 1e-12
 
 
 # --- the defaults keep their promise ---------------------------------------------------
-COMPILED_SCENES = [n for n, s in SCENES.items() if "compiled" in s.backends]
+COMPILED_PROBLEMS = [n for n, s in PROBLEMS.items() if "compiled" in s.backends]
 
 
 @needs_compiled
-@pytest.mark.parametrize("name", COMPILED_SCENES)
+@pytest.mark.parametrize("name", COMPILED_PROBLEMS)
 def test_compiled_default_keeps_the_promise_and_its_estimate_brackets(name):
-    run = SCENES[name].run(backend="compiled")
+    run = PROBLEMS[name].run(backend="compiled")
     assert run.method == "DOP853" and (run.rtol, run.atol) == (1e-10, 1e-12)
     error = max_error(run.q, ref(name))
     assert error <= ACCURACY
@@ -92,9 +92,9 @@ def test_compiled_default_keeps_the_promise_and_its_estimate_brackets(name):
     assert_brackets(old.error_estimate, max_error(old.q, ref(name)), f"{name} compiled rtol 1e-9")
 
 
-@pytest.mark.parametrize("name", list(SCENES))
+@pytest.mark.parametrize("name", list(PROBLEMS))
 def test_pinocchio_default_keeps_the_promise_and_its_estimate_brackets(name):
-    run = SCENES[name].run()
+    run = PROBLEMS[name].run()
     assert run.method == "odepack" and run.backend == "pinocchio"
     error = max_error(run.q, ref(name))
     assert error <= ACCURACY
@@ -119,15 +119,15 @@ def test_pinocchio_estimate_brackets_at_the_old_defaults(name):
     ],
 )
 def test_batch_default_keeps_the_promise_on_pinocchio(names):
-    """Scenes that differ in gains only share the arm: one Pinocchio batch of them.
+    """Problems that differ in gains only share the arm: one Pinocchio batch of them.
 
     (One thread: OpenMP's threads wait for each other on a busy machine.)
     """
-    scenes = [SCENES[n] for n in names]
-    arm = scenes[0].arm
-    laws = [s.controller(s.arm) for s in scenes]
-    q0s = np.array([s.arm.defaults.q0 for s in scenes])
-    batch = simulate_batch(arm, laws, q0s, None, scenes[0].times(), threads=1)
+    problems = [PROBLEMS[n] for n in names]
+    arm = problems[0].arm
+    laws = [s.controller(s.arm) for s in problems]
+    q0s = np.array([s.arm.defaults.q0 for s in problems])
+    batch = simulate_batch(arm, laws, q0s, None, problems[0].times(), threads=1)
     assert batch.method == "odepack" and batch.estimate.variants.shape == (len(names), 3)
     for i, name in enumerate(names):
         error = max_error(batch.q[i], ref(name))
@@ -139,15 +139,15 @@ def test_batch_default_keeps_the_promise_on_pinocchio(names):
 @needs_compiled
 @pytest.mark.parametrize("tf", [15.0, 150.0, 1000.0])
 def test_batch_default_keeps_the_promise_compiled(tf):
-    names = [n for n in COMPILED_SCENES if SCENES[n].tf == tf]
-    scenes = [SCENES[n] for n in names]
-    arms = [s.arm for s in scenes]
+    names = [n for n in COMPILED_PROBLEMS if PROBLEMS[n].tf == tf]
+    problems = [PROBLEMS[n] for n in names]
+    arms = [s.arm for s in problems]
     batch = simulate_batch(
         arms[0],
-        [s.controller(a) for s, a in zip(scenes, arms, strict=True)],
+        [s.controller(a) for s, a in zip(problems, arms, strict=True)],
         np.array([a.defaults.q0 for a in arms]),
         None,
-        scenes[0].times(),
+        problems[0].times(),
         backend="compiled",
         params=[a.params for a in arms],
     )
@@ -200,12 +200,12 @@ def test_any_urdf_robot_gets_an_estimate(tmp_path):
 
 # --- the estimate's switches and warnings ----------------------------------------------
 def test_estimate_can_be_skipped():
-    scene = SCENES["chapter"]
-    run = scene.run(estimate_error=False)
+    problem = PROBLEMS["chapter"]
+    run = problem.run(estimate_error=False)
     assert run.estimate is None and run.error_estimate is None and run.error_estimate_q is None
-    arm = scene.arm
+    arm = problem.arm
     batch = simulate_batch(
-        arm, scene.controller(arm), np.array([arm.defaults.q0]), None, scene.times()[:101],
+        arm, problem.controller(arm), np.array([arm.defaults.q0]), None, problem.times()[:101],
         estimate_error=False,
     )  # fmt: skip
     assert batch.estimate is None and batch.variant(0).error_estimate is None
@@ -214,11 +214,11 @@ def test_estimate_can_be_skipped():
 def test_a_run_beyond_its_accuracy_warns():
     backend = "compiled" if available() else "pinocchio"
     with pytest.warns(AccuracyWarning, match=r"estimated global error of q .* \(q3\) exceeds"):
-        run = SCENES["slider-150s"].run(backend=backend, method="rk4", step=0.01)
+        run = PROBLEMS["slider-150s"].run(backend=backend, method="rk4", step=0.01)
     assert run.estimate.exceeded and run.estimate.accuracy == ACCURACY
     with warnings.catch_warnings():
         warnings.simplefilter("error", AccuracyWarning)
-        loose = SCENES["chapter"].run(backend=backend, rtol=1e-6, atol=1e-8)
+        loose = PROBLEMS["chapter"].run(backend=backend, rtol=1e-6, atol=1e-8)
     assert loose.estimate.accuracy == 1e-6  # asks for no better than its tolerance
 
 

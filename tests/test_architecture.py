@@ -304,3 +304,29 @@ def test_run_files_and_specs_have_their_own_names_and_the_old_ones_still_work(tm
         load_runfile(path)  # a library caller names the tables it takes
     assert load_runfile(path, tables=("inverse",)).commands == {"inverse": {"dt": 0.01}}
     assert "load_scene" not in rrt_pin.__all__ and "load_runfile" in rrt_pin.__all__
+
+
+def test_the_viewers_drawing_and_the_rnea_source_have_their_names_and_old_ones_warn():
+    import importlib
+    import sys
+
+    import rrt_pin.viewer as viewer
+    from rrt_pin import rnea_source
+    from rrt_pin.viewer.drawing import RobotDrawing, build_drawing
+
+    with pytest.warns(DeprecationWarning, match="rrt_pin.viewer.RobotDrawing"):
+        assert viewer.ArmScene is RobotDrawing
+    with pytest.warns(DeprecationWarning, match="rrt_pin.viewer.build_drawing"):
+        assert viewer.build_scene is build_drawing
+    for old, new in (("rrt_pin.viewer.scene", "rrt_pin.viewer.drawing"),
+                     ("rrt_pin.codegen", "rrt_pin.rnea_source")):  # fmt: skip
+        sys.modules.pop(old, None)
+        with pytest.warns(DeprecationWarning, match=new):
+            module = importlib.import_module(old)
+        for name in module.__all__:
+            assert getattr(module, name) is not None
+    assert importlib.import_module("rrt_pin.codegen").rnea_source is rnea_source.rnea_source
+    from rrt_pin import accuracy
+
+    assert accuracy.SCENES is accuracy.PROBLEMS and accuracy.Scene is accuracy.Problem
+    assert "SCENES" not in accuracy.__all__ and "PROBLEMS" in accuracy.__all__

@@ -1,4 +1,4 @@
-"""Inverse dynamics generated from a Pinocchio model (rrt_pin.codegen) and compiled (rrt_pin.compiled.rnea).
+"""Inverse dynamics generated from a Pinocchio model (rrt_pin.rnea_source) and compiled (rrt_pin.compiled.rnea).
 
 Every kernel is checked sample by sample against ``pin.rnea`` at random states;
 each model is compiled once per session (module-scope fixtures).
@@ -18,10 +18,10 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from rrt_pin.codegen import MAX_JOINTS, UnsupportedJoint, rnea_source, unsupported_joint
 from rrt_pin.errors import InputError
 from rrt_pin.inverse import inverse_dynamics
 from rrt_pin.model import rrt_model
+from rrt_pin.rnea_source import MAX_JOINTS, UnsupportedJoint, rnea_source, unsupported_joint
 from tests.support import robot_urdf
 
 needs_numba = pytest.mark.skipif(importlib.util.find_spec("numba") is None, reason="no numba")
@@ -335,9 +335,9 @@ def test_too_many_joints_are_refused():
 def test_the_generator_imports_without_numba():
     code = (
         "import sys; sys.modules['numba'] = None\n"
-        "import rrt_pin, rrt_pin.codegen, rrt_pin.robots\n"
+        "import rrt_pin, rrt_pin.rnea_source, rrt_pin.robots\n"
         "from rrt_pin.model import rrt_model\n"
-        "g = rrt_pin.codegen.rnea_source(rrt_model())\n"
+        "g = rrt_pin.rnea_source.rnea_source(rrt_model())\n"
         "print(g.nv, g.flops > 0, 'numba' in sys.modules and sys.modules['numba'] is not None)\n"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT)

@@ -23,7 +23,7 @@ from rrt_pin.model import build_geometry, rrt_model
 from rrt_pin.params import Params
 from rrt_pin.trajectory import rest_to_rest
 from rrt_pin.urdf import urdf_xml
-from rrt_pin.viewer import build_scene, keyframe_times, resample
+from rrt_pin.viewer import build_drawing, keyframe_times, resample
 from rrt_pin.viewer.keyframes import frame_placements
 from tests.support import TIGHT, mass_centres, seed_to_world, unit_vectors
 
@@ -37,7 +37,7 @@ def seed_scene():
     geometry = build_geometry(model, urdf_xml(p))
     t = keyframe_times(p.Tp, FPS)
     q = rest_to_rest(p.q0, p.qf, p.Tp, t).q
-    return p, model, geometry, build_scene(model, geometry, t, q, FPS, ghost_q=np.asarray(p.qf))
+    return p, model, geometry, build_drawing(model, geometry, t, q, FPS, ghost_q=np.asarray(p.qf))
 
 
 # ---------------------------------------------------------------------------
@@ -322,10 +322,10 @@ def test_meshes_of_another_urdf_become_meshcat_meshes():
     geometry = build_geometry(model, path.read_text(), package_dirs=dirs)
     t = keyframe_times(1.0, 10.0)
     q = np.outer(t, np.full(model.nq, 0.5))
-    scene = build_scene(model, geometry, t, q, 10.0)
-    assert len(scene.shapes) == 7 and {s.kind for s in scene.shapes} == {"mesh"}
-    assert scene.keyframes.frames[0] == "shoulder_link" and scene.ground_z <= 0.0
-    name, obj, _ = shape_object(scene.shapes[1])[0]
+    drawing = build_drawing(model, geometry, t, q, 10.0)
+    assert len(drawing.shapes) == 7 and {s.kind for s in drawing.shapes} == {"mesh"}
+    assert drawing.keyframes.frames[0] == "shoulder_link" and drawing.ground_z <= 0.0
+    name, obj, _ = shape_object(drawing.shapes[1])[0]
     assert obj.lower()["geometries"][0]["format"] == "dae"
 
 

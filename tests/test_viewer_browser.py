@@ -41,7 +41,7 @@ def served(chromium_paths):
     from rrt_pin.params import Params
     from rrt_pin.trajectory import rest_to_rest
     from rrt_pin.urdf import urdf_xml
-    from rrt_pin.viewer import build_scene, keyframe_times
+    from rrt_pin.viewer import build_drawing, keyframe_times
     from rrt_pin.viewer.meshcat_scene import scene_commands
     from rrt_pin.viewer.server import ViewerServer
 
@@ -49,11 +49,11 @@ def served(chromium_paths):
     model = rrt_model(p)
     t = keyframe_times(p.Tp, FPS)
     q = rest_to_rest(p.q0, p.qf, p.Tp, t).q
-    scene = build_scene(model, build_geometry(model, urdf_xml(p)), t, q, FPS, ghost_q=p.qf)
+    drawing = build_drawing(model, build_geometry(model, urdf_xml(p)), t, q, FPS, ghost_q=p.qf)
     with ViewerServer(port=0) as server:
-        for command in scene_commands(scene):
+        for command in scene_commands(drawing):
             server.send(command)
-        yield server, scene
+        yield server, drawing
 
 
 @pytest.fixture(scope="module")

@@ -503,7 +503,7 @@ def resolve_backend(
             "compiled cannot run this robot or method",
         )  # fmt: skip
     if requested == "compiled" and task == "inverse" and not robot.supports(requested, task):
-        from rrt_pin.codegen import unsupported_joint
+        from rrt_pin.rnea_source import unsupported_joint
 
         raise InputError(
             f"--backend compiled: {unsupported_joint(robot.model)}; --urdf needs --backend pinocchio"

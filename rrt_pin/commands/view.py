@@ -164,7 +164,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 # Serving
 # ---------------------------------------------------------------------------
 def run(args: argparse.Namespace) -> int:
-    """Build the scene, serve it, screenshot it."""
+    """Build the drawing, serve it, screenshot it."""
     if args.screenshot:
         from rrt_pin.io import check_outputs
 
@@ -193,7 +193,7 @@ def run(args: argparse.Namespace) -> int:
         robot, frames.t, frames.q, args.fps, ghost_q=frames.ghost,
         play=not args.paused, loop=args.loop, ghost=not args.no_ghost, what=what,
     )  # fmt: skip
-    scene = prepared.scene
+    drawing = prepared.drawing
     if args.zmq_url:
         url = send_to_meshcat_server(args.zmq_url, prepared.commands)
         print(url, flush=True)
@@ -228,11 +228,11 @@ def run(args: argparse.Namespace) -> int:
             if args.screenshot:
                 from rrt_pin.viewer.browser import screenshot
 
-                shown = min(args.screenshot_time, scene.keyframes.duration)
+                shown = min(args.screenshot_time, drawing.keyframes.duration)
                 screenshot(
                     server.url,
                     args.screenshot,
-                    clips=len(scene.keyframes.frames),
+                    clips=len(drawing.keyframes.frames),
                     t=shown,
                     size=args.screenshot_size,
                 )

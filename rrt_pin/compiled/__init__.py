@@ -19,7 +19,7 @@ Public API (SI units throughout):
   chapter variants: gains, targets, initial states and masses per variant);
 * inverse dynamics of any other fixed-base robot with revolute, prismatic or
   continuous joints: :mod:`rrt_pin.compiled.rnea` (the RNEA generated from its
-  Pinocchio model by :mod:`rrt_pin.codegen`, compiled once per model and cached
+  Pinocchio model by :mod:`rrt_pin.rnea_source`, compiled once per model and cached
   on disk by the hash of its source; not loaded by :func:`ensure_compiled`);
 * methods: those of :data:`rrt_pin.methods.METHODS` that run compiled
   (``rrt_pin.methods.names("compiled")``): ``RK45``, ``DOP853`` (adaptive,

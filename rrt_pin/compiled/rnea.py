@@ -1,6 +1,6 @@
 """Inverse dynamics of any supported fixed-base robot in machine code, generated from its model.
 
-:func:`rrt_pin.codegen.rnea_source` turns a ``pin.Model`` into the straight-line
+:func:`rrt_pin.rnea_source.rnea_source` turns a ``pin.Model`` into the straight-line
 RNEA of one sample; :func:`module_source` wraps it in a loop over a batch,
 ``kernel(Q (N, nq), V (N, nv), A (N, nv), out (N, nv))``, which is written to a
 file named by the SHA-256 of that source, imported from there and compiled by
@@ -42,7 +42,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from rrt_pin import codegen, cpus
+from rrt_pin import cpus, rnea_source
 from rrt_pin.errors import InputError
 
 if TYPE_CHECKING:
@@ -121,7 +121,7 @@ def _pairwise_sum(terms: list[str]) -> str:
     return terms[0]
 
 
-def module_source(gen: codegen.GeneratedRnea) -> str:
+def module_source(gen: rnea_source.GeneratedRnea) -> str:
     """The Python module of the batch kernel around ``gen``'s straight-line RNEA (no numba import).
 
     ``kernel(Q, V, A, out)`` writes the efforts of each row into ``out`` and returns
@@ -257,7 +257,7 @@ def _signature(numba: Any) -> Any:
     return f8(read, read, read, f8[:, ::1])
 
 
-def _compile(source: str, digest: str, gen: codegen.GeneratedRnea) -> Kernel:
+def _compile(source: str, digest: str, gen: rnea_source.GeneratedRnea) -> Kernel:
     try:
         import numba
     except ImportError as e:
@@ -324,7 +324,7 @@ def kernel_for(model: pin.Model) -> Kernel:
         return entry[2]
     import pinocchio as pin
 
-    gen = codegen.rnea_source(model)
+    gen = rnea_source.rnea_source(model)
     source = module_source(gen)
     digest = hashlib.sha256(source.encode()).hexdigest()
     with _lock:

@@ -25,7 +25,7 @@ loop from ``pin.computeABADerivatives`` and the controller's
 Default tolerances: ``rtol=1e-12``, ``atol=1e-14`` for ``odepack``, ``rtol=1e-10``,
 ``atol=1e-12`` for the others, one run or a batch: chosen so that the default
 method of either backend keeps max |q − q_exact| ≤ 1e-8 rad or m
-(:data:`rrt_pin.methods.ACCURACY`) on every scene of :data:`rrt_pin.accuracy.SCENES`.
+(:data:`rrt_pin.methods.ACCURACY`) on every problem of :data:`rrt_pin.accuracy.PROBLEMS`.
 
 A run that produces a non-finite state or whose integrator fails raises
 :class:`~rrt_pin.errors.DivergenceError` with the time and the coordinate; no

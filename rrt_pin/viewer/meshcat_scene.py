@@ -1,4 +1,4 @@
-"""An :class:`~rrt_pin.viewer.scene.ArmScene` as meshcat commands (plain data, nothing sent).
+"""An :class:`~rrt_pin.viewer.drawing.RobotDrawing` as meshcat commands (plain data, nothing sent).
 
 Each command has meshcat's ``lower()`` (a msgpack-ready dict); the transport
 (:mod:`rrt_pin.viewer.server`) only packs and forwards them. Geometry is sent
@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from rrt_pin.viewer._deps import import_meshcat
-from rrt_pin.viewer.scene import ArmScene, VisualShape
+from rrt_pin.viewer.drawing import RobotDrawing, VisualShape
 
 __all__ = [
     "ARM",
@@ -121,7 +121,7 @@ def shape_object(shape: VisualShape, opacity: float = 1.0) -> list[tuple[str, An
     raise ValueError(f"unknown shape kind {shape.kind!r}")
 
 
-def animation(scene: ArmScene) -> Any:
+def animation(drawing: RobotDrawing) -> Any:
     """The meshcat Animation of the moving links: one clip per link, position and quaternion tracks.
 
     Keyframe ``k`` sits at frame number ``t[k]·fps`` of a clip at ``fps``, i.e.
@@ -129,7 +129,7 @@ def animation(scene: ArmScene) -> Any:
     """
     mc = import_meshcat()
     an = mc.animation
-    kf = scene.keyframes
+    kf = drawing.keyframes
     frames = (kf.t * kf.fps).tolist()
     anim = an.Animation(default_framerate=kf.fps)
     quats = quaternions_xyzw(kf.transforms[:, :, :3, :3])
@@ -152,12 +152,12 @@ def _translation(p: np.ndarray) -> np.ndarray:
 
 
 def scene_commands(
-    scene: ArmScene, *, play: bool = True, loop: bool = True, ghost: bool = True
+    drawing: RobotDrawing, *, play: bool = True, loop: bool = True, ghost: bool = True
 ) -> list[Any]:
     """The meshcat commands that draw ``scene`` and upload its animation.
 
     Args:
-        scene: the scene data.
+        drawing: what is drawn (shapes, keyframes, ghost, path, camera).
         play: start playing as soon as the page has the animation.
         loop: repeat forever; otherwise play once and stay at the last frame.
         ghost: draw the target pose as a translucent ghost arm.
@@ -171,51 +171,51 @@ def scene_commands(
     c = mc.commands
     g = mc.geometry
     out: list[Any] = []
-    size = float(np.max(scene.hi - scene.lo))
+    size = float(np.max(drawing.hi - drawing.lo))
     # meshcat's camera orbits the page's origin: shift the drawing so that the
-    # scene's centre is there (see rrt_pin.viewer.scene.CameraView).
-    shift = -scene.camera.center
+    # scene's centre is there (see rrt_pin.viewer.drawing.CameraView).
+    shift = -drawing.camera.center
     out.append(c.SetTransform(_translation(shift), _path("/meshcat")))
     # meshcat's own grid (20 m, crossing behind the camera, which headless
-    # Chromium's software renderer drops) gives way to one sized to the scene.
+    # Chromium's software renderer drops) gives way to one sized to the drawing.
     out.append(c.SetProperty("visible", False, _path("/Grid")))
     grid = g.LineSegments(
-        g.PointsGeometry(scene.grid.T.astype(np.float32)),
+        g.PointsGeometry(drawing.grid.T.astype(np.float32)),
         g.LineBasicMaterial(color=GRID_COLOUR),
     )
     out.append(c.SetObject(grid, path=_path(GROUND)))
     # meshcat's default world triad ("/Axes") is 0.5 m long; scale it to the arm.
     axes = _translation(shift) @ np.diag([max(size, 0.2) / 4 / 0.5] * 3 + [1.0])
     out.append(c.SetTransform(axes, _path("/Axes")))
-    for s in scene.shapes:
+    for s in drawing.shapes:
         for sub, obj, local in shape_object(s):
             p = _path(f"{ARM}/{_safe(s.frame)}/{sub}")
             out.append(c.SetObject(obj, path=p))
             out.append(c.SetTransform(local, p))
-    for frame, T in scene.static:
+    for frame, T in drawing.static:
         out.append(c.SetTransform(T, _path(f"{ARM}/{_safe(frame)}")))
-    if ghost and scene.ghost:
-        for s in scene.shapes:
+    if ghost and drawing.ghost:
+        for s in drawing.shapes:
             for sub, obj, local in shape_object(s, opacity=GHOST_OPACITY):
                 p = _path(f"{GHOST}/{_safe(s.frame)}/{sub}")
                 out.append(c.SetObject(obj, path=p))
                 out.append(c.SetTransform(local, p))
-        for frame, T in scene.ghost:
+        for frame, T in drawing.ghost:
             out.append(c.SetTransform(T, _path(f"{GHOST}/{_safe(frame)}")))
-    if len(scene.path) > 1:
+    if len(drawing.path) > 1:
         line = g.Line(
-            g.PointsGeometry(scene.path.T.astype(np.float32)),
+            g.PointsGeometry(drawing.path.T.astype(np.float32)),
             g.LineBasicMaterial(color=PATH_COLOUR, linewidth=2.0),
         )
         out.append(c.SetObject(line, path=_path(PATH)))
     # The camera sits in the "rotated" frame, which is y up: world (x, y, z) -> (x, z, -y).
-    offset = scene.camera.offset
+    offset = drawing.camera.offset
     camera = _path("/Cameras/default/rotated/<object>")
-    out.append(c.SetProperty("fov", scene.camera.fov_deg, camera))
+    out.append(c.SetProperty("fov", drawing.camera.fov_deg, camera))
     out.append(
         c.SetProperty("position", [float(offset[0]), float(offset[2]), float(-offset[1])], camera)
     )
-    if scene.keyframes.frames:
+    if drawing.keyframes.frames:
         reps = math.inf if loop else 1
-        out.append(c.SetAnimation(animation(scene), play=play, repetitions=reps))
+        out.append(c.SetAnimation(animation(drawing), play=play, repetitions=reps))
     return out

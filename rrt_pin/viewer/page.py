@@ -14,9 +14,9 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from rrt_pin.viewer.scene import ArmScene
+    from rrt_pin.viewer.drawing import RobotDrawing
 
-__all__ = ["LegendEntry", "meshcat_index", "page_html", "scene_legend"]
+__all__ = ["LegendEntry", "meshcat_index", "page_html", "drawing_legend"]
 
 
 @dataclass(frozen=True)
@@ -97,17 +97,17 @@ def _css(rgb: tuple[float, ...]) -> str:
     return f"#{r:02x}{g:02x}{b:02x}"
 
 
-def scene_legend(scene: ArmScene, ghost: bool = True) -> list[LegendEntry]:
+def drawing_legend(drawing: RobotDrawing, ghost: bool = True) -> list[LegendEntry]:
     """What ``scene`` draws, in its colours: the arm, the ghost at the target, the path line."""
     from rrt_pin.viewer.meshcat_scene import PATH_COLOUR
 
-    colours = list(dict.fromkeys(_css(shape.rgba) for shape in scene.shapes))[:4] or ["#888"]
+    colours = list(dict.fromkeys(_css(shape.rgba) for shape in drawing.shapes))[:4] or ["#888"]
     colour = colours[0] if len(colours) == 1 else f"linear-gradient(90deg, {', '.join(colours)})"
     out = [LegendEntry("arm (moving)", colour)]
-    if ghost and scene.ghost:
+    if ghost and drawing.ghost:
         out.append(LegendEntry("target qf (translucent ghost)", colour, "ghost"))
-    if len(scene.path) > 1:
-        out.append(LegendEntry(f"path of {scene.path_frame}", f"#{PATH_COLOUR:06x}", "line"))
+    if len(drawing.path) > 1:
+        out.append(LegendEntry(f"path of {drawing.path_frame}", f"#{PATH_COLOUR:06x}", "line"))
     return out
 
 

@@ -6,7 +6,7 @@ a meshcat server the user already runs.
 * :func:`geometry`: a robot's visual geometry, its ``package://`` meshes found
   beside the URDF or on ``ROS_PACKAGE_PATH`` (drawn without them, with a warning
   saying so, when they are nowhere).
-* :func:`prepare`: the scene, its meshcat commands and the page (title, legend,
+* :func:`prepare`: the drawing, its meshcat commands and the page (title, legend,
   time readout) for joint coordinates sampled at times ``t``.
 * :func:`show`: a result (anything with ``t`` and ``q``) served from a background
   thread of this process; returns its URL (a ``str`` that Jupyter shows as the page).
@@ -28,7 +28,7 @@ from rrt_pin.errors import InputError, UrdfError, ViewerError
 
 if TYPE_CHECKING:
     from rrt_pin.robot import Robot
-    from rrt_pin.viewer.scene import ArmScene
+    from rrt_pin.viewer.drawing import RobotDrawing
 
 __all__ = ["Prepared", "ViewerURL", "geometry", "prepare", "send_to_meshcat_server", "show"]
 
@@ -98,13 +98,13 @@ class Prepared:
     """A motion ready to serve.
 
     Attributes:
-        scene: what is drawn (shapes, keyframes, ghost, path, camera).
+        drawing: what is drawn (shapes, keyframes, ghost, path, camera).
         commands: meshcat commands, in sending order.
         page: the HTML page (meshcat's, with title, legend and time readout).
         title: the page's title.
     """
 
-    scene: ArmScene
+    drawing: RobotDrawing
     commands: list[Any]
     page: str
     title: str
@@ -122,16 +122,16 @@ def prepare(
     ghost: bool = True,
     what: str = "",
 ) -> Prepared:
-    """The scene, commands and page of configurations ``q_config`` (Pinocchio's, (N, nq)) at ``t`` [s]."""
+    """The drawing, commands and page of configurations ``q_config`` (Pinocchio's, (N, nq)) at ``t`` [s]."""
+    from rrt_pin.viewer.drawing import build_drawing
     from rrt_pin.viewer.meshcat_scene import scene_commands
-    from rrt_pin.viewer.page import meshcat_index, page_html, scene_legend
-    from rrt_pin.viewer.scene import build_scene
+    from rrt_pin.viewer.page import drawing_legend, meshcat_index, page_html
 
-    scene = build_scene(robot.model, geometry(robot), t, q_config, fps, ghost_q=ghost_q)
-    commands = scene_commands(scene, play=play, loop=loop, ghost=ghost)
+    drawing = build_drawing(robot.model, geometry(robot), t, q_config, fps, ghost_q=ghost_q)
+    commands = scene_commands(drawing, play=play, loop=loop, ghost=ghost)
     title = f"{robot.name}: {what}" if what else robot.name
-    page = page_html(meshcat_index(), title, scene_legend(scene, ghost))
-    return Prepared(scene, commands, page, title)
+    page = page_html(meshcat_index(), title, drawing_legend(drawing, ghost))
+    return Prepared(drawing, commands, page, title)
 
 
 class ViewerURL(str):

@@ -3,20 +3,20 @@
 
 Sections:
 
-1. references: every scene of ``rrt_pin.accuracy.SCENES`` at rtol 1e-13, atol 1e-15
-   with the compiled DOP853 (the scenes it runs) and, independently, scipy's DOP853
+1. references: every problem of ``rrt_pin.accuracy.PROBLEMS`` at rtol 1e-13, atol 1e-15
+   with the compiled DOP853 (the problems it runs) and, independently, scipy's DOP853
    on ``pin.aba`` (``rrt_pin.reference.reference_run``); a second method checks
    them: Radau (implicit Runge–Kutta) on the chapter's run, odepack (LSODA, multistep)
    at rtol 1e-13 on the others. The table gives their disagreement.
-2. catalogue: per scene and backend, the default's error max |q − q_ref|, its
+2. catalogue: per problem and backend, the default's error max |q − q_ref|, its
    estimate (``result.error_estimate``), their ratio, the run's time and the
    estimate's (medians over --repeat interleaved rounds), and the old defaults
    (rtol 1e-9, atol 1e-11) for comparison.
 3. work-precision over the catalogue: each candidate setting's worst error over the
-   scenes against its total time; the script marks the settings on each backend's
+   problems against its total time; the script marks the settings on each backend's
    Pareto front (nothing on that backend is both faster and more accurate).
 
-    .venv/bin/python -m scripts.bench.accuracy [--repeat 3] [--scenes a,b] [--sections 2,3] [--markdown]
+    .venv/bin/python -m scripts.bench.accuracy [--repeat 3] [--problems a,b] [--sections 2,3] [--markdown]
 """
 
 from __future__ import annotations
@@ -26,7 +26,7 @@ import statistics
 import time
 import warnings
 
-from rrt_pin.accuracy import ACCURACY, SCENES, max_error, reference
+from rrt_pin.accuracy import ACCURACY, PROBLEMS, max_error, reference
 from rrt_pin.simulate import AccuracyWarning
 
 #: Candidate settings of the work-precision section: (backend, method, rtol); atol = rtol/100.
@@ -59,19 +59,19 @@ def references(names: list[str]) -> dict:
 
     refs, rows = {}, []
     for name in names:
-        scene = SCENES[name]
-        robot = scene.arm
+        problem = PROBLEMS[name]
+        robot = problem.arm
         d = robot.defaults
-        law = scene.controller(robot)
-        t = scene.times()
-        scipy_ref = reference(scene, backend="pinocchio").q
+        law = problem.controller(robot)
+        t = problem.times()
+        scipy_ref = reference(problem, backend="pinocchio").q
         second = "Radau" if name == "chapter" else "odepack"
         if second == "Radau":
             other = reference_run(robot.model, law, d.q0, d.qd0, t, methods=("Radau",)).q
         else:
-            other = scene.run(method="odepack", rtol=1e-13, atol=1e-15, estimate_error=False).q
-        if "compiled" in scene.backends:
-            ref = reference(scene, backend="compiled").q
+            other = problem.run(method="odepack", rtol=1e-13, atol=1e-15, estimate_error=False).q
+        if "compiled" in problem.backends:
+            ref = reference(problem, backend="compiled").q
             vs_scipy = max_error(ref, scipy_ref)
         else:
             ref, vs_scipy = scipy_ref, float("nan")
@@ -86,22 +86,22 @@ def references(names: list[str]) -> dict:
 
 
 def catalogue(names: list[str], refs: dict, repeat: int) -> list[tuple]:
-    """Section 2: the defaults (and the old defaults) on every scene."""
+    """Section 2: the defaults (and the old defaults) on every problem."""
     rows = []
     for name in names:
-        scene = SCENES[name]
-        for backend in scene.backends:
+        problem = PROBLEMS[name]
+        for backend in problem.backends:
             for label, kw in (("default", {}), ("old default", {"rtol": 1e-9, "atol": 1e-11})):
                 with warnings.catch_warnings():
                     warnings.simplefilter("ignore", AccuracyWarning)
-                    run = scene.run(backend=backend, **kw)
+                    run = problem.run(backend=backend, **kw)
                     plain = _time(
-                        lambda s=scene, b=backend, k=kw: s.run(
+                        lambda s=problem, b=backend, k=kw: s.run(
                             backend=b, estimate_error=False, **k
                         ),
                         repeat,
                     )
-                    whole = _time(lambda s=scene, b=backend, k=kw: s.run(backend=b, **k), repeat)
+                    whole = _time(lambda s=problem, b=backend, k=kw: s.run(backend=b, **k), repeat)
                 err = max_error(run.q, refs[name])
                 est = run.error_estimate
                 rows.append((name, backend, label, run.method, run.rtol, err, est, plain, whole))
@@ -116,20 +116,20 @@ def catalogue(names: list[str], refs: dict, repeat: int) -> list[tuple]:
 
 
 def work_precision(names: list[str], refs: dict, repeat: int) -> list[tuple]:
-    """Section 3: worst error over the scenes against total time, per candidate setting."""
+    """Section 3: worst error over the problems against total time, per candidate setting."""
     rows = []
     for backend, method, rtol in CANDIDATES:
         worst, total, worst_scene = 0.0, 0.0, ""
         for name in names:
-            scene = SCENES[name]
-            if backend not in scene.backends:
+            problem = PROBLEMS[name]
+            if backend not in problem.backends:
                 continue
             kw = dict(backend=backend, method=method, rtol=rtol, atol=rtol / 100)
-            run = scene.run(estimate_error=False, **kw)
+            run = problem.run(estimate_error=False, **kw)
             err = max_error(run.q, refs[name])
             if err > worst:
                 worst, worst_scene = err, name
-            total += _time(lambda s=scene, k=kw: s.run(estimate_error=False, **k), repeat)
+            total += _time(lambda s=problem, k=kw: s.run(estimate_error=False, **k), repeat)
         rows.append((backend, method, rtol, worst, worst_scene, total))
     for row in rows:
         backend, method, rtol, worst, worst_scene, total = row
@@ -149,7 +149,7 @@ def work_precision(names: list[str], refs: dict, repeat: int) -> list[tuple]:
 def markdown(rows: list[tuple]) -> str:
     """Section 2 as the table of docs/benchmarks.md."""
     out = [
-        "| scene | backend | setting | error max \\|q − q_ref\\| | estimate | estimate / error "
+        "| problem | backend | setting | error max \\|q − q_ref\\| | estimate | estimate / error "
         "| run | run + estimate |",
         "| --- | --- | --- | ---: | ---: | ---: | ---: | ---: |",
     ]
@@ -164,13 +164,13 @@ def markdown(rows: list[tuple]) -> str:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=3, help="timing rounds (median)")
-    parser.add_argument("--scenes", default=",".join(SCENES), help="comma-separated names")
+    parser.add_argument("--problems", default=",".join(PROBLEMS), help="comma-separated names")
     parser.add_argument("--markdown", action="store_true", help="print section 2 as markdown")
     parser.add_argument(
         "--sections", default="1,2,3", help="which sections to run after the references"
     )
     args = parser.parse_args()
-    names = args.scenes.split(",")
+    names = args.problems.split(",")
     sections = set(args.sections.split(","))
     print("1. references (rtol 1e-13): disagreement max |q_a − q_b| [rad or m]")
     refs = references(names)
