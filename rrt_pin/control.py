@@ -512,10 +512,6 @@ def _states(q: Any, qd: Any, n: int) -> tuple[np.ndarray, np.ndarray]:
     return q, qd
 
 
-#: The fields of Params that the RRT arm's model depends on (not gains, targets, states).
-_PLANT_FIELDS = PLANT_FIELDS
-
-
 class _ModelKey:
     """Equal when the models are equal (``pin.Model.__eq__``): laws on equal models share G."""
 
@@ -530,14 +526,14 @@ class _ModelKey:
 
 
 def _chapter_model(params: Params) -> pin.Model:
-    return _plant_model(tuple(getattr(params, name) for name in _PLANT_FIELDS))
+    return _plant_model(tuple(getattr(params, name) for name in PLANT_FIELDS))
 
 
 @functools.lru_cache(maxsize=8)
 def _plant_model(plant: tuple[float, ...]) -> pin.Model:
     from rrt_pin.model import rrt_model
 
-    return rrt_model(Params(**dict(zip(_PLANT_FIELDS, plant, strict=True))))
+    return rrt_model(Params(**dict(zip(PLANT_FIELDS, plant, strict=True))))
 
 
 class _PDGravity(Controller):

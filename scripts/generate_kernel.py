@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Regenerate rrt_pin/kernel.py from the sympy derivation (``--check`` only compares).
+"""Regenerate rrt_pin/_kernel_terms.py from the sympy derivation (``--check`` only compares).
 
 Same as ``python -m rrt_pin.symbolic.codegen``; run it after changing rrt_pin/symbolic.
 """

@@ -330,3 +330,49 @@ def test_the_viewers_drawing_and_the_rnea_source_have_their_names_and_old_ones_w
 
     assert accuracy.SCENES is accuracy.PROBLEMS and accuracy.Scene is accuracy.Problem
     assert "SCENES" not in accuracy.__all__ and "PROBLEMS" in accuracy.__all__
+
+
+# --- one list per kind of name ----------------------------------------------------------
+
+
+def test_the_plants_parameter_order_is_one_list():
+    from rrt_pin import kernel, params
+
+    assert kernel.PARAM_ORDER is params.PLANT_FIELDS
+    symbols = pytest.importorskip("rrt_pin.symbolic.symbols")
+    assert symbols.PARAM_NAMES is params.PLANT_FIELDS
+
+
+def test_the_generated_file_holds_only_expressions():
+    source = (PACKAGE / "_kernel_terms.py").read_text(encoding="utf-8")
+    tree = ast.parse(source)
+    functions = {n.name for n in tree.body if isinstance(n, ast.FunctionDef)}
+    assert functions == {"terms", "inverse_constants", "inverse_terms", "forward_terms"}
+    imports = {ast.unparse(n) for n in tree.body if isinstance(n, (ast.Import, ast.ImportFrom))}
+    assert imports == {"from __future__ import annotations", "from numpy import cos, sin"}
+
+
+def test_metric_names_units_and_help_come_from_the_registry(capsys):
+    from rrt_pin import metrics
+    from rrt_pin.cli import main
+    from rrt_pin.sweeps import spec
+
+    assert spec.METRICS["simulate"] == metrics.for_task("simulate")
+    assert spec.METRICS["inverse"] == metrics.for_task("inverse")
+    assert spec.TEXT_COLUMNS == metrics.TEXT_COLUMNS == ("diverged_coordinate", "diverged_reason")
+    names = metrics.column_names(["peak_effort", "diverged"], ["a", "b"], ["Fa", "Fb"])
+    assert names == ["peak_effort_Fa", "peak_effort_Fb", "peak_effort_time_Fa",
+                     "peak_effort_time_Fb", "diverged", "diverged_time", "diverged_coordinate",
+                     "diverged_reason"]  # fmt: skip
+    units = metrics.column_units(
+        ["final_error", "settling_time"], ["a", "b"], [], {"a": "rad", "b": "m"}
+    )
+    assert units == {"final_error_a": "rad", "final_error_b": "m", "settling_time_a": "s",
+                     "settling_time_b": "s"}  # fmt: skip
+    with pytest.raises(SystemExit):
+        main(["sweep", "--help"])
+    help_text = capsys.readouterr().out
+    for metric in metrics.METRICS.values():
+        assert f"  {metric.name}" in help_text
+        for column in metric.columns:
+            assert column.prefix in help_text

@@ -1,4 +1,4 @@
-"""The generated kernel (rrt_pin/kernel.py) against Pinocchio, numba and its generator."""
+"""The generated expressions (rrt_pin/_kernel_terms.py) and their wrappers (rrt_pin/kernel.py) against Pinocchio, numba and the generator."""
 
 import subprocess
 import sys
@@ -153,7 +153,7 @@ def test_committed_kernel_is_the_generators_output():
     from rrt_pin.symbolic.codegen import KERNEL_PATH, kernel_source
 
     assert KERNEL_PATH.read_text(encoding="utf-8") == kernel_source(), (
-        "rrt_pin/kernel.py drifted from the derivation: run python -m rrt_pin.symbolic.codegen"
+        "rrt_pin/_kernel_terms.py drifted from the derivation: run python -m rrt_pin.symbolic.codegen"
     )
 
 

@@ -15,6 +15,7 @@ from rrt_pin.commands._common import (
     refuse_run_file_params,
     termination_as_interrupt,
 )
+from rrt_pin.metrics import METRICS
 
 HELP = "run a sweep spec (TOML): many variants, metrics to Parquet, locally or on Dask (SI units)"
 
@@ -24,10 +25,7 @@ over the chapter's symbols, gains, q0, qd0, qf) and what to keep (metrics, a
 few dense trajectories); see rrt_pin/sweeps/spec.py or the README.
 OUT/chunks/chunk-NNNNNN.parquet holds, per variant: its index, the varied
 values and the metrics (units in the Parquet metadata, "rrt_pin.units"):
-  final_error_<q> [rad or m], settling_time_<q> [s] (NaN: not settled),
-  peak_effort_<effort> [N·m or N] and peak_effort_time_<effort> [s],
-  excursion_<q> [rad or m], control_energy [J], evaluations,
-  diverged, diverged_time [s], diverged_coordinate, diverged_reason.
+{metrics}
 Read it with pandas: pandas.read_parquet("OUT/chunks") (chunks/ holds chunks only:
 --resume refuses any other file there). One run at a time writes into OUT (it holds
 OUT/sweep.lock); a new sweep needs a new or empty folder.
@@ -38,10 +36,26 @@ interrupted sweep (the spec must be unchanged): it checks every chunk listed as
 done (readable, the spec's hash, its variants) and recomputes those that fail."""
 
 
+def _metric_lines() -> str:
+    """The metrics' columns and units, from the registry (:data:`rrt_pin.metrics.METRICS`)."""
+    kinds = {"coordinate": "<q>", "effort": "<effort>", "run": ""}
+    units = {"coordinate": "rad or m", "effort": "N·m or N"}
+    lines = []
+    for metric in METRICS.values():
+        parts = []
+        for c in metric.columns:
+            name = f"{c.prefix}_{kinds[c.per]}" if kinds[c.per] else c.prefix
+            unit = c.unit if c.unit is not None else units[c.per]
+            parts.append(f"{name} [{unit}]" if unit else name)
+        tasks = "" if len(metric.tasks) > 1 else f" ({metric.tasks[0]} only)"
+        lines.append(f"  {metric.name}{tasks}: " + ", ".join(parts))
+    return "\n".join(lines)
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``rrt-pin sweep``."""
     parser.formatter_class = argparse.RawDescriptionHelpFormatter
-    parser.epilog = _EPILOG
+    parser.epilog = _EPILOG.format(metrics=_metric_lines())
     parser.add_argument(
         "spec", metavar="SPEC.toml", nargs="?", type=nonempty,
         help="the sweep spec (or spec = \"...\" in the run file's [sweep] table)",

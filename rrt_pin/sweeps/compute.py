@@ -20,6 +20,7 @@ import numpy as np
 
 from rrt_pin import text
 from rrt_pin.errors import DivergenceError, InputError, RrtPinError, SpecError
+from rrt_pin.metrics import column_names
 from rrt_pin.sweeps.spec import Spec, spec_from_dict
 
 __all__ = ["BLOCK", "Plan", "metric_names", "plan", "run_chunk"]
@@ -152,18 +153,7 @@ def _plan(digest: str, source_json: str) -> Plan:
 
 def metric_names(p: Plan) -> tuple[str, ...]:
     """The metric columns every chunk of the plan's spec has (text ones included)."""
-    robot, out = p.robot, []
-    for group in p.spec.metrics:
-        if group in ("final_error", "settling_time", "excursion"):
-            out += [f"{group}_{name}" for name in robot.q_names]
-        elif group == "peak_effort":
-            out += [f"peak_effort_{name}" for name in robot.effort_names]
-            out += [f"peak_effort_time_{name}" for name in robot.effort_names]
-        elif group == "diverged":
-            out += ["diverged", "diverged_time", "diverged_coordinate", "diverged_reason"]
-        else:  # control_energy, evaluations: one column each
-            out.append(group)
-    return tuple(out)
+    return tuple(column_names(p.spec.metrics, p.robot.q_names, p.robot.effort_names))
 
 
 def plan(spec: Spec) -> Plan:

@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 
 from rrt_pin.errors import ClusterError, InputError, RrtPinError, SpecError
+from rrt_pin.metrics import column_units
 from rrt_pin.sweeps.spec import Spec, load_spec, spec_from_dict
 from rrt_pin.text import duration
 
@@ -187,15 +188,8 @@ def _units(spec: Spec) -> dict[str, str]:
     from rrt_pin.sweeps.compute import plan
 
     robot = plan(spec).robot
-    units = dict(robot.units)
-    out = {"variant": "", "control_energy": "J", "evaluations": "", "diverged_time": "s"}
-    for name in robot.q_names:
-        for prefix in ("final_error", "excursion"):
-            out[f"{prefix}_{name}"] = units[name]
-        out[f"settling_time_{name}"] = "s"
-    for name in robot.effort_names:
-        out[f"peak_effort_{name}"] = units[name]
-        out[f"peak_effort_time_{name}"] = "s"
+    out = {"variant": ""}
+    out.update(column_units(spec.metrics, robot.q_names, robot.effort_names, robot.units))
     if spec.urdf is None:
         from rrt_pin.params import PARAM_DOCS
 

@@ -54,29 +54,20 @@ import numpy as np
 from rrt_pin import memory
 from rrt_pin._read import check_int64, load_toml
 from rrt_pin.errors import SpecError
+from rrt_pin.metrics import TEXT_COLUMNS, for_task
 
-__all__ = ["MAX_SPEC_BYTES", "MAX_VARIANTS", "METRICS", "Spec", "load_spec", "spec_from_dict"]
+__all__ = [
+    "MAX_SPEC_BYTES",
+    "MAX_VARIANTS",
+    "METRICS",
+    "TEXT_COLUMNS",
+    "Spec",
+    "load_spec",
+    "spec_from_dict",
+]
 
-#: Metrics by task: name -> what it is (units in the column names' docs).
-METRICS: dict[str, dict[str, str]] = {
-    "simulate": {
-        "final_error": "|q(tf) − qf| per joint [rad or m]",
-        "settling_time": "2 % settling time per joint [s] (NaN: not settled)",
-        "peak_effort": "peak |effort| per joint [N·m or N] and when [s]",
-        "excursion": "max |q(t) − q(0)| per joint [rad or m]",
-        "control_energy": "∫ Σ|τ·q̇| dt [J]",
-        "evaluations": "dynamics evaluations",
-        "diverged": "whether the run diverged, when [s] and in which coordinate",
-    },
-    "inverse": {
-        "peak_effort": "peak |effort| per joint [N·m or N] and when [s]",
-        "control_energy": "∫ Σ|τ·q̇| dt [J]",
-        "diverged": "whether the variant failed (invalid parameters, efforts that overflow), "
-        "and why",
-    },
-}
-#: Metric columns of text (not numbers: nothing to plot).
-TEXT_COLUMNS = ("diverged_coordinate", "diverged_reason")
+#: Metrics by task: name -> what it is (from the registry, :data:`rrt_pin.metrics.METRICS`).
+METRICS: dict[str, dict[str, str]] = {task: for_task(task) for task in ("simulate", "inverse")}
 _SECTIONS = ("sweep", "base", "vary", "keep")
 _SWEEP_KEYS = ("task", "urdf", "tf", "dt", "count", "seed", "chunk", "method", "rtol", "atol")
 _GRID = ("linspace", "logspace")

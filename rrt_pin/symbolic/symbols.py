@@ -11,6 +11,8 @@ from __future__ import annotations
 import sympy as sp
 from sympy.physics.mechanics import dynamicsymbols
 
+from rrt_pin.params import PLANT_FIELDS
+
 __all__ = [
     "EFFORTS",
     "F23",
@@ -58,24 +60,8 @@ qd = tuple(qi.diff(t) for qi in q)
 #: Generalized accelerations q̈1, q̈2 [rad/s²], q̈3 [m/s²].
 qdd = tuple(qi.diff(t, 2) for qi in q)
 
-#: Parameter names, in the kernel's order.
-PARAM_NAMES = (
-    "L1",
-    "L2",
-    "m1",
-    "m2",
-    "m3",
-    "I1x",
-    "I1y",
-    "I1z",
-    "I2x",
-    "I2y",
-    "I2z",
-    "I3x",
-    "I3y",
-    "I3z",
-    "g",
-)
+#: Parameter names, in the kernel's order: :data:`rrt_pin.params.PLANT_FIELDS`.
+PARAM_NAMES = PLANT_FIELDS
 L1, L2, m1, m2, m3 = sp.symbols("L1 L2 m1 m2 m3", positive=True)
 I1x, I1y, I1z, I2x, I2y, I2z, I3x, I3y, I3z = sp.symbols(
     "I1x I1y I1z I2x I2y I2z I3x I3y I3z", nonnegative=True
