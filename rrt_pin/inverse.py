@@ -23,6 +23,7 @@ import numpy as np
 
 from rrt_pin import cpus, memory, validate
 from rrt_pin.errors import InputError
+from rrt_pin.robot import CHAPTER_COLUMNS
 
 if TYPE_CHECKING:
     import pinocchio as pin
@@ -243,7 +244,7 @@ def inverse_dynamics(
         from rrt_pin import kernel
 
         tau = np.asarray(kernel.inverse_dynamics(q, qd, qdd, params), dtype=float)
-        _check_finite(tau, ("T01x", "T12y", "F23z"))
+        _check_finite(tau, CHAPTER_COLUMNS[3])
     return tau[0] if single else tau
 
 

@@ -376,3 +376,19 @@ def test_metric_names_units_and_help_come_from_the_registry(capsys):
         assert f"  {metric.name}" in help_text
         for column in metric.columns:
             assert column.prefix in help_text
+
+
+def test_the_arms_column_names_are_typed_once():
+    """Outside robot.py (and the URDF and the symbolic derivation that name the joints),
+    no module spells the chapter's column names as a literal list."""
+    literal = re.compile(r"""["'](?:T01x|qd1|qdd1)["']|["']q1["'],\s*["']q2["']""")
+    allowed = {"robot.py", "urdf.py", "_kernel_terms.py"}
+    found = [
+        f"{path.relative_to(PACKAGE)}:{n}"
+        for path in sorted(PACKAGE.rglob("*.py"))
+        if path.name not in allowed and "symbolic" not in path.parts
+        for n, line in enumerate(path.read_text(encoding="utf-8").splitlines(), 1)
+        if literal.search(line) and not line.lstrip().startswith("#")
+    ]
+    assert not found, found
+    assert literal.search('names = ("q1", "q2", "q3")') and literal.search("x = 'T01x'")

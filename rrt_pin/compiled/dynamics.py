@@ -21,6 +21,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from rrt_pin.errors import InputError
+from rrt_pin.robot import CHAPTER_COLUMNS
 
 if TYPE_CHECKING:
     from rrt_pin.params import Params
@@ -117,7 +118,7 @@ def _refuse_overflow(check: float, out: np.ndarray) -> None:
         if bad.size:
             i, k = (int(x) for x in bad[0])
             raise InputError(
-                f"the efforts overflow: {('T01x', 'T12y', 'F23z')[k]} = {float(out[i, k])!r} at "
+                f"the efforts overflow: {CHAPTER_COLUMNS[3][k]} = {float(out[i, k])!r} at "
                 f"sample {i} (positions, velocities, accelerations or parameters beyond any "
                 "sensible range)"
             )

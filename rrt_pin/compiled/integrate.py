@@ -53,6 +53,7 @@ from rrt_pin.compiled.dynamics import param_array
 from rrt_pin.errors import DivergenceError, InputError
 from rrt_pin.metrics import SETTLING_BAND
 from rrt_pin.params import Params
+from rrt_pin.robot import CHAPTER_COLUMNS
 from rrt_pin.simulate.results import KEEPS, BatchResult, SimulationResult
 
 if TYPE_CHECKING:
@@ -86,8 +87,8 @@ _KEEP_CODES = {
 }
 #: A batch's default thread count gives no thread fewer variants than this.
 MIN_PER_THREAD = 16
-_NAMES = ("q1", "q2", "q3", "qd1", "qd2", "qd3")
-_EFFORTS = ("T01x", "T12y", "F23z")
+_NAMES = (*CHAPTER_COLUMNS[0], *CHAPTER_COLUMNS[1])
+_EFFORTS = CHAPTER_COLUMNS[3]
 
 
 # --------------------------------------------------------------------------
@@ -533,7 +534,7 @@ def run_batch(
     if metrics is not None:
         from rrt_pin.metrics import GROUPS, metric_columns
 
-        columns = metric_columns(GROUPS, metrics, ("q1", "q2", "q3"), _EFFORTS)
+        columns = metric_columns(GROUPS, metrics, CHAPTER_COLUMNS[0], _EFFORTS)
     return BatchResult(
         t=t if keep == "trajectories" else t[-1:],
         q=y[:, :, :3],

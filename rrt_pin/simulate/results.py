@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 
 from rrt_pin.errors import InputError
+from rrt_pin.robot import CHAPTER_COLUMNS
 
 __all__ = ["KEEPS", "BatchResult", "ErrorEstimate", "SimulationResult"]
 
@@ -116,9 +117,9 @@ class _Run:
     step: float | None = None
     n_jac: int = 0
     threads: int = 1
-    q_names: tuple[str, ...] = ("q1", "q2", "q3")
-    qd_names: tuple[str, ...] = ("qd1", "qd2", "qd3")
-    tau_names: tuple[str, ...] = ("T01x", "T12y", "F23z")
+    q_names: tuple[str, ...] = CHAPTER_COLUMNS[0]
+    qd_names: tuple[str, ...] = CHAPTER_COLUMNS[1]
+    tau_names: tuple[str, ...] = CHAPTER_COLUMNS[3]
     coordinate_units: tuple[str, ...] = ("rad", "rad", "m")
     estimate: ErrorEstimate | None = None
     estimate_failure: str | None = None

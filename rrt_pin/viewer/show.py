@@ -25,6 +25,7 @@ import numpy as np
 
 from rrt_pin._quiet import native_message
 from rrt_pin.errors import InputError, UrdfError, ViewerError
+from rrt_pin.robot import CHAPTER_COLUMNS
 
 if TYPE_CHECKING:
     from rrt_pin.robot import Robot
@@ -194,8 +195,8 @@ def show(
     t = np.asarray(t, dtype=float)
     q = np.asarray(q, dtype=float)
     if robot is None:
-        names = tuple(getattr(result, "q_names", ("q1", "q2", "q3")))
-        if names != ("q1", "q2", "q3"):
+        names = tuple(getattr(result, "q_names", CHAPTER_COLUMNS[0]))
+        if names != CHAPTER_COLUMNS[0]:
             raise InputError(f"show() of a result with coordinates {names[:4]}… needs robot=")
         from rrt_pin.robots import chapter_arm
 
