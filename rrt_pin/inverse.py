@@ -23,6 +23,7 @@ import numpy as np
 
 from rrt_pin import cpus, memory, validate
 from rrt_pin.errors import InputError
+from rrt_pin.identity import IdentityCache
 from rrt_pin.robot import CHAPTER_COLUMNS
 
 if TYPE_CHECKING:
@@ -56,10 +57,8 @@ class _Pool:
         return self.pool.size() >= threads and bool(self.pool.getModel(0) == model)
 
 
-#: Pools kept between calls, by the id of their model (the model is held too, so its
-#: id is not reused); at most _POOL_CACHE of them.
-_POOLS: dict[int, _Pool] = {}
-_POOL_CACHE = 8
+#: Pools kept between calls, by their model's identity.
+_POOLS: IdentityCache[_Pool] = IdentityCache(8)
 
 
 def _pool(model: Any, threads: int) -> _Pool:
@@ -68,15 +67,10 @@ def _pool(model: Any, threads: int) -> _Pool:
     Reused only while the pool's copy still equals ``model`` (a changed mass, gravity
     or joint makes a new one).
     """
-    entry = _POOLS.get(id(model))
-    if entry is not None and entry.model is model and entry.fits(model, threads):
+    entry = _POOLS.get(model)
+    if entry is not None and entry.fits(model, threads):
         return entry
-    entry = _Pool(model, threads)
-    _POOLS.pop(id(model), None)
-    _POOLS[id(model)] = entry
-    while len(_POOLS) > _POOL_CACHE:
-        _POOLS.pop(next(iter(_POOLS)))
-    return entry
+    return _POOLS.put(model, value=_Pool(model, threads))
 
 
 def _num_threads(value: Any) -> int:
@@ -414,8 +408,8 @@ def _rnea_batch(
         # A thread on a core another job holds makes the whole (statically split) call
         # wait for it: use only the CPUs that are free now.
         threads = min(threads, cpus.threads_for(n, _MIN_SAMPLES_PER_THREAD))
-    kept = _POOLS.get(id(model))
-    if kept is None or kept.model is not model or not kept.fits(model, threads):
+    kept = _POOLS.get(model)
+    if kept is None or not kept.fits(model, threads):
         threads = _threads_that_fit(model, threads, None if adaptive else "num_threads")
     entry = _pool(model, threads)
     if not entry.lock.acquire(blocking=False):

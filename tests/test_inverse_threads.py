@@ -46,7 +46,7 @@ def test_the_pool_is_kept_between_calls_and_rebuilt_when_the_model_changes():
         assert not np.allclose(moon, before)  # the new gravity was used, not a stale copy
     finally:
         model.gravity.linear = saved
-    assert len(inv._POOLS) <= inv._POOL_CACHE
+    assert len(inv._POOLS) <= inv._POOLS.size
 
 
 def test_busy_cpus_reads_other_processes_only(monkeypatch):

@@ -51,6 +51,7 @@ from rrt_pin import methods, validate
 from rrt_pin.compiled import codes, ensure_compiled
 from rrt_pin.compiled.dynamics import param_array
 from rrt_pin.errors import DivergenceError, InputError
+from rrt_pin.identity import IdentityCache
 from rrt_pin.metrics import SETTLING_BAND
 from rrt_pin.params import Params
 from rrt_pin.robot import CHAPTER_COLUMNS
@@ -117,22 +118,19 @@ def _law(controller: Any, plant: Params) -> tuple[int, np.ndarray, np.ndarray]:
     """
     from rrt_pin.control import ChapterController
 
-    key = (id(controller), id(plant))
-    kept = _LAWS.get(key)
-    if kept is not None and kept[0] is controller and kept[1] is plant:
-        return kept[2]
+    kept = _LAWS.get(controller, plant)
+    if kept is not None:
+        return kept
     p = param_array(plant)
     kind, c = _controller_arrays(controller, plant, p)
     if controller is None or type(controller) is ChapterController:
         c.setflags(write=False)
-        if len(_LAWS) >= 256:
-            _LAWS.clear()
-        _LAWS[key] = (controller, plant, (kind, c, p))  # both kept alive: their ids stay theirs
+        _LAWS.put(controller, plant, value=(kind, c, p))
     return kind, c, p
 
 
 #: The arrays of the last few (immutable) chapter laws and plants, by their identities.
-_LAWS: dict[tuple[int, int], tuple[Any, Params, tuple[int, np.ndarray, np.ndarray]]] = {}
+_LAWS: IdentityCache[tuple[int, np.ndarray, np.ndarray]] = IdentityCache(256)
 
 
 def _controller_arrays(controller: Any, plant: Params, p: np.ndarray) -> tuple[int, np.ndarray]:

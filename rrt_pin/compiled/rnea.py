@@ -44,6 +44,7 @@ import numpy as np
 
 from rrt_pin import cpus, rnea_source
 from rrt_pin.errors import InputError
+from rrt_pin.identity import IdentityCache
 
 if TYPE_CHECKING:
     import pinocchio as pin
@@ -106,9 +107,8 @@ class Kernel:
 
 #: Kernels of this process, by the SHA-256 of their source.
 _KERNELS: dict[str, Kernel] = {}
-#: Models already generated, by id: (the model, a copy to notice changes, its kernel).
-_MODELS: dict[int, tuple[Any, Any, Kernel]] = {}
-_MODEL_CACHE = 16
+#: Models already generated, by identity: (a copy to notice changes, its kernel).
+_MODELS: IdentityCache[tuple[Any, Kernel]] = IdentityCache(16)
 
 
 def _pairwise_sum(terms: list[str]) -> str:
@@ -319,9 +319,9 @@ def kernel_for(model: pin.Model) -> Kernel:
         UnsupportedJoint: a joint is not revolute, prismatic or continuous.
         MissingExtra: numba is not installed.
     """
-    entry = _MODELS.get(id(model))
-    if entry is not None and entry[0] is model and bool(entry[1] == model):
-        return entry[2]
+    entry = _MODELS.get(model)
+    if entry is not None and bool(entry[0] == model):
+        return entry[1]
     import pinocchio as pin
 
     gen = rnea_source.rnea_source(model)
@@ -331,10 +331,7 @@ def kernel_for(model: pin.Model) -> Kernel:
         kernel = _KERNELS.get(digest)
         if kernel is None:
             kernel = _KERNELS[digest] = _compile(source, digest, gen)
-    _MODELS.pop(id(model), None)
-    _MODELS[id(model)] = (model, pin.Model(model), kernel)
-    while len(_MODELS) > _MODEL_CACHE:
-        _MODELS.pop(next(iter(_MODELS)))
+    _MODELS.put(model, value=(pin.Model(model), kernel))
     return kernel
 
 

@@ -10,6 +10,7 @@ import numpy as np
 
 from rrt_pin import validate
 from rrt_pin.errors import InputError
+from rrt_pin.identity import IdentityCache
 from rrt_pin.simulate.energy import check_energy, check_energy_batch
 from rrt_pin.simulate.options import Options, resolve
 from rrt_pin.simulate.results import KEEPS
@@ -35,19 +36,15 @@ def as_robot(model: Any, params: Params | None = None) -> Robot:
 
     if isinstance(model, Robot):
         return model
-    cached = _ROBOTS.get(id(model))
-    if cached is not None and cached[0] is model and cached[2] is params:
-        return cached[1]
-    robot = _as_robot(model, params)
-    if len(_ROBOTS) >= 8:
-        _ROBOTS.clear()
-    _ROBOTS[id(model)] = (model, robot, params)  # the model kept alive: its id stays its own
-    return robot
+    cached = _ROBOTS.get(model, params)
+    if cached is not None:
+        return cached
+    return _ROBOTS.put(model, params, value=_as_robot(model, params))
 
 
 #: The robots of the last few Pinocchio models given (a Robot describes the joints, which a
 #: model keeps; its gravity and inertias are read from the model itself at each run).
-_ROBOTS: dict[int, tuple[Any, Robot, Any]] = {}
+_ROBOTS: IdentityCache[Robot] = IdentityCache(8)
 
 
 def _as_robot(model: Any, params: Params | None) -> Robot:
