@@ -8,7 +8,7 @@ shortcut shared with :mod:`rrt_pin.simulate`), and reports how far the two
 disagree. The DOP853 solution is the reference.
 
 :func:`chapter_reference` caches the chapter's run in a ``.npz`` file (in
-``$RRT_PIN_CACHE`` or the system's temporary folder), keyed by the parameters,
+``$RRT_PIN_CACHE_DIR/references`` or the system's temporary folder), keyed by the parameters,
 the grid and the versions of Pinocchio and scipy.
 """
 
@@ -19,6 +19,7 @@ import io
 import math
 import os
 import tempfile
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -131,7 +132,20 @@ def reference_run(
 
 
 def _cache_dir() -> Path:
-    return Path(os.environ.get("RRT_PIN_CACHE") or Path(tempfile.gettempdir()) / "rrt-pin-cache")
+    """``$RRT_PIN_CACHE_DIR/references`` (the one cache variable), else the temporary folder's."""
+    base = os.environ.get("RRT_PIN_CACHE_DIR")
+    if base:
+        return Path(base) / "references"
+    old = os.environ.get("RRT_PIN_CACHE")
+    if old:
+        warnings.warn(
+            "RRT_PIN_CACHE is deprecated: set RRT_PIN_CACHE_DIR (references go to its "
+            "'references' folder)",
+            DeprecationWarning,
+            stacklevel=3,
+        )
+        return Path(old)
+    return Path(tempfile.gettempdir()) / "rrt-pin-cache"
 
 
 def chapter_reference(
@@ -148,7 +162,7 @@ def chapter_reference(
         tf: final time [s].
         dt: output interval [s] (grid of :func:`rrt_pin.grid.time_grid`).
         cache: read and write the ``.npz`` cache.
-        cache_dir: where (default ``$RRT_PIN_CACHE`` or ``<tmp>/rrt-pin-cache``).
+        cache_dir: where (default ``$RRT_PIN_CACHE_DIR/references`` or ``<tmp>/rrt-pin-cache``).
     """
     import pinocchio as pin
     import scipy

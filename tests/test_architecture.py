@@ -392,3 +392,15 @@ def test_the_arms_column_names_are_typed_once():
     ]
     assert not found, found
     assert literal.search('names = ("q1", "q2", "q3")') and literal.search("x = 'T01x'")
+
+
+def test_one_cache_variable(monkeypatch, tmp_path):
+    from rrt_pin import reference
+
+    monkeypatch.delenv("RRT_PIN_CACHE", raising=False)
+    monkeypatch.setenv("RRT_PIN_CACHE_DIR", str(tmp_path))
+    assert reference._cache_dir() == tmp_path / "references"
+    monkeypatch.delenv("RRT_PIN_CACHE_DIR")
+    monkeypatch.setenv("RRT_PIN_CACHE", str(tmp_path / "old"))
+    with pytest.warns(DeprecationWarning, match="RRT_PIN_CACHE_DIR"):
+        assert reference._cache_dir() == tmp_path / "old"

@@ -83,7 +83,6 @@ def run_one(
         f = first_order(loop.acceleration(), n)
         y0 = np.concatenate((q0, qd0))
         jac = None
-        calls = [0]
         if (
             method.implicit
             and options.jacobian == "analytic"
@@ -91,7 +90,6 @@ def run_one(
         ):
 
             def jac(s: float, y: np.ndarray) -> np.ndarray:
-                calls[0] += 1
                 return loop.jacobian(s, y[:n], y[n:])
 
         if method.family == ODEPACK:
