@@ -30,6 +30,13 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from rrt_pin import backends, control
+from rrt_pin.grid import time_grid
+from rrt_pin.params import Params
+from rrt_pin.robots import chapter_arm
+from rrt_pin.simulate import simulate
+from rrt_pin.trajectory import RestToRest
+
 if TYPE_CHECKING:
     from rrt_pin.robot import Robot
     from rrt_pin.simulate.results import SimulationResult
@@ -75,9 +82,6 @@ class Problem:
     @property
     def arm(self) -> Robot:
         """The chapter's arm with this problem's parameters."""
-        from rrt_pin.params import Params
-        from rrt_pin.robots import chapter_arm
-
         return chapter_arm(Params(**self.params))
 
     @property
@@ -87,18 +91,13 @@ class Problem:
 
     def times(self) -> np.ndarray:
         """Output times 0 .. tf [s]."""
-        from rrt_pin.grid import time_grid
-
         return time_grid(self.tf, self.dt)
 
     def controller(self, robot: Robot | None = None) -> Any:
         """The problem's law: eq. (31), or computed torque along eq. (30) with Tp from params."""
-        from rrt_pin import control
-
         robot = self.arm if robot is None else robot
         if self.tracking is None:
             return control.regulator(robot)
-        from rrt_pin.trajectory import RestToRest
 
         d = robot.defaults
         kp, kd = self.tracking
@@ -106,8 +105,6 @@ class Problem:
 
     def run(self, **options: Any) -> SimulationResult:
         """``simulate`` this problem (keyword options as :func:`rrt_pin.simulate.simulate`)."""
-        from rrt_pin.simulate import simulate
-
         robot = self.arm
         d = robot.defaults
         return simulate(robot, self.controller(robot), d.q0, d.qd0, self.times(), **options)
@@ -205,8 +202,6 @@ def reference(problem: Problem, backend: str | None = None) -> Reference:
             sharing no code with :func:`~rrt_pin.simulate.simulate`); default
             compiled when the problem and numba allow it.
     """
-    from rrt_pin import backends
-
     if backend is None:
         backend = (
             "compiled"

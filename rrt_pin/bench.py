@@ -19,8 +19,27 @@ from typing import TextIO
 
 import numpy as np
 
+from rrt_pin import backends as registry
+from rrt_pin import kernel
+from rrt_pin.control import chapter_controller
+from rrt_pin.errors import RrtPinError
 from rrt_pin.flops import KernelRow
+from rrt_pin.grid import time_grid
+from rrt_pin.inverse import inverse_dynamics
+from rrt_pin.io import (
+    OutputError,
+    atomic_write_bytes,
+    atomic_write_text,
+    check_outputs,
+    write_outputs,
+)
+from rrt_pin.kernel import PARAM_ORDER
+from rrt_pin.model import rrt_model
+from rrt_pin.params import Params
+from rrt_pin.simulate import simulate
+from rrt_pin.symplectic import mechanical_energy
 from rrt_pin.text import duration
+from rrt_pin.trajectory import rest_to_rest
 
 __all__ = [
     "BenchRow",
@@ -140,7 +159,6 @@ def mpmath_inverse_reference(
     tau_expr = eom.mass_matrix * sp.Matrix(eom.qdd) - eom.forcing.subs(zero)
     args = (*eom.q, *eom.qd, *eom.qdd, *eom.parameters)
     fn = sp.lambdify(args, list(tau_expr), modules="mpmath", cse=True)
-    from rrt_pin.kernel import PARAM_ORDER
 
     out = np.empty((len(q), 3))
     with mpmath.workdps(digits):
@@ -172,13 +190,6 @@ def inverse_backends(
     sample.
     """
     import pinocchio as pin
-
-    from rrt_pin import kernel
-    from rrt_pin.grid import time_grid
-    from rrt_pin.inverse import inverse_dynamics
-    from rrt_pin.model import rrt_model
-    from rrt_pin.params import Params
-    from rrt_pin.trajectory import rest_to_rest
 
     p = params if params is not None else Params()
     model = rrt_model(p)
@@ -248,8 +259,6 @@ def rows_csv(rows: Iterable[BenchRow | KernelRow], kind: type = BenchRow) -> str
 
 def write_rows(path: str | Path, rows: Iterable[BenchRow]) -> Path:
     """Write rows as CSV (:func:`rows_csv`) atomically."""
-    from rrt_pin.io import atomic_write_text
-
     return atomic_write_text(path, rows_csv(rows))
 
 
@@ -289,13 +298,8 @@ def direct_work_precision(
         (measured the same way); and the disagreement of the reference's two
         methods [rad, m].
     """
-    from rrt_pin.control import chapter_controller
-    from rrt_pin.grid import time_grid
     from rrt_pin.methods import METHODS, names
-    from rrt_pin.model import rrt_model
-    from rrt_pin.params import Params
     from rrt_pin.reference import chapter_reference
-    from rrt_pin.simulate import simulate
 
     p = params if params is not None else Params()
     model = rrt_model(p)
@@ -321,8 +325,6 @@ def direct_work_precision(
                 continue  # scipy's Fortran and implicit loops have no compiled twin
             for setting, kw in _settings(method, quick):
                 plan.append((backend, method, setting, kw))
-    from rrt_pin import backends as registry
-    from rrt_pin.errors import RrtPinError
     from rrt_pin.methods import get as method_named
 
     for backend in backends:
@@ -395,12 +397,6 @@ def energy_drift(
     ``max_error`` is max_t |E(t) − E(0)| / max_t T(t) (dimensionless), with E = T + V
     sampled every second; ``setting`` is the tolerance or step used.
     """
-    from rrt_pin.grid import time_grid
-    from rrt_pin.model import rrt_model
-    from rrt_pin.params import Params
-    from rrt_pin.simulate import simulate
-    from rrt_pin.symplectic import mechanical_energy
-
     p = params if params is not None else Params()
     model = rrt_model(p)
     t = time_grid(tf, 1.0)
@@ -456,8 +452,6 @@ def plot_work_precision(
     path: str | Path, rows: Sequence[BenchRow], defaults: Sequence[BenchRow] = ()
 ) -> Path:
     """Write :func:`work_precision_png` to ``path`` atomically."""
-    from rrt_pin.io import atomic_write_bytes
-
     return atomic_write_bytes(path, work_precision_png(rows, defaults))
 
 
@@ -581,8 +575,6 @@ def run_bench(
         OutputError: ``out`` cannot be created or written (read-only, a file, a
             name too long), or the disk fills up while writing; nothing is left.
     """
-    from rrt_pin.io import OutputError, check_outputs, write_outputs
-
     out = Path(out)
     names = (
         "work_precision.csv",

@@ -50,7 +50,10 @@ from rrt_pin.errors import (
     ParameterError,
 )
 from rrt_pin.memory import check_data
+from rrt_pin.model import rrt_model
 from rrt_pin.params import PLANT_FIELDS, Params
+from rrt_pin.robot import Robot
+from rrt_pin.trajectory import Trajectory
 
 if TYPE_CHECKING:
     import pinocchio as pin
@@ -531,7 +534,6 @@ def _chapter_model(params: Params) -> pin.Model:
 
 @functools.lru_cache(maxsize=8)
 def _plant_model(plant: tuple[float, ...]) -> pin.Model:
-    from rrt_pin.model import rrt_model
 
     return rrt_model(Params(**dict(zip(PLANT_FIELDS, plant, strict=True))))
 
@@ -717,8 +719,6 @@ class PDGravityController(_PDGravity):
     def __post_init__(self) -> None:
         import pinocchio as pin
 
-        from rrt_pin.robot import Robot
-
         if not isinstance(self.model, pin.Model):
             raise InputError(f"model must be a pinocchio.Model, not {type(self.model).__name__}")
         model = self.model.copy()
@@ -819,7 +819,6 @@ class TrackingController(Controller):
     _data: Any = field(init=False, repr=False, default=None)
 
     def __post_init__(self) -> None:
-        from rrt_pin.trajectory import Trajectory
 
         n = self.robot.nv
         object.__setattr__(self, "kp", np.array(_gains("kp", self.kp, n)))
@@ -839,8 +838,6 @@ class TrackingController(Controller):
 
     def reference(self, t: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(q, q̇, q̈) of the motion at time(s) ``t`` [s], each (…, nv)."""
-        from rrt_pin.trajectory import Trajectory
-
         m = self.motion
         if isinstance(m, Trajectory):
             ts = np.atleast_1d(np.asarray(t, dtype=float))
@@ -904,8 +901,6 @@ def tracking_controller(
     Raises:
         InputError: a bad robot, motion or gain.
     """
-    from rrt_pin.robot import Robot
-
     if not isinstance(robot, Robot):
         robot = Robot.from_model(robot)
     return TrackingController(robot=robot, motion=motion, kp=kp, kd=kd)

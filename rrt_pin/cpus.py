@@ -16,6 +16,8 @@ import os
 import time
 from numbers import Integral
 
+from rrt_pin.errors import InputError
+
 __all__ = [
     "MAX_THREADS",
     "available",
@@ -59,8 +61,6 @@ def check_threads(name: str, value: object) -> int:
     Raises:
         InputError: not an integer, below 1, or more than :func:`max_threads`.
     """
-    from rrt_pin.errors import InputError
-
     if isinstance(value, bool) or not isinstance(value, Integral) or value < 1:
         raise InputError(f"{name}={value!r} must be an integer >= 1")
     count = int(value)

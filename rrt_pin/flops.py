@@ -17,6 +17,13 @@ from dataclasses import astuple, dataclass, fields
 
 import numpy as np
 
+from rrt_pin import kernel
+from rrt_pin.control import chapter_controller
+from rrt_pin.grid import time_grid
+from rrt_pin.params import Params
+from rrt_pin.robots import get
+from rrt_pin.trajectory import rest_to_rest
+
 __all__ = [
     "KernelRow",
     "closed_loop_kernel",
@@ -72,7 +79,6 @@ def kernel_flops() -> dict[str, int]:
     the compiled kernels include theirs (one vectorizable reduction for both).
     Needs no numba (the counts are constants).
     """
-    from rrt_pin import kernel
     from rrt_pin.compiled.codes import SINCOS_FLOPS
 
     return {
@@ -156,8 +162,6 @@ def generated_kernels(
     except ImportError:
         return {}, {}
     from rrt_pin.compiled import rnea
-    from rrt_pin.robots import get
-    from rrt_pin.trajectory import rest_to_rest
 
     ns: dict[str, float] = {}
     counts: dict[str, int] = {}
@@ -220,10 +224,6 @@ def closed_loop_ns(repeats: int = 7) -> float | None:
         return None
     from rrt_pin.compiled.dynamics import param_array
     from rrt_pin.compiled.integrate import _controller_arrays
-    from rrt_pin.control import chapter_controller
-    from rrt_pin.grid import time_grid
-    from rrt_pin.params import Params
-    from rrt_pin.trajectory import rest_to_rest
 
     p = Params()
     pa = param_array(p)

@@ -21,10 +21,13 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from rrt_pin import cpus, memory, validate
-from rrt_pin.errors import InputError
+from rrt_pin import backends, cpus, kernel, memory, validate
+from rrt_pin.control import _chapter_model
+from rrt_pin.errors import ArgumentTypeError, InputError
+from rrt_pin.extras import MissingExtra
 from rrt_pin.identity import IdentityCache
-from rrt_pin.robot import CHAPTER_COLUMNS
+from rrt_pin.params import check_params, plant_difference
+from rrt_pin.robot import CHAPTER_COLUMNS, Robot
 
 if TYPE_CHECKING:
     import pinocchio as pin
@@ -177,9 +180,6 @@ def inverse_dynamics(
         MemoryLimitError: not even one copy of the model's data fits in the
             memory left (the need and the limit named).
     """
-    from rrt_pin import backends
-    from rrt_pin.robot import Robot
-
     b = backends.get(backend, "inverse")
     _check_model_and_params(model, params, b.name)
     if num_threads is not None:
@@ -228,15 +228,11 @@ def inverse_dynamics(
     _same_count(q, qd, qdd)
     if compiled:
         if not b.available():
-            from rrt_pin.extras import MissingExtra
-
             raise MissingExtra("numba", "fast", "backend 'compiled'")
         from rrt_pin import compiled as backend
 
         tau = np.asarray(backend.inverse_dynamics(q, qd, qdd, params), dtype=float)
     else:
-        from rrt_pin import kernel
-
         tau = np.asarray(kernel.inverse_dynamics(q, qd, qdd, params), dtype=float)
         _check_finite(tau, CHAPTER_COLUMNS[3])
     return tau[0] if single else tau
@@ -258,8 +254,6 @@ def _generated(
     # The kernel flags non-finite inputs and efforts itself (then they are named as below).
     (q, qd, qdd), single = _samples_unchecked(q, qd, qdd, nq, pin_model.nv)
     if not b.available():
-        from rrt_pin.extras import MissingExtra
-
         raise MissingExtra("numba", "fast", "backend 'compiled'")
     from rrt_pin.compiled import rnea
 
@@ -293,10 +287,6 @@ def _check_model_and_params(model: Any, params: Any, backend: str) -> None:
     """
     import sys
 
-    from rrt_pin.errors import ArgumentTypeError
-    from rrt_pin.params import check_params, plant_difference
-    from rrt_pin.robot import Robot
-
     pin = sys.modules.get("pinocchio")  # not imported: ``model`` cannot be one of its models
     if model is not None and not isinstance(model, Robot):
         if pin is None or not isinstance(model, pin.Model):
@@ -317,8 +307,6 @@ def _check_model_and_params(model: Any, params: Any, backend: str) -> None:
         diff = plant_difference(params, own)
         why = f"differ from the robot's own ({diff})" if diff else None
     else:
-        from rrt_pin.control import _chapter_model
-
         pin_model = model.model if isinstance(model, Robot) else model
         why = None if bool(pin_model == _chapter_model(params)) else "are not the model's arm"
     if why:

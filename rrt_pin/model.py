@@ -10,8 +10,11 @@ import math
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from rrt_pin._quiet import captured_stderr, native_message
+from rrt_pin._read import read_text_capped
 from rrt_pin.errors import UrdfError
 from rrt_pin.params import Params
+from rrt_pin.urdf import MOUNT_ROTATION, urdf_xml
 from rrt_pin.urdf_check import MAX_URDF_BYTES, MimicPolicy, check_urdf_xml
 
 if TYPE_CHECKING:
@@ -41,8 +44,6 @@ def model_from_xml(xml: str, *, mimic: MimicPolicy = "warn") -> pin.Model:
     """
     import pinocchio as pin
 
-    from rrt_pin._quiet import captured_stderr
-
     check_urdf_xml(xml, mimic=mimic)
     with captured_stderr("urdfdom") as said:
         try:
@@ -69,8 +70,6 @@ def load_urdf_model(path: str | Path, *, mimic: MimicPolicy = "warn") -> pin.Mod
         UrdfError: the file cannot be read, is larger than 20 MB, is a device
             or a folder, is not UTF-8, or does not describe a usable model.
     """
-    from rrt_pin._read import read_text_capped
-
     xml = read_text_capped(path, cap=MAX_URDF_BYTES, what="URDF", error=UrdfError)
     try:
         return model_from_xml(xml, mimic=mimic)
@@ -86,8 +85,6 @@ def rrt_model(params: Params | None = None) -> pin.Model:
     is set to the exact permutation :data:`rrt_pin.urdf.MOUNT_ROTATION` (the
     URDF's roll/pitch/yaw leave 2e-16 entries, which put ~4e-13 N·m into T01x).
     """
-    from rrt_pin.urdf import urdf_xml
-
     p = params if params is not None else Params()
     model = model_from_xml(urdf_xml(p))
     model.gravity.linear[:] = (0.0, 0.0, -p.g)
@@ -104,8 +101,6 @@ def _exact_mount(model: pin.Model) -> None:
     """
     import numpy as np
     import pinocchio as pin
-
-    from rrt_pin.urdf import MOUNT_ROTATION
 
     exact = np.array(MOUNT_ROTATION)
 
@@ -145,8 +140,6 @@ def build_geometry(
         UrdfError: the text fails validation or its geometry does not load.
     """
     import pinocchio as pin
-
-    from rrt_pin._quiet import captured_stderr, native_message
 
     check_urdf_xml(xml, mimic="allow")
     with captured_stderr("urdfdom/assimp") as said:

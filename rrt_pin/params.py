@@ -14,7 +14,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field, fields, replace
 from typing import Any
 
-from rrt_pin.errors import OverrideError, ParameterError
+from rrt_pin.errors import ArgumentTypeError, OverrideError, ParameterError
+from rrt_pin.expr import MAX_LENGTH, ExpressionError, evaluate
 
 __all__ = [
     "PARAM_DOCS",
@@ -286,7 +287,6 @@ def check_params(value: object, name: str = "params") -> Params:
     """
     if isinstance(value, Params):
         return value
-    from rrt_pin.errors import ArgumentTypeError
 
     hint = " (e.g. Params(**overrides))" if isinstance(value, dict) else ""
     raise ArgumentTypeError(
@@ -322,8 +322,6 @@ def parse_number(text: str, name: str = "value") -> float:
             complex, or is too long or too deeply nested; the message names
             ``name`` and the text.
     """
-    from rrt_pin.expr import MAX_LENGTH, ExpressionError, evaluate
-
     if isinstance(text, str) and len(text.strip()) > MAX_LENGTH:
         raise OverrideError(
             f"{name}={_shorten(text)} is not a number ({len(text.strip())} characters long; "

@@ -15,7 +15,11 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from rrt_pin import text
+from rrt_pin.control import regulator
+from rrt_pin.csvio import read_csv_table
 from rrt_pin.errors import InputError
+from rrt_pin.simulate import simulate
+from rrt_pin.trajectory import rest_to_rest
 
 if TYPE_CHECKING:
     from rrt_pin.robot import Robot
@@ -79,8 +83,6 @@ def read_trajectory_csv(path: str, robot: Robot) -> tuple[np.ndarray, np.ndarray
         InputError: the file cannot be read, a column is missing, a value is
             not a finite number, or the times do not increase strictly.
     """
-    from rrt_pin.csvio import read_csv_table
-
     table = read_csv_table(path, required=("t",))
     header, data = table.header, table.data
     cols = csv_columns(robot, header, path)
@@ -137,13 +139,8 @@ def motion_keyframes(robot: Robot, source: str, fps: float, tf: float | None = N
             raise InputError(f"--trajectory {source} for {robot.name} needs --tf")
         t = keyframe_times(tf if tf is not None else Tp, fps)
         if source == "inverse":
-            from rrt_pin.trajectory import rest_to_rest
-
             values = np.asarray(rest_to_rest(d.q0, d.qf, Tp, t).q)
         else:
-            from rrt_pin.control import regulator
-            from rrt_pin.simulate import simulate
-
             values = np.asarray(simulate(robot, regulator(robot), d.q0, d.qd0, t).q)
         ghost = robot.configuration(np.asarray(d.qf, dtype=float))
         return Keyframes(t, robot.configuration(values), ghost)

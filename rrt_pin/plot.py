@@ -15,7 +15,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from rrt_pin import __version__
 from rrt_pin.errors import InputError
+from rrt_pin.extras import MissingExtra
+from rrt_pin.io import atomic_write_bytes
 
 if TYPE_CHECKING:
     from rrt_pin.robot import Robot
@@ -142,8 +145,6 @@ def figure(t: np.ndarray, panels: Sequence[Panel], title: str, xlabel: str = "t 
 
 def _metadata(fmt: str, title: str) -> dict[str, str]:
     """The file's own metadata: its title and what made it (png, svg and pdf each have a Title)."""
-    from rrt_pin import __version__
-
     return {
         "Title": title,
         ("Creator" if fmt != "svg" else "Description"): f"rrt-pin {__version__}",
@@ -162,8 +163,6 @@ def _pyplot():  # noqa: ANN202
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
     except ImportError as e:  # pragma: no cover - depends on the install
-        from rrt_pin.extras import MissingExtra
-
         raise MissingExtra("matplotlib", "plot", "plots") from e
     return plt
 
@@ -177,8 +176,6 @@ def plot_panels(
         InputError: an unknown image suffix.
         MissingExtra: matplotlib is missing.
     """
-    from rrt_pin.io import atomic_write_bytes
-
     fmt = plot_format(path)
     return atomic_write_bytes(path, render_panels(t, panels, title, xlabel, fmt=fmt))
 

@@ -27,8 +27,13 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from rrt_pin.control import as_controller, chapter_controller
 from rrt_pin.errors import InputError
+from rrt_pin.grid import time_grid
+from rrt_pin.io import atomic_write_bytes
+from rrt_pin.model import rrt_model
 from rrt_pin.params import Params
+from rrt_pin.robot import Robot
 
 if TYPE_CHECKING:
     import pinocchio as pin
@@ -95,9 +100,6 @@ def reference_run(
     """
     import pinocchio as pin
     from scipy.integrate import solve_ivp
-
-    from rrt_pin.control import as_controller
-    from rrt_pin.robot import Robot
 
     robot = Robot.from_model(model)
     law = as_controller(controller, model.nv)
@@ -167,10 +169,6 @@ def chapter_reference(
     import pinocchio as pin
     import scipy
 
-    from rrt_pin.control import chapter_controller
-    from rrt_pin.grid import time_grid
-    from rrt_pin.model import rrt_model
-
     p = params if params is not None else Params()
     t = time_grid(tf, dt)
     key = hashlib.sha256(
@@ -196,8 +194,6 @@ def chapter_reference(
             pass  # unreadable cache: recompute
     ref = reference_run(rrt_model(p), chapter_controller(p), p.q0, p.qd0, t)
     if cache:
-        from rrt_pin.io import atomic_write_bytes
-
         buffer = io.BytesIO()
         np.savez(
             buffer,

@@ -24,7 +24,11 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from rrt_pin import validate
 from rrt_pin.errors import InputError, UrdfError
+from rrt_pin.model import load_urdf_model
+from rrt_pin.rnea_source import unsupported_joint
+from rrt_pin.urdf import urdf_xml
 
 if TYPE_CHECKING:
     import pinocchio as pin
@@ -191,8 +195,6 @@ class Robot:
         Raises:
             UrdfError: the file does not describe a usable fixed-base robot.
         """
-        from rrt_pin.model import load_urdf_model
-
         model = load_urdf_model(path)
         model.gravity.linear[:] = (0.0, 0.0, -float(g))
         return cls.from_model(model, source=Path(path), q0=q0, qf=qf, kp=kp, kd=kd, Tp=Tp)
@@ -377,8 +379,6 @@ class Robot:
         Raises:
             InputError: wrong length or a non-finite value.
         """
-        from rrt_pin import validate
-
         nv = self.nv
         if self.nq != nv:
             arr = np.asarray(value, dtype=object) if not isinstance(value, np.ndarray) else value
@@ -437,8 +437,6 @@ class Robot:
     def xml(self) -> str:
         """The URDF text (generated for the arm, read from :attr:`source` otherwise)."""
         if self.params is not None:
-            from rrt_pin.urdf import urdf_xml
-
             return urdf_xml(self.params)
         if self.source is None:
             raise InputError(f"{self.name} was built from a model: it has no URDF text")
@@ -448,7 +446,6 @@ class Robot:
 def _maybe(name: str, value: Any, n: int) -> tuple[float, ...] | None:
     if value is None:
         return None
-    from rrt_pin import validate
 
     arr = np.asarray(value, dtype=float) if not isinstance(value, str) else value
     if np.ndim(arr) == 0 and name in ("kp", "kd"):
@@ -458,8 +455,6 @@ def _maybe(name: str, value: Any, n: int) -> tuple[float, ...] | None:
 
 def _generated_backends(model: pin.Model) -> tuple[str, ...]:
     """``("compiled",)`` when its generated RNEA handles every joint of ``model``, else ()."""
-    from rrt_pin.rnea_source import unsupported_joint
-
     return ("compiled",) if unsupported_joint(model) is None else ()
 
 

@@ -14,7 +14,9 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from rrt_pin import text
-from rrt_pin.errors import InputError
+from rrt_pin.errors import InputError, ParameterError
+from rrt_pin.model import rrt_model
+from rrt_pin.params import Params, param_names
 from rrt_pin.robot import CHAPTER_COLUMNS, Joint, Robot, RobotDefaults
 
 if TYPE_CHECKING:
@@ -46,13 +48,10 @@ def chapter_arm(params: Params | None = None) -> Robot:
     its regulator is eq. (31); all three backends compute it. The Pinocchio
     model is generated from ``params`` on first use.
     """
-    from rrt_pin.params import Params, param_names
-
     p = params if params is not None else Params()
     q, qd, qdd, eff = CHAPTER_COLUMNS
 
     def build():  # noqa: ANN202
-        from rrt_pin.model import rrt_model
 
         return rrt_model(p)
 
@@ -158,8 +157,6 @@ TASK_NEEDS = {"inverse": ("q0", "qf"), "simulate": ("q0", "qf", "kp", "kd"), "vi
 
 def _per_joint(name: str, value: Any, robot: Robot, gain: bool) -> list[float]:
     """One value per joint (or, for gains, one for all); gains must be >= 0."""
-    from rrt_pin.errors import ParameterError
-
     value = list(value)
     n = robot.nv
     if gain and len(value) == 1:

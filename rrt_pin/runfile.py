@@ -29,6 +29,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from rrt_pin._read import check_int64, load_toml
 from rrt_pin.errors import OverrideError, RunFileError
 from rrt_pin.params import PARAM_DOCS, Params, param_names, parse_number
 
@@ -72,8 +73,6 @@ def load_runfile(path: str | Path, tables: Collection[str] = ()) -> RunFile:
             or not TOML, has an unknown table or parameter, or a value that is
             not a finite number where one is due (or an integer beyond 64 bits).
     """
-    from rrt_pin._read import load_toml
-
     path = Path(path)
     data = load_toml(path, cap=MAX_RUNFILE_BYTES, what="run file", error=RunFileError)
     names = tuple(tables)
@@ -122,8 +121,6 @@ def load_runfile(path: str | Path, tables: Collection[str] = ()) -> RunFile:
 
 def _check_int(path: Path, name: str, value: object) -> None:
     """Refuse integers beyond TOML's 64-bit range (tomllib returns them unbounded)."""
-    from rrt_pin._read import check_int64
-
     check_int64(f"run file {str(path)!r}", name, value, RunFileError)
 
 

@@ -9,6 +9,7 @@ from __future__ import annotations
 import warnings
 
 from rrt_pin import methods as _methods
+from rrt_pin.robot import Robot
 from rrt_pin.simulate.api import simulate, simulate_batch
 from rrt_pin.simulate.results import BatchResult, SimulationResult
 
@@ -43,14 +44,10 @@ DEFAULT_ATOL = _methods.DEFAULT_ATOL
 
 def coordinate_names(model):  # noqa: ANN001, ANN201
     """Deprecated: ``Robot.from_model(model).q_names, .qd_names``."""
-    from rrt_pin.robot import Robot
-
     robot = Robot.from_model(model)
     return robot.q_names, robot.qd_names
 
 
 def effort_names(model):  # noqa: ANN001, ANN201
     """Deprecated: ``Robot.from_model(model).effort_names``."""
-    from rrt_pin.robot import Robot
-
     return Robot.from_model(model).effort_names

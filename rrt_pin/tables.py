@@ -24,6 +24,7 @@ import numpy as np
 
 from rrt_pin.csvio import csv_bytes, csv_engine
 from rrt_pin.errors import InputError
+from rrt_pin.extras import MissingExtra
 
 __all__ = [
     "BLOCK_ROWS",
@@ -64,8 +65,6 @@ def _pyarrow(flag: str | None) -> Any:
         import pyarrow as pa
         import pyarrow.parquet  # noqa: F401
     except ImportError as e:
-        from rrt_pin.extras import MissingExtra
-
         raise MissingExtra("pyarrow", "parquet", f"{flag or 'a'} .parquet output") from e
     return pa
 

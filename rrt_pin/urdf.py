@@ -23,6 +23,8 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+from rrt_pin.errors import ParameterError
+from rrt_pin.io import atomic_write_text
 from rrt_pin.params import Params
 
 __all__ = ["JOINT_NAMES", "MOUNT_ROTATION", "MOUNT_RPY", "urdf_xml", "write_urdf"]
@@ -105,8 +107,6 @@ def urdf_xml(params: Params | None = None, *, min_inertia: float = 0.0) -> str:
     """
     p = params if params is not None else Params()
     if not (math.isfinite(min_inertia) and min_inertia >= 0.0):
-        from rrt_pin.errors import ParameterError
-
         raise ParameterError("min_inertia", min_inertia, "must be finite and >= 0")
 
     def mom(*xs: float) -> tuple[float, ...]:
@@ -180,6 +180,4 @@ def urdf_xml(params: Params | None = None, *, min_inertia: float = 0.0) -> str:
 
 def write_urdf(path: str | Path, params: Params | None = None, *, min_inertia: float = 0.0) -> Path:
     """Write :func:`urdf_xml` to ``path`` atomically; returns the path."""
-    from rrt_pin.io import atomic_write_text
-
     return atomic_write_text(path, urdf_xml(params, min_inertia=min_inertia))

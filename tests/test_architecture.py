@@ -404,3 +404,118 @@ def test_one_cache_variable(monkeypatch, tmp_path):
     monkeypatch.setenv("RRT_PIN_CACHE", str(tmp_path / "old"))
     with pytest.warns(DeprecationWarning, match="RRT_PIN_CACHE_DIR"):
         assert reference._cache_dir() == tmp_path / "old"
+
+
+# --- imports at the top ------------------------------------------------------------------
+
+#: Libraries slow to import or optional: imported inside the function that needs them.
+HEAVY_LIBRARIES = {
+    "pinocchio", "numba", "llvmlite", "scipy", "matplotlib", "sympy", "meshcat", "dask",
+    "distributed", "pyarrow", "pandas", "selenium", "tornado", "mpmath", "yourdfpy",
+    "example_robot_data", "zmq", "psutil", "tqdm",
+}  # fmt: skip
+#: The package's own optional parts: they pull in one of those libraries or a backend
+#: when used, so they are imported where they are used, like the libraries.
+OPTIONAL_PARTS = (
+    "rrt_pin.compiled", "rrt_pin.viewer", "rrt_pin.sweeps", "rrt_pin.symbolic", "rrt_pin.plot",
+    "rrt_pin.bench", "rrt_pin.flops", "rrt_pin.reference", "rrt_pin.playback",
+    "rrt_pin.accuracy", "rrt_pin.simulate._odepack", "rrt_pin.simulate.scipy_runs",
+)  # fmt: skip
+#: Where a function-level import is the design: a command imports what it runs when it
+#: runs (cli.py, commands/), and a package's __init__ offers its names lazily.
+LAZY_BY_DESIGN = ("rrt_pin.cli", "rrt_pin.commands")
+
+
+def _module_level_imports(tree: ast.Module) -> set[int]:
+    """The import nodes run when the module is imported (not those for type checkers)."""
+    out: set[int] = set()
+
+    def walk(body: list[ast.stmt]) -> None:
+        for node in body:
+            if isinstance(node, (ast.Import, ast.ImportFrom)):
+                out.add(id(node))
+            elif isinstance(node, ast.If) and "TYPE_CHECKING" not in ast.unparse(node.test):
+                walk(node.body)
+                walk(node.orelse)
+            elif isinstance(node, ast.Try):
+                walk(node.body)
+                for handler in node.handlers:
+                    walk(handler.body)
+                walk(node.orelse)
+                walk(node.finalbody)
+
+    walk(tree.body)
+    for node in ast.walk(tree):
+        if isinstance(node, ast.If) and "TYPE_CHECKING" in ast.unparse(node.test):
+            out |= {id(n) for n in ast.walk(node) if isinstance(n, (ast.Import, ast.ImportFrom))}
+    return out
+
+
+def _targets(node: ast.Import | ast.ImportFrom) -> list[str]:
+    if isinstance(node, ast.Import):
+        return [a.name for a in node.names]
+    return [node.module or ""] + [f"{node.module}.{a.name}" for a in node.names]
+
+
+def _heavy_modules(sources: dict[str, str]) -> set[str]:
+    """Own modules that are optional parts or import a heavy library at module level."""
+    tops = {}
+    for name, text in sources.items():
+        tree = ast.parse(text)
+        level = _module_level_imports(tree)
+        tops[name] = [t for n in ast.walk(tree) if id(n) in level for t in _targets(n)]
+    heavy = {m for m in sources if any(m == o or m.startswith(o + ".") for o in OPTIONAL_PARTS)}
+    changed = True
+    while changed:
+        changed = False
+        for name, targets in tops.items():
+            if name not in heavy and any(
+                t.split(".")[0] in HEAVY_LIBRARIES or (t in heavy and t != name) for t in targets
+            ):
+                heavy.add(name)
+                changed = True
+    return heavy
+
+
+def _late_imports(sources: dict[str, str]) -> list[str]:
+    """Function-level imports of own modules that are neither heavy nor lazy by design."""
+    heavy = _heavy_modules(sources)
+    found = []
+    for name, text in sorted(sources.items()):
+        if name.endswith("__init__") or any(
+            name == p or name.startswith(p + ".") for p in LAZY_BY_DESIGN
+        ):
+            continue
+        tree = ast.parse(text)
+        level = _module_level_imports(tree)
+        for node in ast.walk(tree):
+            if not isinstance(node, (ast.Import, ast.ImportFrom)) or id(node) in level:
+                continue
+            targets = [t for t in _targets(node) if t in sources]
+            if targets and not any(t in heavy for t in targets):
+                found.append(f"{name}:{node.lineno}: {ast.unparse(node)}")
+    return found
+
+
+def test_imports_are_at_the_top():
+    files = {_module_name(p): p for p in PACKAGE.rglob("*.py")}
+    sources = {name: path.read_text(encoding="utf-8") for name, path in files.items()}
+    sources = {
+        f"{k}.__init__" if files[k].name == "__init__.py" else k: v for k, v in sources.items()
+    }
+    found = _late_imports(sources)
+    assert not found, "move these imports to the top of their module: " + "; ".join(found)
+
+
+def test_the_import_rule_can_fail():
+    sources = {
+        "rrt_pin.errors": "class InputError(ValueError): ...\n",
+        "rrt_pin.model": "import pinocchio\n",
+        "rrt_pin.viewer.show": "x = 1\n",
+        "rrt_pin.a": (
+            "def f():\n    from rrt_pin.errors import InputError\n    return InputError\n"
+            "def g():\n    from rrt_pin.model import build\n"
+            "def h():\n    from rrt_pin.viewer.show import show\n"
+        ),
+    }
+    assert _late_imports(sources) == ["rrt_pin.a:2: from rrt_pin.errors import InputError"]

@@ -21,6 +21,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from rrt_pin.errors import InputError
+from rrt_pin.kernel import param_vector
+from rrt_pin.params import Params
 from rrt_pin.robot import CHAPTER_COLUMNS
 
 if TYPE_CHECKING:
@@ -50,8 +52,6 @@ def param_array(params: Params) -> np.ndarray:
     Raises:
         InputError: ``params`` is not a :class:`~rrt_pin.params.Params`.
     """
-    from rrt_pin.params import Params
-
     if not isinstance(params, Params):
         raise InputError(f"params must be a Params, not {type(params).__name__}")
     return _param_array(params)
@@ -59,7 +59,6 @@ def param_array(params: Params) -> np.ndarray:
 
 @functools.lru_cache(maxsize=256)
 def _param_array(params: Params) -> np.ndarray:
-    from rrt_pin.kernel import param_vector
 
     p = np.ascontiguousarray(param_vector(params), dtype=np.float64)
     p.setflags(write=False)

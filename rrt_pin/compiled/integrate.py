@@ -47,12 +47,15 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from rrt_pin import methods, validate
+from rrt_pin import cpus, memory, methods, validate
 from rrt_pin.compiled import codes, ensure_compiled
 from rrt_pin.compiled.dynamics import param_array
+from rrt_pin.control import ChapterController, PDGravityController
 from rrt_pin.errors import DivergenceError, InputError
 from rrt_pin.identity import IdentityCache
-from rrt_pin.metrics import SETTLING_BAND
+from rrt_pin.kernel import PARAM_ORDER
+from rrt_pin.metrics import GROUPS, SETTLING_BAND, metric_columns
+from rrt_pin.model import rrt_model
 from rrt_pin.params import Params
 from rrt_pin.robot import CHAPTER_COLUMNS
 from rrt_pin.simulate.results import KEEPS, BatchResult, SimulationResult
@@ -103,7 +106,6 @@ def _rows(name: str, value: Any, unit: str, batch: bool) -> np.ndarray:
 
 @functools.lru_cache(maxsize=16)
 def _rrt_model(params: Params) -> pin.Model:
-    from rrt_pin.model import rrt_model
 
     return rrt_model(params)
 
@@ -116,8 +118,6 @@ def _law(controller: Any, plant: Params) -> tuple[int, np.ndarray, np.ndarray]:
     (read-only) in :data:`_LAWS`, by identity (no hashing of parameters); a pd_gravity
     controller's model is a mutable Pinocchio object and is checked at every call.
     """
-    from rrt_pin.control import ChapterController
-
     kept = _LAWS.get(controller, plant)
     if kept is not None:
         return kept
@@ -138,7 +138,6 @@ def _controller_arrays(controller: Any, plant: Params, p: np.ndarray) -> tuple[i
     c = np.zeros(24)
     if controller is None:
         return codes.KIND_NONE, c
-    from rrt_pin.control import ChapterController, PDGravityController
 
     # The exact classes only: a subclass may override efforts() with another law.
     if type(controller) is ChapterController:
@@ -530,8 +529,6 @@ def run_batch(
         _raise_status(info[b], t_reached[b], method, step, max_steps, b, tau[b])
     columns = None
     if metrics is not None:
-        from rrt_pin.metrics import GROUPS, metric_columns
-
         columns = metric_columns(GROUPS, metrics, CHAPTER_COLUMNS[0], _EFFORTS)
     return BatchResult(
         t=t if keep == "trajectories" else t[-1:],
@@ -560,8 +557,6 @@ def _threads_that_fit(threads: int, count: int) -> int:
     Raises:
         InputError: more than :func:`rrt_pin.cpus.max_threads`.
     """
-    from rrt_pin import cpus, memory
-
     threads = cpus.check_threads("threads", threads)
     used = min(threads, max(1, count))
     if used == 1:
@@ -594,9 +589,6 @@ def _fill_rows(
     work, done while other threads integrate the rows before; see
     :func:`integrate_arrays`); other laws go through :func:`_law` one by one.
     """
-    from rrt_pin.control import ChapterController
-    from rrt_pin.kernel import PARAM_ORDER
-
     plants, laws, count = plants[a:b], laws[a:b], b - a
     if not all(type(law) is ChapterController for law in laws):
         for i, (plant, law) in enumerate(zip(plants, laws, strict=True)):
@@ -764,8 +756,6 @@ def integrate_arrays(
             )  # fmt: skip
 
     if threads is None:
-        from rrt_pin import cpus
-
         threads = cpus.threads_for(count, MIN_PER_THREAD)
     used = _together(run, count, threads, fill)
     if detail:

@@ -44,6 +44,7 @@ import numpy as np
 
 from rrt_pin import cpus, rnea_source
 from rrt_pin.errors import InputError
+from rrt_pin.extras import MissingExtra
 from rrt_pin.identity import IdentityCache
 
 if TYPE_CHECKING:
@@ -261,8 +262,6 @@ def _compile(source: str, digest: str, gen: rnea_source.GeneratedRnea) -> Kernel
     try:
         import numba
     except ImportError as e:
-        from rrt_pin.extras import MissingExtra
-
         raise MissingExtra("numba", "fast", "backend 'compiled'") from e
     start = time.perf_counter()
     signature = _signature(numba)

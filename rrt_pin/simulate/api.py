@@ -8,9 +8,15 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from rrt_pin import validate
+from rrt_pin import backends, cpus, memory, validate
+from rrt_pin.control import Controller, _chapter_model, as_controller
 from rrt_pin.errors import InputError
+from rrt_pin.extras import MissingExtra
 from rrt_pin.identity import IdentityCache
+from rrt_pin.metrics import GROUPS, batch_metrics
+from rrt_pin.params import Params, check_params, plant_difference
+from rrt_pin.robot import Robot
+from rrt_pin.robots import chapter_arm
 from rrt_pin.simulate.energy import check_energy, check_energy_batch
 from rrt_pin.simulate.options import Options, resolve
 from rrt_pin.simulate.results import KEEPS
@@ -32,8 +38,6 @@ def as_robot(model: Any, params: Params | None = None) -> Robot:
     Raises:
         InputError: ``model`` is neither.
     """
-    from rrt_pin.robot import Robot
-
     if isinstance(model, Robot):
         return model
     cached = _ROBOTS.get(model, params)
@@ -48,12 +52,9 @@ _ROBOTS: IdentityCache[Robot] = IdentityCache(8)
 
 
 def _as_robot(model: Any, params: Params | None) -> Robot:
-    from rrt_pin.robot import Robot
 
     robot = Robot.from_model(model)
     if params is not None and robot.layout == "chapter":
-        from rrt_pin.robots import chapter_arm
-
         arm = chapter_arm(params)
         if bool(arm.model == model):
             return arm
@@ -62,15 +63,11 @@ def _as_robot(model: Any, params: Params | None) -> Robot:
 
 def default_threads() -> int:
     """The CPUs this process may run on (at least 1), capped by ``OMP_NUM_THREADS`` if set."""
-    from rrt_pin import cpus
-
     return cpus.available()
 
 
 def _params_for(robot: Robot, params: Any, controllers: Sequence[Any]) -> Params:
     """The chapter arm's Params for the compiled backend."""
-    from rrt_pin.params import Params
-
     if isinstance(params, Params):
         return params
     for candidate in (params, robot.params, *(getattr(c, "params", None) for c in controllers)):
@@ -85,11 +82,8 @@ def _params_for(robot: Robot, params: Any, controllers: Sequence[Any]) -> Params
 
 
 def _compiled() -> Any:
-    from rrt_pin import backends
 
     if not backends.get("compiled").available():
-        from rrt_pin.extras import MissingExtra
-
         raise MissingExtra("numba", "fast", "backend 'compiled'")
     from rrt_pin.compiled import integrate
 
@@ -154,8 +148,6 @@ def simulate(
         InputError: a bad robot, controller, state, time grid or option (named).
         DivergenceError: the state became non-finite or the integrator failed.
     """
-    from rrt_pin.control import as_controller
-
     if t_eval is None:
         raise InputError("simulate needs t_eval, the output times [s]: e.g. time_grid(15.0, 0.01)")
     robot = as_robot(model, _checked_params(params))
@@ -199,7 +191,6 @@ def _checked_params(params: Any, name: str = "params") -> Any:
     """``params`` if None or a Params (a dict is refused: :func:`rrt_pin.params.check_params`)."""
     if params is None:
         return None
-    from rrt_pin.params import check_params
 
     return check_params(params, name)
 
@@ -222,12 +213,9 @@ def _same_plant(robot: Robot, params: Any, backend: str) -> None:
             "params as one Params a variant runs on backend='compiled' only; backend "
             f"{backend!r} simulates the model given (pass chapter_arm(params) as the model)"
         )
-    from rrt_pin.params import plant_difference
 
     differs = None
     if robot.params is None:
-        from rrt_pin.control import _chapter_model
-
         if not bool(robot.model == _chapter_model(params)):
             differs = "is not the chapter's arm built from them"
     else:
@@ -286,8 +274,6 @@ def _prepare(robot: Robot, backend: Any, method: Any = None, batch: bool = False
 
         robot.model  # noqa: B018  (builds the generated arm's model once)
     elif backend == "compiled" and robot.params is not None:
-        from rrt_pin import backends
-
         if backends.get("compiled").available():
             from rrt_pin.compiled import ensure_compiled, integrate, machine_code  # noqa: F401
 
@@ -300,7 +286,6 @@ def _prepare(robot: Robot, backend: Any, method: Any = None, batch: bool = False
 
 
 def _passive(robot: Robot) -> Any:
-    from rrt_pin.control import Controller
 
     class Passive(Controller):
         nv = robot.nv  # type: ignore[assignment]
@@ -391,8 +376,6 @@ def simulate_batch(
         DivergenceError: a variant's state became non-finite or the integrator
             failed (the message names the coordinate and the variant).
     """
-    from rrt_pin.control import as_controller
-
     if isinstance(params, (list, tuple)):
         params = [_checked_params(p, f"params[{i}]") for i, p in enumerate(params)]
     else:
@@ -460,8 +443,6 @@ def simulate_batch(
 
 def _threads(threads: Any) -> int:
     """``threads=`` as an int from 1 to :func:`rrt_pin.cpus.max_threads` (256)."""
-    from rrt_pin import cpus
-
     return cpus.check_threads("threads", validate.positive_int("threads", threads))
 
 
@@ -475,8 +456,6 @@ def _pool_threads(robot: Robot, chosen: int | None) -> int | None:
     Raises:
         MemoryLimitError: not even one thread's copy fits.
     """
-    from rrt_pin import cpus, memory
-
     wanted = chosen if chosen is not None else cpus.available()
     data = memory.data_bytes(robot.model)
     fit = memory.threads_that_fit(
@@ -510,8 +489,6 @@ def _reduced(full: BatchResult, keep: str, qf: np.ndarray | None, efforts: bool)
         return full
     metrics = None
     if keep == "metrics":
-        from rrt_pin.metrics import GROUPS, batch_metrics
-
         with np.errstate(invalid="ignore"):
             metrics = batch_metrics(
                 GROUPS, full.t, full.q, full.qd, full.tau, qf, full.q_names, full.tau_names

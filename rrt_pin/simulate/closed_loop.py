@@ -19,6 +19,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from rrt_pin import cpus
+from rrt_pin.memory import check_data
+
 if TYPE_CHECKING:
     from rrt_pin.control import Controller
     from rrt_pin.robot import Robot
@@ -49,7 +52,6 @@ class ClosedLoop:
             self.kp, self.kd, self.qf = feedback.kp, feedback.kd, feedback.qf
         else:
             self.model = robot.model
-        from rrt_pin.memory import check_data
 
         check_data(self.model, f"a simulation of a {self.n}-joint model")
         self.data = self.model.createData()
@@ -138,7 +140,6 @@ class Threads:
     RECHECK = 0.05
 
     def __init__(self, fixed: int | None, variants: int) -> None:
-        from rrt_pin import cpus
 
         self.fixed = fixed
         self.variants = variants
@@ -190,7 +191,6 @@ class BatchLoop:
             self.gravity = first.gravity
             self.folded = first.exact_for(robot)
         plant = _without_gravity(robot.model) if self.folded else robot.model
-        from rrt_pin import cpus
 
         self.pool = pin.ModelPool(plant, threads if threads is not None else cpus.available())
 

@@ -23,6 +23,7 @@ from rrt_pin.simulate.scipy_runs import (
     run_solve_ivp,
     too_much_work,
 )
+from rrt_pin.symplectic import leapfrog
 
 if TYPE_CHECKING:
     from rrt_pin.control import Controller
@@ -66,8 +67,6 @@ def run_one(
         fixed = integrate_fixed_step(method.name, loop.acceleration(), q0, qd0, t, step, names)
         Q, V, n_evals = fixed.q, fixed.v, fixed.n_evals
     elif method.family == SYMPLECTIC:
-        from rrt_pin.symplectic import leapfrog
-
         run = leapfrog(
             robot.model,
             q0,

@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 
 from rrt_pin.errors import InputError
+from rrt_pin.extras import MissingExtra
 from rrt_pin.robot import CHAPTER_COLUMNS
 
 __all__ = ["KEEPS", "BatchResult", "ErrorEstimate", "SimulationResult"]
@@ -188,8 +189,6 @@ class SimulationResult(_Run):
         try:
             import pandas as pd
         except ImportError as e:
-            from rrt_pin.extras import MissingExtra
-
             raise MissingExtra("pandas", "parquet", "to_frame") from e
         frame = pd.DataFrame(self.table(), columns=list(self.header))
         frame.attrs["units"] = self.units

@@ -18,10 +18,19 @@ from typing import Any
 
 import numpy as np
 
-from rrt_pin import text
+from rrt_pin import backends, text
+from rrt_pin.control import ChapterController, PDGravityController
 from rrt_pin.errors import DivergenceError, InputError, RrtPinError, SpecError
-from rrt_pin.metrics import column_names
+from rrt_pin.grid import time_grid
+from rrt_pin.inverse import inverse_dynamics
+from rrt_pin.kernel import PARAM_ORDER
+from rrt_pin.metrics import batch_metrics, column_names, metric_columns
+from rrt_pin.params import Params
+from rrt_pin.robot import Robot
+from rrt_pin.robots import chapter_arm
+from rrt_pin.simulate import simulate, simulate_batch
 from rrt_pin.sweeps.spec import Spec, spec_from_dict
+from rrt_pin.trajectory import rest_to_rest
 
 __all__ = ["BLOCK", "Plan", "metric_names", "plan", "run_chunk"]
 
@@ -75,7 +84,6 @@ class Plan:
 
 
 def _arm_base(spec: Spec) -> tuple[Any, dict[str, float]]:
-    from rrt_pin.params import Params
 
     names = [f.name for f in fields(Params)]
     for name in spec.base:
@@ -93,20 +101,14 @@ def _plan(digest: str, source_json: str) -> Plan:
     import json
 
     spec = spec_from_dict(json.loads(source_json))
-    from rrt_pin import backends
-    from rrt_pin.grid import time_grid
     from rrt_pin.simulate.options import resolve
 
     if spec.urdf is None:
-        from rrt_pin.robots import chapter_arm
-
         params, base = _arm_base(spec)
         robot = chapter_arm(params)
         names = tuple(base)
         backend = "compiled" if backends.get("compiled").available() else "pinocchio"
     else:
-        from rrt_pin.robot import Robot
-
         robot = Robot.from_urdf(spec.urdf, g=float(spec.base.get("g", 9.81)))
         n = robot.nv
         names = tuple(f"{p}_{k}" for p in _PREFIXES for k in range(1, n + 1))
@@ -220,7 +222,6 @@ SUB_BLOCK = 128
 
 def _arm_simulate(p: Plan, values: dict[str, np.ndarray], count: int, rows: list[int]) -> dict:
     from rrt_pin.compiled import codes
-    from rrt_pin.kernel import PARAM_ORDER
 
     table, bad, why = arm_table(p, values, count)
     P = np.column_stack([table[n] for n in PARAM_ORDER])
@@ -271,11 +272,6 @@ def _concat(parts: list[dict[str, np.ndarray]]) -> dict[str, np.ndarray]:
 
 def _arm_one_by_one(p, table, bad, why, qf, count, rows):  # noqa: ANN001, ANN202
     """Without numba: one Pinocchio run per variant (each variant is its own model)."""
-    from rrt_pin.control import ChapterController
-    from rrt_pin.params import Params
-    from rrt_pin.robots import chapter_arm
-    from rrt_pin.simulate import simulate
-
     n, T = 3, p.t.size
     q, qd, tau = np.full((count, T, n), np.nan), np.full((count, T, n), np.nan), None
     tau = np.full((count, T, n), np.nan)
@@ -297,8 +293,6 @@ def _arm_one_by_one(p, table, bad, why, qf, count, rows):  # noqa: ANN001, ANN20
 
 
 def _urdf_simulate(p: Plan, values: dict, start: int, count: int, rows: list[int]) -> dict:
-    from rrt_pin.control import PDGravityController
-    from rrt_pin.simulate import simulate, simulate_batch
 
     robot, n = p.robot, p.robot.nv
     cols = {k: np.column_stack([np.broadcast_to(values.get(f"{k}_{j}", p.base[f"{k}_{j}"]),
@@ -360,8 +354,6 @@ def _finish(
     The metrics come from ``metrics`` rows when the compiled loop made them, else
     from the samples q, qd, tau.
     """
-    from rrt_pin.metrics import batch_metrics, metric_columns
-
     robot = p.robot
     groups = p.spec.metrics
     if metrics is not None:
@@ -403,8 +395,6 @@ def _reason(failure: DivergenceError | _Failure) -> str:
 
 
 def _inverse(p: Plan, values: dict[str, np.ndarray], count: int, rows: list[int]) -> dict:
-    from rrt_pin.inverse import inverse_dynamics
-    from rrt_pin.trajectory import rest_to_rest
 
     robot = p.robot
     n = robot.nv
@@ -412,9 +402,6 @@ def _inverse(p: Plan, values: dict[str, np.ndarray], count: int, rows: list[int]
     qd, tau = q.copy(), q.copy()
     failures: list = [None] * count
     if p.spec.urdf is None:
-        from rrt_pin.params import Params
-        from rrt_pin.robots import chapter_arm
-
         table, bad, why = arm_table(p, values, count)
         for i in np.flatnonzero(~bad):
             params = Params(**{k: float(table[k][i]) for k in p.base})

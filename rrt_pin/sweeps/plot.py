@@ -10,6 +10,7 @@ import numpy as np
 
 from rrt_pin import text
 from rrt_pin.errors import InputError
+from rrt_pin.io import atomic_write_bytes
 from rrt_pin.sweeps.spec import TEXT_COLUMNS
 
 __all__ = ["check_metric", "plot_metric"]
@@ -62,7 +63,6 @@ def plot_metric(out: str | Path, metric: str, path: str | Path | None = None) ->
     Raises:
         InputError: no such metric column, or nothing varied.
     """
-    from rrt_pin.io import atomic_write_bytes
     from rrt_pin.plot import _pyplot
     from rrt_pin.sweeps.store import Store
 

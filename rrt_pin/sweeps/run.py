@@ -28,8 +28,11 @@ from typing import Any
 
 import numpy as np
 
-from rrt_pin.errors import ClusterError, InputError, RrtPinError, SpecError
+from rrt_pin import cpus
+from rrt_pin.errors import ArgumentTypeError, ClusterError, InputError, RrtPinError, SpecError
+from rrt_pin.extras import MissingExtra
 from rrt_pin.metrics import column_units
+from rrt_pin.params import PARAM_DOCS, Params
 from rrt_pin.sweeps.spec import Spec, load_spec, spec_from_dict
 from rrt_pin.text import duration
 
@@ -127,7 +130,6 @@ def _spec(spec: Spec | str | Path | Mapping[str, Any]) -> Spec:
         if not os.fspath(spec):
             raise SpecError("spec='' must name a TOML file")
         return load_spec(spec)
-    from rrt_pin.errors import ArgumentTypeError
 
     raise ArgumentTypeError(
         "spec",
@@ -137,7 +139,6 @@ def _spec(spec: Spec | str | Path | Mapping[str, Any]) -> Spec:
 
 def _check_extremes(spec: Spec) -> None:
     """Refuse, before any work, a range whose ends make a parameter invalid (a negative mass)."""
-    from rrt_pin.params import Params
     from rrt_pin.sweeps.compute import plan
 
     p = plan(spec)
@@ -191,8 +192,6 @@ def _units(spec: Spec) -> dict[str, str]:
     out = {"variant": ""}
     out.update(column_units(spec.metrics, robot.q_names, robot.effort_names, robot.units))
     if spec.urdf is None:
-        from rrt_pin.params import PARAM_DOCS
-
         for name, doc in PARAM_DOCS.items():
             out[name] = doc.rsplit("[", 1)[-1].split("]")[0] if "[" in doc else ""
     else:
@@ -278,8 +277,6 @@ def _client(scheduler: str | None, workers: int) -> tuple[Any, Any]:
     try:
         from distributed import Client, LocalCluster
     except ImportError as e:
-        from rrt_pin.extras import MissingExtra
-
         raise MissingExtra("distributed", "sweep", "sweeps") from e
     for name in ("distributed", "tornado", "bokeh", "asyncio"):  # Dask's chatter stays quiet
         if logging.getLogger(name).getEffectiveLevel() < logging.ERROR:
@@ -472,7 +469,6 @@ def sweep(
     if (isinstance(worker_timeout, bool) or not isinstance(worker_timeout, (int, float))
             or not 0 < worker_timeout < math.inf):  # fmt: skip
         raise InputError(f"worker_timeout={worker_timeout!r} must be a number > 0 [s]")
-    from rrt_pin import cpus
 
     n_workers = workers or cpus.available()
     robot = p.robot

@@ -26,6 +26,7 @@ from pathlib import Path
 import sympy as sp
 from sympy.printing.pycode import PythonCodePrinter
 
+from rrt_pin.io import atomic_write_text
 from rrt_pin.symbolic.eom import equations_of_motion
 from rrt_pin.symbolic.simplify import readable
 from rrt_pin.symbolic.symbols import PARAM_NAMES
@@ -401,7 +402,6 @@ def main(argv: list[str] | None = None) -> int:
             print(f"{args.output} is stale: regenerate it", file=sys.stderr)
             return 1
         return 0
-    from rrt_pin.io import atomic_write_text
 
     atomic_write_text(args.output, source)
     print(f"wrote {args.output}", file=sys.stderr)

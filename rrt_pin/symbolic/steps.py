@@ -14,6 +14,7 @@ from functools import cache
 import sympy as sp
 from sympy.physics.mechanics import ReferenceFrame, Vector
 
+from rrt_pin.errors import ParameterError
 from rrt_pin.symbolic.simplify import readable, trig_normal
 from rrt_pin.symbolic.symbols import EFFORTS, g, q_plain, qd_plain, qdd_plain, to_plain
 from rrt_pin.symbolic.symbols import LATEX_NAMES as SYMBOL_LATEX
@@ -161,7 +162,5 @@ def derivation_steps(method: str = "kane") -> tuple[Step, ...]:
             for r, e in enumerate(lagrange.lagrange_lhs(), 1)
         ]
     else:
-        from rrt_pin.errors import ParameterError
-
         raise ParameterError("method", method, "must be one of kane, lagrange")
     return tuple(out)

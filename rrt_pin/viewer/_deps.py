@@ -5,6 +5,8 @@ from __future__ import annotations
 import warnings
 from typing import Any
 
+from rrt_pin.extras import MissingExtra
+
 
 def import_meshcat() -> Any:
     """The ``meshcat`` package (0.3.2's submodules loaded).
@@ -24,7 +26,5 @@ def import_meshcat() -> Any:
             import meshcat.servers.tree
             import meshcat.servers.zmqserver
     except ImportError as e:
-        from rrt_pin.extras import MissingExtra
-
         raise MissingExtra("meshcat", "viewer", "the viewer") from e
     return meshcat

@@ -46,6 +46,8 @@ from pathlib import Path
 from typing import Any
 
 from rrt_pin.errors import ViewerError
+from rrt_pin.extras import MissingExtra
+from rrt_pin.io import atomic_write_bytes
 
 __all__ = [
     "BROWSER_NAMES",
@@ -367,8 +369,6 @@ class Chromium:
             from selenium.common.exceptions import WebDriverException
             from selenium.webdriver.chrome.service import Service
         except ImportError as e:
-            from rrt_pin.extras import MissingExtra
-
             raise MissingExtra("selenium", "viewer", "--screenshot") from e
         paths = paths or find_chromium()
         if paths is None:
@@ -533,8 +533,6 @@ def screenshot(
         size: window size (width, height) [px].
         timeout: how long to wait for the page [s].
     """
-    from rrt_pin.io import atomic_write_bytes
-
     with Chromium(size) as browser:
         browser.open(url, clips, timeout)
         if t is not None:

@@ -25,7 +25,9 @@ import numpy as np
 
 from rrt_pin._quiet import native_message
 from rrt_pin.errors import InputError, UrdfError, ViewerError
+from rrt_pin.model import build_geometry
 from rrt_pin.robot import CHAPTER_COLUMNS
+from rrt_pin.robots import chapter_arm
 
 if TYPE_CHECKING:
     from rrt_pin.robot import Robot
@@ -51,8 +53,6 @@ def package_dirs(source: Any) -> list[str]:
 
 def geometry(robot: Robot) -> Any:
     """The visual geometry; for a URDF whose meshes cannot be found, the rest of it (warned)."""
-    from rrt_pin.model import build_geometry
-
     xml = robot.xml()
     if robot.source is None:
         return build_geometry(robot.model, xml)
@@ -198,7 +198,6 @@ def show(
         names = tuple(getattr(result, "q_names", CHAPTER_COLUMNS[0]))
         if names != CHAPTER_COLUMNS[0]:
             raise InputError(f"show() of a result with coordinates {names[:4]}… needs robot=")
-        from rrt_pin.robots import chapter_arm
 
         robot = chapter_arm()
     if q.ndim != 2 or q.shape[1] != robot.nv or q.shape[0] != t.size:
