@@ -240,8 +240,16 @@ CASES = (
     ),
     Case("NaN in --set", ("simulate", "--set", "g=nan", "--csv", OUT), "g=nan: must be finite"),
     Case("inf in --set", ("inverse", "--set", "L1=inf", "--csv", OUT), "L1=inf: must be finite"),
-    Case("NaN in a CSV", ("view", "--trajectory", "{tmp}/nan.csv", "--serve-for", "0"), "nan"),
-    Case("inf in a CSV", ("view", "--trajectory", "{tmp}/inf.csv", "--serve-for", "0"), "inf"),
+    Case(
+        "NaN in a CSV",
+        ("view", "--trajectory", "{tmp}/nan.csv", "--serve-for", "0"),
+        "nan.csv' line 3, column 'q1': 'nan' is not a finite number",
+    ),
+    Case(
+        "inf in a CSV",
+        ("view", "--trajectory", "{tmp}/inf.csv", "--serve-for", "0"),
+        "inf.csv' line 3, column 'q2': 'inf' is not a finite number",
+    ),
     Case(
         "CSV without a q column",
         ("view", "--trajectory", "{tmp}/missing.csv", "--serve-for", "0"),
