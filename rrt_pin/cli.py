@@ -13,7 +13,7 @@ import logging
 import sys
 from collections.abc import Callable, Iterator, Sequence
 from types import ModuleType
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from rrt_pin.commands import COMMANDS
 from rrt_pin.errors import RrtPinError, RunFileError
@@ -32,7 +32,39 @@ class _OneLineError(Exception):
 
 
 class _Parser(argparse.ArgumentParser):
-    """An ArgumentParser whose errors are one line, without the usage block."""
+    """An ArgumentParser whose errors are one line, without the usage block.
+
+    It keeps the options added to it in :attr:`options` (what ``add_argument``
+    returned), so that run files can be checked against them without argparse's
+    private attributes.
+    """
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        self.options: list[argparse.Action] = []
+        super().__init__(*args, **kwargs)
+
+    def add_argument(self, *args: Any, **kwargs: Any) -> argparse.Action:  # type: ignore[override]
+        action = super().add_argument(*args, **kwargs)
+        self.options.append(action)
+        return action
+
+    def add_argument_group(self, *args: Any, **kwargs: Any) -> Any:  # noqa: D102
+        return self._recording(super().add_argument_group(*args, **kwargs))
+
+    def add_mutually_exclusive_group(self, **kwargs: Any) -> Any:  # noqa: D102
+        return self._recording(super().add_mutually_exclusive_group(**kwargs))
+
+    def _recording(self, group: Any) -> Any:
+        """``group``, whose options are kept in :attr:`options` too."""
+        add = group.add_argument
+
+        def add_argument(*args: Any, **kwargs: Any) -> argparse.Action:
+            action = add(*args, **kwargs)
+            self.options.append(action)
+            return action
+
+        group.add_argument = add_argument
+        return group
 
     def error(self, message: str) -> None:  # type: ignore[override]
         raise _OneLineError(self.prog, message)
@@ -49,7 +81,7 @@ def _command_modules() -> dict[str, ModuleType]:
     return modules
 
 
-def build_parser() -> tuple[argparse.ArgumentParser, dict[str, argparse.ArgumentParser]]:
+def build_parser() -> tuple[_Parser, dict[str, _Parser]]:
     """The top-level parser and one subparser per available command."""
     from rrt_pin._version import __version__ as ver  # not importlib.metadata: ~20 ms
 
@@ -76,7 +108,7 @@ def build_parser() -> tuple[argparse.ArgumentParser, dict[str, argparse.Argument
     for name, module in _command_modules().items():
         p = sub.add_parser(name, help=module.HELP, description=module.HELP, parents=[verbosity])
         module.add_arguments(p)
-        p.set_defaults(_run=module.run)
+        p.set_defaults(command_run=module.run)
         subparsers[name] = p
     return parser, subparsers
 
@@ -84,13 +116,12 @@ def build_parser() -> tuple[argparse.ArgumentParser, dict[str, argparse.Argument
 def _option_value(where: str, action: argparse.Action, value: object) -> object:
     """A run file's option value, checked and converted by the same parser as its flag."""
     flag = action.option_strings[-1] if action.option_strings else action.dest
-    if isinstance(action, (argparse._StoreTrueAction, argparse._StoreFalseAction,
-                           argparse.BooleanOptionalAction)):  # fmt: skip
+    if action.nargs == 0:  # a switch: store_true, store_false or --x/--no-x
         if not isinstance(value, bool):
             raise RunFileError(f"{where}: {flag} = {value!r} must be true or false")
-        if isinstance(action, argparse._StoreFalseAction):
-            return not value
-        return value
+        if isinstance(action, argparse.BooleanOptionalAction) or action.const is True:
+            return value
+        return not value  # store_false: "wrenches = false" means the flag's opposite
     if isinstance(value, bool) or not isinstance(value, (str, int, float, list)):
         raise RunFileError(f"{where}: {flag} = {value!r} is not a value of {flag}")
     if isinstance(value, list):
@@ -127,7 +158,7 @@ def _apply_runfile(
 
     def actions(command: str) -> dict[str, argparse.Action]:
         skip = ("help", "config", "overrides", "verbose", "quiet")
-        return {a.dest: a for a in subparsers[command]._actions if a.dest not in skip}
+        return {a.dest: a for a in subparsers[command].options if a.dest not in skip}
 
     mine = actions(args.command)
     everyone = {dest for command in subparsers for dest in actions(command)}
@@ -252,7 +283,7 @@ def _main(argv: list[str], set_level: Callable[[int], None]) -> int:
             args = parser.parse_args(argv)  # explicit flags win over the run file's options
             args.runfile = runfile
         args.argv = ["rrt-pin", *argv]  # the command line, for the outputs' metadata
-        return int(args._run(args) or 0)
+        return int(args.command_run(args) or 0)
     except _OneLineError as e:
         print(e, file=sys.stderr)
         return EXIT_USAGE

@@ -519,3 +519,17 @@ def test_the_import_rule_can_fail():
         ),
     }
     assert _late_imports(sources) == ["rrt_pin.a:2: from rrt_pin.errors import InputError"]
+
+
+def test_run_files_see_every_option_of_every_command_without_argparse_privates():
+    from rrt_pin.cli import build_parser
+
+    parser, subparsers = build_parser()
+    for name, sub in subparsers.items():
+        recorded = {a.dest for a in sub.options}
+        needs_command = ["x.toml"] if name == "sweep" else []
+        defaults = set(vars(sub.parse_known_args(needs_command)[0]))
+        missing = defaults - recorded - {"command_run", "verbose", "quiet", "spec", "help"}
+        assert not missing, (name, missing)
+    source = (PACKAGE / "cli.py").read_text(encoding="utf-8")
+    assert "._actions" not in source and "argparse._" not in source
