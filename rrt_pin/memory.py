@@ -61,6 +61,10 @@ HEADROOM = 0.1
 #: What a run leaves free of a limit of more than twice this [bytes] (numpy's BLAS
 #: alone reserves tens of MB a thread when it first multiplies matrices).
 RESERVE = 256 << 20
+#: A need no limit is checked for [bytes]: a Python process with numpy and Pinocchio
+#: loaded already holds more, so reading /proc and the cgroup for it (~0.7 ms) would
+#: cost more than the run of a small model.
+SMALL = 64 << 20
 _logger = logging.getLogger("rrt_pin")
 
 
@@ -308,6 +312,9 @@ def threads_that_fit(
     def cost(k: int) -> Cost:
         return fixed + per_thread * k + (arenas(k - 1) if allocating else Cost())
 
+    whole = cost(threads)
+    if whole.resident + whole.reserved <= SMALL:
+        return threads  # far below any limit a Python process runs under: nothing read
     found = limits()
     found.sort(key=lambda limit: limit.usable() - limit.takes(cost(1)))  # the tightest first
     for limit in found:

@@ -330,3 +330,18 @@ def test_the_compiled_backend_never_runs_a_subclass_as_the_chapter_law(arm):
     law = Braking(kp=base.kp, kd=base.kd, qf=base.qf, params=base.params)
     with pytest.raises(InputError, match="not Braking"):
         simulate(arm, law, arm.defaults.q0, None, T, backend="compiled", estimate_error=False)
+
+
+def test_error_controlled_runs_are_not_charged_the_energy_rule(arm, monkeypatch):
+    """Tight adaptive runs are held by their error control; fixed steps are checked."""
+    from rrt_pin.simulate import energy
+
+    seen = []
+    real = energy.rule_for
+    monkeypatch.setattr(energy, "rule_for", lambda robot, law: seen.append(law) or real(robot, law))
+    simulate(arm, None, arm.defaults.q0, None, T, estimate_error=False)  # odepack, rtol 1e-12
+    simulate(arm, None, arm.defaults.q0, None, T, method="DOP853", rtol=1e-8, estimate_error=False)
+    assert seen == []
+    simulate(arm, None, arm.defaults.q0, None, T, method="RK45", rtol=1e-4, estimate_error=False)
+    simulate(arm, None, arm.defaults.q0, None, T, method="rk4", step=0.01, estimate_error=False)
+    assert len(seen) == 2

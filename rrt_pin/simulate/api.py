@@ -166,9 +166,10 @@ def simulate(
     checked = (
         None if controller is None else as_controller(controller, robot.nv, robot.effort_names)
     )
+    plant = None  # the arm's parameters of a compiled run (the energy rule's M(q))
     if options.backend == "compiled":
         integrate = _compiled()
-        p = _params_for(robot, params, [controller])
+        p = plant = _params_for(robot, params, [controller])
         if robot.params is None or robot.params is not p:
             integrate.check_model(robot.model, p)
 
@@ -183,7 +184,7 @@ def simulate(
             return run_one(robot, law, q0, qd0, t, o, began)
 
     result = _with_units(run(options, start), robot)
-    check_energy(result, robot, checked)
+    check_energy(result, robot, checked, plant)
     return _with_estimate(result, options, run) if estimate_error else result
 
 
