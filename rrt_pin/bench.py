@@ -34,7 +34,6 @@ from rrt_pin.io import (
     write_outputs,
 )
 from rrt_pin.kernel import PARAM_ORDER
-from rrt_pin.model import rrt_model
 from rrt_pin.params import Params
 from rrt_pin.simulate import simulate
 from rrt_pin.symplectic import mechanical_energy
@@ -191,6 +190,8 @@ def inverse_backends(
     """
     import pinocchio as pin
 
+    from rrt_pin.model import rrt_model
+
     p = params if params is not None else Params()
     model = rrt_model(p)
     traj = rest_to_rest(p.q0, p.qf, p.Tp, time_grid(p.Tp, dt))
@@ -299,6 +300,7 @@ def direct_work_precision(
         methods [rad, m].
     """
     from rrt_pin.methods import METHODS, names
+    from rrt_pin.model import rrt_model
     from rrt_pin.reference import chapter_reference
 
     p = params if params is not None else Params()
@@ -397,6 +399,8 @@ def energy_drift(
     ``max_error`` is max_t |E(t) − E(0)| / max_t T(t) (dimensionless), with E = T + V
     sampled every second; ``setting`` is the tolerance or step used.
     """
+    from rrt_pin.model import rrt_model
+
     p = params if params is not None else Params()
     model = rrt_model(p)
     t = time_grid(tf, 1.0)

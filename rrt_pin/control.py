@@ -50,7 +50,6 @@ from rrt_pin.errors import (
     ParameterError,
 )
 from rrt_pin.memory import check_data
-from rrt_pin.model import rrt_model
 from rrt_pin.params import PLANT_FIELDS, Params
 from rrt_pin.robot import Robot
 from rrt_pin.trajectory import Trajectory
@@ -534,6 +533,8 @@ def _chapter_model(params: Params) -> pin.Model:
 
 @functools.lru_cache(maxsize=8)
 def _plant_model(plant: tuple[float, ...]) -> pin.Model:
+
+    from rrt_pin.model import rrt_model
 
     return rrt_model(Params(**dict(zip(PLANT_FIELDS, plant, strict=True))))
 

@@ -62,7 +62,7 @@ HEADROOM = 0.1
 #: alone reserves tens of MB a thread when it first multiplies matrices).
 RESERVE = 256 << 20
 #: A need no limit is checked for [bytes]: a Python process with numpy and Pinocchio
-#: loaded already holds more, so reading /proc and the cgroup for it (~0.7 ms) would
+#: loaded already holds more, so reading /proc and the cgroup for it would
 #: cost more than the run of a small model.
 SMALL = 64 << 20
 _logger = logging.getLogger("rrt_pin")

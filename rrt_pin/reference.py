@@ -31,7 +31,6 @@ from rrt_pin.control import as_controller, chapter_controller
 from rrt_pin.errors import InputError
 from rrt_pin.grid import time_grid
 from rrt_pin.io import atomic_write_bytes
-from rrt_pin.model import rrt_model
 from rrt_pin.params import Params
 from rrt_pin.robot import Robot
 
@@ -168,6 +167,8 @@ def chapter_reference(
     """
     import pinocchio as pin
     import scipy
+
+    from rrt_pin.model import rrt_model
 
     p = params if params is not None else Params()
     t = time_grid(tf, dt)

@@ -26,9 +26,6 @@ import numpy as np
 
 from rrt_pin import validate
 from rrt_pin.errors import InputError, UrdfError
-from rrt_pin.model import load_urdf_model
-from rrt_pin.rnea_source import unsupported_joint
-from rrt_pin.urdf import urdf_xml
 
 if TYPE_CHECKING:
     import pinocchio as pin
@@ -195,6 +192,8 @@ class Robot:
         Raises:
             UrdfError: the file does not describe a usable fixed-base robot.
         """
+        from rrt_pin.model import load_urdf_model
+
         model = load_urdf_model(path)
         model.gravity.linear[:] = (0.0, 0.0, -float(g))
         return cls.from_model(model, source=Path(path), q0=q0, qf=qf, kp=kp, kd=kd, Tp=Tp)
@@ -436,6 +435,8 @@ class Robot:
 
     def xml(self) -> str:
         """The URDF text (generated for the arm, read from :attr:`source` otherwise)."""
+        from rrt_pin.urdf import urdf_xml
+
         if self.params is not None:
             return urdf_xml(self.params)
         if self.source is None:
@@ -455,6 +456,8 @@ def _maybe(name: str, value: Any, n: int) -> tuple[float, ...] | None:
 
 def _generated_backends(model: pin.Model) -> tuple[str, ...]:
     """``("compiled",)`` when its generated RNEA handles every joint of ``model``, else ()."""
+    from rrt_pin.rnea_source import unsupported_joint
+
     return ("compiled",) if unsupported_joint(model) is None else ()
 
 

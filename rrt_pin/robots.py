@@ -15,7 +15,6 @@ from typing import TYPE_CHECKING, Any
 
 from rrt_pin import text
 from rrt_pin.errors import InputError, ParameterError
-from rrt_pin.model import rrt_model
 from rrt_pin.params import Params, param_names
 from rrt_pin.robot import CHAPTER_COLUMNS, Joint, Robot, RobotDefaults
 
@@ -52,6 +51,7 @@ def chapter_arm(params: Params | None = None) -> Robot:
     q, qd, qdd, eff = CHAPTER_COLUMNS
 
     def build():  # noqa: ANN202
+        from rrt_pin.model import rrt_model  # Pinocchio: built on first use
 
         return rrt_model(p)
 

@@ -420,6 +420,8 @@ OPTIONAL_PARTS = (
     "rrt_pin.compiled", "rrt_pin.viewer", "rrt_pin.sweeps", "rrt_pin.symbolic", "rrt_pin.plot",
     "rrt_pin.bench", "rrt_pin.flops", "rrt_pin.reference", "rrt_pin.playback",
     "rrt_pin.accuracy", "rrt_pin.simulate._odepack", "rrt_pin.simulate.scipy_runs",
+    "rrt_pin.model", "rrt_pin.urdf", "rrt_pin.urdf_check",  # URDF parsing, Pinocchio models
+    "rrt_pin.rnea_source",  # the generator of any robot's compiled RNEA
 )  # fmt: skip
 #: Where a function-level import is the design: a command imports what it runs when it
 #: runs (cli.py, commands/), and a package's __init__ offers its names lazily.

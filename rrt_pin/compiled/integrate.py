@@ -55,7 +55,6 @@ from rrt_pin.errors import DivergenceError, InputError
 from rrt_pin.identity import IdentityCache
 from rrt_pin.kernel import PARAM_ORDER
 from rrt_pin.metrics import GROUPS, SETTLING_BAND, metric_columns
-from rrt_pin.model import rrt_model
 from rrt_pin.params import Params
 from rrt_pin.robot import CHAPTER_COLUMNS
 from rrt_pin.simulate.results import KEEPS, BatchResult, SimulationResult
@@ -106,6 +105,8 @@ def _rows(name: str, value: Any, unit: str, batch: bool) -> np.ndarray:
 
 @functools.lru_cache(maxsize=16)
 def _rrt_model(params: Params) -> pin.Model:
+
+    from rrt_pin.model import rrt_model
 
     return rrt_model(params)
 

@@ -25,7 +25,6 @@ import numpy as np
 
 from rrt_pin._quiet import native_message
 from rrt_pin.errors import InputError, UrdfError, ViewerError
-from rrt_pin.model import build_geometry
 from rrt_pin.robot import CHAPTER_COLUMNS
 from rrt_pin.robots import chapter_arm
 
@@ -53,6 +52,8 @@ def package_dirs(source: Any) -> list[str]:
 
 def geometry(robot: Robot) -> Any:
     """The visual geometry; for a URDF whose meshes cannot be found, the rest of it (warned)."""
+    from rrt_pin.model import build_geometry
+
     xml = robot.xml()
     if robot.source is None:
         return build_geometry(robot.model, xml)
