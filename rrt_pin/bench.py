@@ -37,7 +37,7 @@ from rrt_pin.kernel import PARAM_ORDER
 from rrt_pin.params import Params
 from rrt_pin.simulate import simulate
 from rrt_pin.symplectic import mechanical_energy
-from rrt_pin.text import duration
+from rrt_pin.text import argument, duration
 from rrt_pin.trajectory import rest_to_rest
 
 __all__ = [
@@ -591,7 +591,9 @@ def run_bench(
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as e:
-        raise OutputError(f"cannot create --out folder {str(out)!r}: {e.strerror or e}") from None
+        raise OutputError(
+            f"cannot create {argument('out')} folder {str(out)!r}: {e.strerror or e}"
+        ) from None
     try:
         check_outputs([(out / name, "--out") for name in names])
     except OutputError:

@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING, Any
 
 from rrt_pin.commands import COMMANDS
 from rrt_pin.errors import RrtPinError, RunFileError
+from rrt_pin.text import cli_spelling
 
 if TYPE_CHECKING:
     from rrt_pin.runfile import RunFile
@@ -266,7 +267,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 stream.reconfigure(errors="backslashreplace")
             except (ValueError, OSError):  # pragma: no cover - a stream that cannot
                 pass
-    with _log_to_stderr() as set_level:
+    with _log_to_stderr() as set_level, cli_spelling():  # messages name flags, not arguments
         return _main(argv, set_level)
 
 

@@ -19,6 +19,7 @@ from rrt_pin.control import regulator
 from rrt_pin.csvio import read_csv_table
 from rrt_pin.errors import InputError
 from rrt_pin.simulate import simulate
+from rrt_pin.text import argument
 from rrt_pin.trajectory import rest_to_rest
 
 if TYPE_CHECKING:
@@ -130,13 +131,16 @@ def motion_keyframes(robot: Robot, source: str, fps: float, tf: float | None = N
             missing += [k for k in ("kp", "kd") if getattr(d, k) is None]
         if missing:
             raise InputError(
-                f"--trajectory {source} for {robot.name} needs "
+                f"{argument('source', '--trajectory')} {source} for {robot.name} needs "
                 f"{', '.join('--' + m for m in missing)} (or give a CSV, e.g. from "
                 f"`rrt-pin {source} --urdf ... --csv`)"
             )
         Tp = d.Tp if d.Tp is not None else tf
         if Tp is None:
-            raise InputError(f"--trajectory {source} for {robot.name} needs --tf")
+            raise InputError(
+                f"{argument('source', '--trajectory')} {source} for {robot.name} needs "
+                f"{argument('tf')}"
+            )
         t = keyframe_times(tf if tf is not None else Tp, fps)
         if source == "inverse":
             values = np.asarray(rest_to_rest(d.q0, d.qf, Tp, t).q)
@@ -146,7 +150,8 @@ def motion_keyframes(robot: Robot, source: str, fps: float, tf: float | None = N
         return Keyframes(t, robot.configuration(values), ghost)
     if not os.path.isfile(source):
         raise InputError(
-            f"--trajectory {source!r}: expected {', '.join(SOURCES)} or the path of a CSV file"
+            f"{argument('source', '--trajectory')} {source!r}: expected {', '.join(SOURCES)} or "
+            "the path of a CSV file"
         )
     t_csv, values = read_trajectory_csv(source, robot)
     t, values = resample(t_csv, values, fps)

@@ -19,6 +19,7 @@ from rrt_pin import __version__
 from rrt_pin.errors import InputError
 from rrt_pin.extras import MissingExtra
 from rrt_pin.io import atomic_write_bytes
+from rrt_pin.text import argument
 
 if TYPE_CHECKING:
     from rrt_pin.robot import Robot
@@ -67,7 +68,7 @@ def plot_format(path: str | Path) -> str:
     if suffix not in FORMATS:
         problem = f"suffix {suffix!r} is not" if suffix else "no suffix names"
         raise InputError(
-            f"--plot {str(path)!r}: {problem} an image format rrt-pin writes; "
+            f"{argument('path', '--plot')} {str(path)!r}: {problem} an image format rrt-pin writes; "
             f"use {', '.join(FORMATS)}"
         )
     return FORMATS[suffix]

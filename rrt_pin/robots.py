@@ -17,6 +17,7 @@ from rrt_pin import text
 from rrt_pin.errors import InputError, ParameterError
 from rrt_pin.params import Params, param_names
 from rrt_pin.robot import CHAPTER_COLUMNS, Joint, Robot, RobotDefaults
+from rrt_pin.text import argument
 
 if TYPE_CHECKING:
     from rrt_pin.params import Params
@@ -199,9 +200,9 @@ def for_task(
             of the wrong length, or a default the task needs and the robot lacks.
         UrdfError: the URDF does not describe a usable robot.
     """
-    flag = f"--urdf {urdf}"
+    flag = f"{argument('urdf')} {urdf}"
     if name is not None:
-        urdf, flag = urdf_path(name), f"--robot {name}"
+        urdf, flag = urdf_path(name), f"{argument('name', '--robot')} {name}"
     if urdf is None:
         robot = chapter_arm(params)
     else:

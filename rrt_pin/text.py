@@ -1,11 +1,46 @@
-"""How numbers and lists read in messages and summaries: durations, long name lists."""
+"""How numbers, lists and arguments read in messages and summaries.
+
+Durations, long name lists, and the spelling of an argument: messages name the
+library's argument (``method``, ``rtol``) when a Python caller gets them, the
+command line's flag (``--method``, ``--rtol``) when the CLI runs (it sets
+:data:`SPELLING` while a command runs).
+"""
 
 from __future__ import annotations
 
+import contextlib
 import math
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from contextvars import ContextVar
 
-__all__ = ["duration", "names"]
+__all__ = ["SPELLING", "argument", "cli_spelling", "duration", "names"]
+
+#: How messages spell an argument: ``"library"`` (its name, ``rtol``) or ``"cli"`` (its
+#: flag, ``--rtol``).
+SPELLING: ContextVar[str] = ContextVar("rrt_pin_spelling", default="library")
+
+
+def argument(name: str, flag: str | None = None) -> str:
+    """``name`` as the caller wrote it: the argument's name, or its flag under the CLI.
+
+    Args:
+        name: the library's argument (``"rtol"``).
+        flag: the CLI's flag when it is not ``--`` + the name with dashes
+            (``"--plot"`` for ``path``).
+    """
+    if SPELLING.get() == "cli":
+        return flag or "--" + name.replace("_", "-")
+    return name
+
+
+@contextlib.contextmanager
+def cli_spelling() -> Iterator[None]:
+    """Spell arguments as the command line's flags while the block runs."""
+    token = SPELLING.set("cli")
+    try:
+        yield
+    finally:
+        SPELLING.reset(token)
 
 
 def _number(x: float) -> str:

@@ -37,3 +37,25 @@ def test_long_name_lists_are_cut_with_their_count():
         names([f"q{i}" for i in range(3000)]) == "q0, q1, q2, q3, q4, q5, q6, q7, … (3,000 names)"
     )
     assert names(list("abcd"), limit=2, sep=",") == "a,b,… (4 names)"
+
+
+def test_arguments_are_spelled_as_the_caller_wrote_them():
+    from rrt_pin.text import argument, cli_spelling
+
+    assert argument("rtol") == "rtol" and argument("zmq_url") == "zmq_url"
+    with cli_spelling():
+        assert argument("rtol") == "--rtol" and argument("zmq_url") == "--zmq-url"
+        assert argument("path", "--plot") == "--plot"
+    assert argument("path", "--plot") == "path"
+
+
+def test_a_library_message_names_the_argument_and_the_cli_the_flag(capsys):
+    from rrt_pin.cli import main
+    from rrt_pin.errors import InputError
+    from rrt_pin.viewer.keyframes import keyframe_times
+
+    with pytest.raises(InputError) as info:
+        keyframe_times(1e300, 30.0)
+    assert "lower fps or shorten the motion" in str(info.value) and "--fps" not in str(info.value)
+    assert main(["view", "--set", "Tp=1e300", "--serve-for", "0"]) == 2
+    assert "lower --fps or shorten the motion" in capsys.readouterr().err

@@ -58,6 +58,7 @@ from rrt_pin.metrics import GROUPS, SETTLING_BAND, metric_columns
 from rrt_pin.params import Params
 from rrt_pin.robot import CHAPTER_COLUMNS
 from rrt_pin.simulate.results import KEEPS, BatchResult, SimulationResult
+from rrt_pin.text import argument
 
 if TYPE_CHECKING:
     import pinocchio as pin
@@ -209,14 +210,16 @@ def _raise_status(
         name = f"{name} (variant {variant})"
     stiff = (  # not measured here: both causes named
         f"{method} is explicit: either the scene is stiff (large gains or damping against "
-        "small masses), which needs an implicit method (--backend pinocchio with --method "
+        f"small masses), which needs an implicit method ({argument('backend')} pinocchio with "
+        f"{argument('method')} "
         "odepack, Radau or BDF), or the tolerances are tighter than the motion allows"
     )
     if step is not None:
         stiff = (
             f"the step {step:g} s is too long for this scene: a fixed explicit step must "
             "resolve its fastest mode (large gains or damping against small masses); use a "
-            "shorter --step, or --backend pinocchio with --method odepack, Radau or BDF"
+            f"shorter {argument('step')}, or {argument('backend')} pinocchio with "
+            f"{argument('method')} odepack, Radau or BDF"
         )
     verb = "stopped"
     if status == codes.STATUS_NONFINITE:

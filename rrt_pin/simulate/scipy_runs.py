@@ -15,6 +15,7 @@ import numpy as np
 from rrt_pin import methods
 from rrt_pin.errors import DivergenceError
 from rrt_pin.integrators import blame
+from rrt_pin.text import argument
 
 __all__ = [
     "Counted",
@@ -180,6 +181,11 @@ def run_solve_ivp(
     return sol.y.T, sol.message, ok, int(sol.njev)
 
 
+def _ARGUMENTS() -> dict[str, str]:  # noqa: N802 - the templates' fields
+    """The tolerances' names as the caller spells them (``rtol`` or ``--rtol``)."""
+    return {"rtol": argument("rtol"), "atol": argument("atol")}
+
+
 #: What LSODA's failures mean for a user, by the words of its status message. LSODA
 #: switches to BDF by itself when the motion is stiff: stiffness is not what exhausts it.
 _LSODA_CAUSES = {
@@ -187,7 +193,7 @@ _LSODA_CAUSES = {
     "switches to BDF on stiff motion by itself): the tolerances are too tight for this "
     "motion, or it is not smooth there (a discontinuous law?); loosen rtol/atol",
     "Excess accuracy requested": "the tolerances are tighter than float64 can meet there "
-    "(loosen --rtol/--atol)",
+    "(loosen {rtol}/{atol})",
     "Illegal input": "the first step would be shorter than float64 can resolve: the "
     "derivatives at the start are too large (|d{where}/dt| = {size:.2g}) or the tolerances "
     "too tight",
@@ -195,7 +201,7 @@ _LSODA_CAUSES = {
     "(a discontinuous controller?) or the tolerances are too tight",
     "Repeated convergence failures": "the step size collapsed: the corrector does not "
     "converge (a discontinuous or very stiff right-hand side)",
-    "Error weight became zero": "a coordinate reached exactly zero with --atol 0: give --atol > 0",
+    "Error weight became zero": "a coordinate reached exactly zero with {atol} 0: give {atol} > 0",
 }
 
 
@@ -208,7 +214,7 @@ def _cause(
     for words, cause in _LSODA_CAUSES.items():
         if words in message:
             where = names[index % len(names)]
-            what = cause.format(mxstep=ODEINT_MXSTEP, size=size, where=where)
+            what = cause.format(mxstep=ODEINT_MXSTEP, size=size, where=where, **_ARGUMENTS())
             return f"{what} [{method}: {message.rstrip('.')}]"
     return f"the integrator {method} stopped: {message}"
 
@@ -462,7 +468,9 @@ def lsoda_batch(
                 index = int(np.argmax(np.abs(solver.y) / (atol + rtol * np.abs(solver.y))))
             if explained:
                 size = float(np.abs(solver.y[index]))
-                what = explained.format(mxstep=ODEINT_MXSTEP, size=size, where=label(index))
+                what = explained.format(
+                    mxstep=ODEINT_MXSTEP, size=size, where=label(index), **_ARGUMENTS()
+                )
                 problem = f"{what} [odepack: {str(message).rstrip('.')}]"
             else:
                 problem = f"odepack stopped: {message}"

@@ -12,6 +12,7 @@ from rrt_pin import text
 from rrt_pin.errors import InputError
 from rrt_pin.io import atomic_write_bytes
 from rrt_pin.sweeps.spec import TEXT_COLUMNS
+from rrt_pin.text import argument
 
 __all__ = ["check_metric", "plot_metric"]
 
@@ -47,10 +48,12 @@ def check_metric(spec: Any, metric: str) -> None:
     numbers = [n for n in names if n not in TEXT_COLUMNS]
     if metric in TEXT_COLUMNS and metric in names:
         raise InputError(
-            f"--plot {metric!r} is a column of text; plot one of numbers: {text.names(numbers, 20)}"
+            f"{argument('metric', '--plot')} {metric!r} is a column of text; plot one of numbers: {text.names(numbers, 20)}"
         )
     if metric not in numbers:
-        raise InputError(f"--plot {metric!r} is not a column; valid: {text.names(numbers, 20)}")
+        raise InputError(
+            f"{argument('metric', '--plot')} {metric!r} is not a column; valid: {text.names(numbers, 20)}"
+        )
 
 
 def plot_metric(out: str | Path, metric: str, path: str | Path | None = None) -> Path:
@@ -74,14 +77,16 @@ def plot_metric(out: str | Path, metric: str, path: str | Path | None = None) ->
     names = [n for n in table.column_names if n != "variant" and n not in TEXT_COLUMNS]
     if metric in TEXT_COLUMNS:
         raise InputError(
-            f"--plot {metric!r} is a column of text; plot one of numbers: {text.names(names, 20)}"
+            f"{argument('metric', '--plot')} {metric!r} is a column of text; plot one of numbers: {text.names(names, 20)}"
         )
     if metric not in table.column_names:
-        raise InputError(f"--plot {metric!r} is not a column; valid: {text.names(names, 20)}")
+        raise InputError(
+            f"{argument('metric', '--plot')} {metric!r} is not a column; valid: {text.names(names, 20)}"
+        )
     units = json.loads((table.schema.metadata or {}).get(b"rrt_pin.units", b"{}"))
     varied = list(manifest["spec"].get("vary", {}))
     if not varied:
-        raise InputError("--plot needs a sweep that varies something")
+        raise InputError(f"{argument('metric', '--plot')} needs a sweep that varies something")
     y = np.asarray(table.column(metric).to_numpy(zero_copy_only=False), dtype=float)
 
     def label(name: str) -> str:

@@ -16,6 +16,7 @@ import numpy as np
 
 from rrt_pin import text
 from rrt_pin.errors import InputError
+from rrt_pin.text import argument
 
 if TYPE_CHECKING:
     import pinocchio as pin
@@ -91,7 +92,7 @@ def keyframe_times(duration: float, fps: float) -> np.ndarray:
     if steps + 1 > MAX_KEYFRAMES:
         raise InputError(
             f"{duration:g} s at fps={fps:g} would be {_count(steps + 1)} keyframes; "
-            f"at most {MAX_KEYFRAMES:,}: lower --fps or shorten the motion"
+            f"at most {MAX_KEYFRAMES:,}: lower {argument('fps')} or shorten the motion"
         )
     n = round(steps)
     if abs(steps - n) <= 1e-9 * max(1.0, steps):

@@ -27,6 +27,7 @@ from rrt_pin._quiet import native_message
 from rrt_pin.errors import InputError, UrdfError, ViewerError
 from rrt_pin.robot import CHAPTER_COLUMNS
 from rrt_pin.robots import chapter_arm
+from rrt_pin.text import argument
 
 if TYPE_CHECKING:
     from rrt_pin.robot import Robot
@@ -255,7 +256,7 @@ def send_to_meshcat_server(zmq_url: str, commands: list[Any], timeout: float = 5
                 sock.recv()
         except zmq.ZMQError as e:
             raise ViewerError(
-                f"--zmq-url {zmq_url!r}: no meshcat server answered within {timeout:g} s "
+                f"{argument('zmq_url')} {zmq_url!r}: no meshcat server answered within {timeout:g} s "
                 f"({e}); start one with `meshcat-server` (it prints its zmq_url)"
             ) from None
     finally:
