@@ -248,16 +248,23 @@ class _Checked(Controller):
             raise AttributeError(name)
         return getattr(self.obj, name)
 
+    def _call(
+        self, fn: Callable[..., Any], call: str, t: Any, q: np.ndarray, qd: np.ndarray
+    ) -> Any:
+        """``fn(t, q, qd)``: a law that writes into q or q̇ (read-only views) is named."""
+        try:
+            return fn(t, q, qd)
+        except ValueError as e:
+            if "read-only" in str(e):
+                raise _mutation(self.who, call, e) from None
+            raise
+
     def efforts(self, t: float, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
         """The law's efforts (nv,) [N·m or N], checked."""
         q, qd = _frozen(q), _frozen(qd)
-        try:
-            tau = self._one(t, q, qd)
-        except ValueError as e:
-            if "read-only" in str(e):
-                raise _mutation(self.who, "efforts(t, q, qd)", e) from None
-            raise
-        return self._checked(tau, t, q, qd, (self._nv,), "efforts(t, q, qd)")
+        call = "efforts(t, q, qd)"
+        tau = self._call(self._one, call, t, q, qd)
+        return self._checked(tau, t, q, qd, (self._nv,), call)
 
     def efforts_many(self, t: Any, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
         """The law's efforts (N, nv) at N states [N·m or N], checked against :meth:`efforts`."""
@@ -266,13 +273,7 @@ class _Checked(Controller):
             return super().efforts_many(t, q, qd)
         q, qd = _frozen(q), _frozen(qd)
         call = "efforts_many(t, q, qd)"
-        try:
-            tau = many(t, q, qd)
-        except ValueError as e:
-            if "read-only" in str(e):
-                raise _mutation(self.who, call, e) from None
-            raise
-        tau = self._checked(tau, t, q, qd, q.shape, call)
+        tau = self._checked(self._call(many, call, t, q, qd), t, q, qd, q.shape, call)
         self._agrees(t, q, qd, tau)
         return tau
 
@@ -334,12 +335,7 @@ class _Checked(Controller):
             return None
         q, qd = _frozen(q), _frozen(qd)
         call = "jacobian(t, q, qd)"
-        try:
-            pair = jac(t, q, qd)
-        except ValueError as e:
-            if "read-only" in str(e):
-                raise _mutation(self.who, call, e) from None
-            raise
+        pair = self._call(jac, call, t, q, qd)
         if pair is None:
             return None
         n = self._nv
