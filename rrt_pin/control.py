@@ -195,7 +195,11 @@ def _shown(value: Any) -> str:
 
 def _frozen(a: Any) -> np.ndarray:
     """A read-only view of ``a``: a law may read its state, never change it."""
-    view = np.asarray(a, dtype=float).view()
+    if type(a) is not np.ndarray or a.dtype != np.float64:
+        a = np.asarray(a, dtype=float)
+    elif not a.flags.writeable:
+        return a  # already read-only (the rows of a frozen batch, an integrator's slices)
+    view = a.view()
     view.flags.writeable = False
     return view
 
@@ -264,14 +268,16 @@ class _Checked(Controller):
         q, qd = _frozen(q), _frozen(qd)
         call = "efforts(t, q, qd)"
         tau = self._call(self._one, call, t, q, qd)
+        if type(tau) is np.ndarray and tau.dtype == np.float64 and tau.shape == (self._nv,):
+            return tau  # what a law usually returns: nothing to check (every step calls this)
         return self._checked(tau, t, q, qd, (self._nv,), call)
 
     def efforts_many(self, t: Any, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
         """The law's efforts (N, nv) at N states [N·m or N], checked against :meth:`efforts`."""
         many = self._many()
+        q, qd = _frozen(q), _frozen(qd)  # once: their rows are read-only too
         if many is None:
             return super().efforts_many(t, q, qd)
-        q, qd = _frozen(q), _frozen(qd)
         call = "efforts_many(t, q, qd)"
         tau = self._checked(self._call(many, call, t, q, qd), t, q, qd, q.shape, call)
         self._agrees(t, q, qd, tau)

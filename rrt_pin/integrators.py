@@ -93,6 +93,9 @@ class _Stepper:
     def eval(self, q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
         """a(t, q, v), counted and checked for non-finite values."""
         self.n_evals += 1
+        # The stages' states are this integrator's own fresh arrays, never changed in
+        # place: read-only, a law reads them without a protective view of its own.
+        q.flags.writeable = v.flags.writeable = False
         a = self.acc(t, q, v)
         if not np.isfinite(a).all():
             infinite = np.isinf(a)

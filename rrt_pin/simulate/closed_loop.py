@@ -94,9 +94,10 @@ class ClosedLoop:
         acc = self.acceleration()
 
         def g(y: np.ndarray, t: float) -> np.ndarray:
-            v = y[n:]
+            q, v = y[:n], y[n:]
+            q.flags.writeable = v.flags.writeable = False  # a law reads them, never writes
             out[:n] = v
-            out[n:] = acc(t, y[:n], v)
+            out[n:] = acc(t, q, v)
             return out
 
         return g

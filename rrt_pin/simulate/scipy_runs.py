@@ -125,8 +125,9 @@ def first_order(acc: Callable[[float, np.ndarray, np.ndarray], np.ndarray], n: i
     """f(t, y) = (v, a(t, q, v)) of the first-order system in y = (q, v); a fresh array each call."""
 
     def f(t: float, y: np.ndarray) -> np.ndarray:
-        v = y[n:]
-        return np.concatenate((v, acc(t, y[:n], v)))
+        q, v = y[:n], y[n:]
+        q.flags.writeable = v.flags.writeable = False  # a law reads them, never writes
+        return np.concatenate((v, acc(t, q, v)))
 
     return f
 
