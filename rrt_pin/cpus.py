@@ -14,8 +14,8 @@ from __future__ import annotations
 
 import os
 import time
-from numbers import Integral
 
+from rrt_pin import validate
 from rrt_pin.errors import InputError
 
 __all__ = [
@@ -61,9 +61,7 @@ def check_threads(name: str, value: object) -> int:
     Raises:
         InputError: not an integer, below 1, or more than :func:`max_threads`.
     """
-    if isinstance(value, bool) or not isinstance(value, Integral) or value < 1:
-        raise InputError(f"{name}={value!r} must be an integer >= 1")
-    count = int(value)
+    count = validate.positive_int(name, value)
     most = max_threads()
     if count > most:
         raise InputError(
