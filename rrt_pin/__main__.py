@@ -1,5 +1,5 @@
 """``python -m rrt_pin``: the rrt-pin command line."""
 
-from rrt_pin.cli import main
+from rrt_pin.cli.app import main
 
 raise SystemExit(main())

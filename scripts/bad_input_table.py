@@ -17,7 +17,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from rrt_pin.cli import main  # noqa: E402
+from rrt_pin.cli.app import main  # noqa: E402
 from tests.bad_inputs import CASES, make_files  # noqa: E402
 
 DOC = ROOT / "docs" / "bad-input.md"

@@ -11,7 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-from rrt_pin.urdf import urdf_xml
+from rrt_pin.robot.urdf import urdf_xml
 
 _NO_INERTIALS = (
     '<robot name="bare"><link name="a"/><link name="b"/>'

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rrt_pin.params import Params
+from rrt_pin.robot.params import Params
 from tests.support import DERIVED, TIGHT, random_states  # noqa: F401  (re-exported for fixtures)
 
 
@@ -19,7 +19,7 @@ def seed_params() -> Params:
 
 @pytest.fixture(scope="session")
 def seed_model(seed_params):
-    from rrt_pin.model import rrt_model
+    from rrt_pin.robot.model import rrt_model
 
     return rrt_model(seed_params)
 
@@ -27,7 +27,7 @@ def seed_model(seed_params):
 @pytest.fixture(autouse=True)
 def fresh_cpu_readings(monkeypatch):
     """Every reading of the free CPUs is taken anew (tests replace what it reads)."""
-    from rrt_pin import cpus
+    from rrt_pin.core import cpus
 
     monkeypatch.setattr(cpus, "FRESH", 0.0)
     monkeypatch.setattr(cpus, "_last", (-1.0, 0))

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rrt_pin.params import Params
+from rrt_pin.robot.params import Params
 
 #: Tolerances, named once (relative unless the name says otherwise).
 TIGHT = 1e-12
@@ -126,7 +126,7 @@ ROBOTS = {
 
 def robots_dir() -> Path | None:
     """``.../share/example-robot-data/robots`` of the installed package, or None."""
-    from rrt_pin.robots import example_robot_data_dir
+    from rrt_pin.robot.robots import example_robot_data_dir
 
     return example_robot_data_dir()
 

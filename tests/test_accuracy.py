@@ -13,11 +13,10 @@ import warnings
 import numpy as np
 import pytest
 
-from rrt_pin import methods
-from rrt_pin.accuracy import ACCURACY, PROBLEMS, max_error, reference
-from rrt_pin.cli import main
+from rrt_pin.cli.app import main
 from rrt_pin.compiled import available
-from rrt_pin.simulate import AccuracyWarning, simulate, simulate_batch
+from rrt_pin.simulate import AccuracyWarning, methods, simulate, simulate_batch
+from rrt_pin.simulate.accuracy import ACCURACY, PROBLEMS, max_error, reference
 
 #: The bracket the estimate must keep: true/10 <= estimate <= 10·true.
 BRACKET = 10.0
@@ -66,7 +65,7 @@ def test_the_catalogue_covers_the_hard_cases():
 # --- references -----------------------------------------------------------------------
 @needs_compiled
 def test_compiled_reference_agrees_with_scipy_dop853_and_radau():
-    from rrt_pin.reference import chapter_reference
+    from rrt_pin.simulate.reference import chapter_reference
 
     chapter = chapter_reference()  # DOP853 and Radau on pin.aba at rtol 1e-13, cached
     assert chapter.difference_q < 1e-12
@@ -178,10 +177,10 @@ def test_fixed_step_estimate_is_richardsons(method):
 
 def test_any_urdf_robot_gets_an_estimate(tmp_path):
     """A generic robot (the arm's URDF, PD plus Pinocchio's gravity compensation)."""
-    from rrt_pin.control import regulator
-    from rrt_pin.reference import reference_run
-    from rrt_pin.robot import Robot
-    from rrt_pin.urdf import urdf_xml
+    from rrt_pin.robot.robot import Robot
+    from rrt_pin.robot.urdf import urdf_xml
+    from rrt_pin.simulate.control import regulator
+    from rrt_pin.simulate.reference import reference_run
 
     path = tmp_path / "arm.urdf"
     path.write_text(urdf_xml())

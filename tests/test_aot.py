@@ -15,7 +15,8 @@ pytest.importorskip("numba")
 
 from rrt_pin import compiled  # noqa: E402
 from rrt_pin.compiled import _aot  # noqa: E402
-from rrt_pin.params import Params  # noqa: E402
+from rrt_pin.robot.params import Params  # noqa: E402
+from rrt_pin.robot.robots import chapter_arm
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -79,28 +80,28 @@ def _fresh_process(code: str) -> dict:
 def test_a_process_computing_inverse_dynamics_does_not_import_numba(modules):
     code = (
         "import sys, json, numpy as np\n"
-        "from rrt_pin.inverse import inverse_dynamics\n"
-        "from rrt_pin.params import Params\n"
+        "from rrt_pin.dynamics.inverse import inverse_dynamics\n"
+        "from rrt_pin.robot.params import Params\n"
+        "from rrt_pin.robot.robots import chapter_arm\n"
         "q = np.array([[0.1, 0.2, 0.3], [1.0, -2.0, 0.1]])\n"
-        "tau = inverse_dynamics(None, q, q, q, backend='compiled', params=Params())\n"
+        "tau = inverse_dynamics(chapter_arm(Params()), q, q, q, backend='compiled')\n"
         "print(json.dumps({'tau': tau.tolist(), 'numba': 'numba' in sys.modules}))\n"
     )
     got = _fresh_process(code)
     assert got["numba"] is False
-    from rrt_pin.inverse import inverse_dynamics
-    from rrt_pin.model import rrt_model
+    from rrt_pin.dynamics.inverse import inverse_dynamics
 
     q = np.array([[0.1, 0.2, 0.3], [1.0, -2.0, 0.1]])
-    expected = inverse_dynamics(rrt_model(Params()), q, q, q)  # Pinocchio's RNEA
+    expected = inverse_dynamics(chapter_arm(Params()), q, q, q)  # Pinocchio's RNEA
     np.testing.assert_allclose(got["tau"], expected, rtol=1e-13, atol=1e-12)
 
 
 def test_a_single_run_in_a_fresh_process_gives_the_jit_bits_without_numba(modules, monkeypatch):
     code = (
         "import sys, json, numpy as np\n"
-        "from rrt_pin.control import chapter_controller\n"
-        "from rrt_pin.params import Params\n"
-        "from rrt_pin.robots import chapter_arm\n"
+        "from rrt_pin.simulate.control import chapter_controller\n"
+        "from rrt_pin.robot.params import Params\n"
+        "from rrt_pin.robot.robots import chapter_arm\n"
         "from rrt_pin.simulate import simulate\n"
         "p = Params()\n"
         "r = simulate(chapter_arm(p), chapter_controller(p), p.q0, np.zeros(3),\n"
@@ -111,7 +112,7 @@ def test_a_single_run_in_a_fresh_process_gives_the_jit_bits_without_numba(module
     got = _fresh_process(code)
     assert got["numba"] is False
     from rrt_pin.compiled import integrate
-    from rrt_pin.control import chapter_controller
+    from rrt_pin.simulate.control import chapter_controller
 
     p = Params()
     monkeypatch.setattr(_aot, "load", lambda: None)  # this process: numba's JIT

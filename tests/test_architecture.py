@@ -10,8 +10,8 @@ from pathlib import Path
 import pytest
 
 import rrt_pin
-from rrt_pin import backends, methods
-from rrt_pin.compiled import codes
+from rrt_pin.core import backends
+from rrt_pin.simulate import codes, methods
 
 PACKAGE = Path(rrt_pin.__file__).parent
 
@@ -94,7 +94,7 @@ def _cycle(graph: dict[str, set[str]]) -> list[str] | None:
 def test_the_import_walker_sees_function_local_imports_and_finds_cycles():
     graph = _graph()
     # a function-local import, and the package that `import rrt_pin.simulate.results` runs
-    assert "rrt_pin.compiled.integrate" in graph["rrt_pin.simulate.api"]
+    assert "rrt_pin.robot.model" in graph["rrt_pin.simulate.api"]
     assert "rrt_pin.simulate" in graph["rrt_pin.compiled.integrate"]
     assert _cycle({"a": {"b"}, "b": {"c"}, "c": {"a"}}) == ["a", "b", "c", "a"]
     assert _cycle({"a": {"b"}, "b": set()}) is None
@@ -102,7 +102,8 @@ def test_the_import_walker_sees_function_local_imports_and_finds_cycles():
 
 #: What ``import rrt_pin`` runs (besides the standard library).
 ROOT_IMPORTS = {
-    "rrt_pin.errors", "rrt_pin.params", "rrt_pin.expr", "rrt_pin._logging", "rrt_pin._version",
+    "rrt_pin.core", "rrt_pin.core.errors", "rrt_pin.core.expr", "rrt_pin.core._logging",
+    "rrt_pin.robot", "rrt_pin.robot.params", "rrt_pin._version", "rrt_pin._moved",
 }  # fmt: skip
 
 
@@ -148,7 +149,7 @@ def _code_names(path: Path) -> list[tuple[int, str]]:
 
 def test_commands_hold_no_robot_specific_branch():
     """Commands parse, call the library, write: the robot decides columns, units and laws."""
-    for path in sorted((PACKAGE / "commands").glob("*.py")):
+    for path in sorted((PACKAGE / "cli" / "commands").glob("*.py")):
         for line, name in _code_names(path):
             assert name not in ROBOT_SPECIFIC, f"{path.name}:{line}: {name}"
             assert name != "urdf is None", f"{path.name}:{line}"
@@ -162,7 +163,7 @@ def test_the_branch_detector_can_fail(tmp_path):
 
 
 def test_cli_choices_and_help_come_from_the_registries(capsys):
-    from rrt_pin.cli import build_parser
+    from rrt_pin.cli.app import build_parser
 
     _, sub = build_parser()
     for task in ("inverse", "simulate"):
@@ -208,7 +209,8 @@ def test_public_api_is_complete():
         assert getattr(rrt_pin, name) is not None, name
     assert re.fullmatch(r"\d+\.\d+\.\d+", rrt_pin.__version__)
     assert callable(rrt_pin.simulate) and callable(rrt_pin.simulate.simulate_batch)
-    for module in ("control", "methods", "backends", "robots", "robot", "validate", "metrics"):
+    for module in ("simulate.control", "simulate.methods", "core.backends", "robot.robots",
+                   "robot.robot", "robot", "core.validate", "simulate.metrics"):  # fmt: skip
         mod = __import__(f"rrt_pin.{module}", fromlist=["__all__"])
         for name in mod.__all__:
             assert hasattr(mod, name), f"rrt_pin.{module}.{name}"
@@ -216,7 +218,7 @@ def test_public_api_is_complete():
 
 @pytest.mark.parametrize("name", ["seed_controller", "SeedController"])
 def test_deprecated_aliases_still_work(name):
-    import rrt_pin.control as control
+    import rrt_pin.simulate.control as control
 
     assert getattr(control, name) in (control.chapter_controller, control.ChapterController)
 
@@ -265,7 +267,7 @@ def test_docstrings_hold_no_measured_timings():
 
 
 def test_help_holds_no_measured_timings(capsys):
-    from rrt_pin.cli import main
+    from rrt_pin.cli.app import main
 
     commands = ("urdf", "joints", "inverse", "simulate", "equations", "sweep", "view", "bench")
     for command in commands:
@@ -282,14 +284,14 @@ def test_the_timing_detector_can_fail():
 
 
 def test_run_files_and_specs_have_their_own_names_and_the_old_ones_still_work(tmp_path):
-    from rrt_pin import errors
-    from rrt_pin.runfile import RunFile, load_runfile
+    from rrt_pin.cli.runfile import RunFile, load_runfile
+    from rrt_pin.core import errors
 
     for new in (errors.RunFileError, errors.SpecError, errors.OverrideError):
         assert issubclass(new, errors.SceneError) and issubclass(new, ValueError)
     assert issubclass(errors.OverrideError, errors.InputError)
     assert not issubclass(errors.SpecError, errors.RunFileError)
-    with pytest.warns(DeprecationWarning, match="rrt_pin.runfile"):
+    with pytest.warns(DeprecationWarning, match="rrt_pin.cli.runfile"):
         import importlib
         import sys
 
@@ -311,7 +313,7 @@ def test_the_viewers_drawing_and_the_rnea_source_have_their_names_and_old_ones_w
     import sys
 
     import rrt_pin.viewer as viewer
-    from rrt_pin import rnea_source
+    from rrt_pin.dynamics import rnea_source
     from rrt_pin.viewer.drawing import RobotDrawing, build_drawing
 
     with pytest.warns(DeprecationWarning, match="rrt_pin.viewer.RobotDrawing"):
@@ -319,14 +321,14 @@ def test_the_viewers_drawing_and_the_rnea_source_have_their_names_and_old_ones_w
     with pytest.warns(DeprecationWarning, match="rrt_pin.viewer.build_drawing"):
         assert viewer.build_scene is build_drawing
     for old, new in (("rrt_pin.viewer.scene", "rrt_pin.viewer.drawing"),
-                     ("rrt_pin.codegen", "rrt_pin.rnea_source")):  # fmt: skip
+                     ("rrt_pin.codegen", "rrt_pin.dynamics.rnea_source")):  # fmt: skip
         sys.modules.pop(old, None)
         with pytest.warns(DeprecationWarning, match=new):
             module = importlib.import_module(old)
         for name in module.__all__:
             assert getattr(module, name) is not None
     assert importlib.import_module("rrt_pin.codegen").rnea_source is rnea_source.rnea_source
-    from rrt_pin import accuracy
+    from rrt_pin.simulate import accuracy
 
     assert accuracy.SCENES is accuracy.PROBLEMS and accuracy.Scene is accuracy.Problem
     assert "SCENES" not in accuracy.__all__ and "PROBLEMS" in accuracy.__all__
@@ -336,15 +338,16 @@ def test_the_viewers_drawing_and_the_rnea_source_have_their_names_and_old_ones_w
 
 
 def test_the_plants_parameter_order_is_one_list():
-    from rrt_pin import kernel, params
+    from rrt_pin.dynamics import kernel
+    from rrt_pin.robot import params
 
     assert kernel.PARAM_ORDER is params.PLANT_FIELDS
-    symbols = pytest.importorskip("rrt_pin.symbolic.symbols")
+    symbols = pytest.importorskip("rrt_pin.dynamics.symbolic.symbols")
     assert symbols.PARAM_NAMES is params.PLANT_FIELDS
 
 
 def test_the_generated_file_holds_only_expressions():
-    source = (PACKAGE / "_kernel_terms.py").read_text(encoding="utf-8")
+    source = (PACKAGE / "dynamics" / "_kernel_terms.py").read_text(encoding="utf-8")
     tree = ast.parse(source)
     functions = {n.name for n in tree.body if isinstance(n, ast.FunctionDef)}
     assert functions == {"terms", "inverse_constants", "inverse_terms", "forward_terms"}
@@ -353,8 +356,8 @@ def test_the_generated_file_holds_only_expressions():
 
 
 def test_metric_names_units_and_help_come_from_the_registry(capsys):
-    from rrt_pin import metrics
-    from rrt_pin.cli import main
+    from rrt_pin.cli.app import main
+    from rrt_pin.simulate import metrics
     from rrt_pin.sweeps import spec
 
     assert spec.METRICS["simulate"] == metrics.for_task("simulate")
@@ -395,7 +398,7 @@ def test_the_arms_column_names_are_typed_once():
 
 
 def test_one_cache_variable(monkeypatch, tmp_path):
-    from rrt_pin import reference
+    from rrt_pin.simulate import reference
 
     monkeypatch.delenv("RRT_PIN_CACHE", raising=False)
     monkeypatch.setenv("RRT_PIN_CACHE_DIR", str(tmp_path))
@@ -417,15 +420,15 @@ HEAVY_LIBRARIES = {
 #: The package's own optional parts: they pull in one of those libraries or a backend
 #: when used, so they are imported where they are used, like the libraries.
 OPTIONAL_PARTS = (
-    "rrt_pin.compiled", "rrt_pin.viewer", "rrt_pin.sweeps", "rrt_pin.symbolic", "rrt_pin.plot",
-    "rrt_pin.bench", "rrt_pin.flops", "rrt_pin.reference", "rrt_pin.playback",
-    "rrt_pin.accuracy", "rrt_pin.simulate._odepack", "rrt_pin.simulate.scipy_runs",
-    "rrt_pin.model", "rrt_pin.urdf", "rrt_pin.urdf_check",  # URDF parsing, Pinocchio models
-    "rrt_pin.rnea_source",  # the generator of any robot's compiled RNEA
+    "rrt_pin.compiled", "rrt_pin.viewer", "rrt_pin.sweeps", "rrt_pin.dynamics.symbolic",
+    "rrt_pin.cli.bench_report", "rrt_pin.cli.bench_measure", "rrt_pin.cli.flops", "rrt_pin.simulate.reference",
+    "rrt_pin.simulate.accuracy", "rrt_pin.simulate._odepack", "rrt_pin.simulate.scipy_runs",
+    "rrt_pin.robot.model", "rrt_pin.robot.urdf", "rrt_pin.robot.urdf_check",  # URDF, Pinocchio
+    "rrt_pin.dynamics.rnea_source",  # the generator of any robot's compiled RNEA
 )  # fmt: skip
 #: Where a function-level import is the design: a command imports what it runs when it
-#: runs (cli.py, commands/), and a package's __init__ offers its names lazily.
-LAZY_BY_DESIGN = ("rrt_pin.cli", "rrt_pin.commands")
+#: runs (cli/app.py, cli/commands/), and a package's __init__ offers its names lazily.
+LAZY_BY_DESIGN = ("rrt_pin.cli.app", "rrt_pin.cli.commands")
 
 
 def _module_level_imports(tree: ast.Module) -> set[int]:
@@ -511,20 +514,20 @@ def test_imports_are_at_the_top():
 
 def test_the_import_rule_can_fail():
     sources = {
-        "rrt_pin.errors": "class InputError(ValueError): ...\n",
-        "rrt_pin.model": "import pinocchio\n",
+        "rrt_pin.core.errors": "class InputError(ValueError): ...\n",
+        "rrt_pin.robot.model": "import pinocchio\n",
         "rrt_pin.viewer.show": "x = 1\n",
         "rrt_pin.a": (
-            "def f():\n    from rrt_pin.errors import InputError\n    return InputError\n"
-            "def g():\n    from rrt_pin.model import build\n"
+            "def f():\n    from rrt_pin.core.errors import InputError\n    return InputError\n"
+            "def g():\n    from rrt_pin.robot.model import build\n"
             "def h():\n    from rrt_pin.viewer.show import show\n"
         ),
     }
-    assert _late_imports(sources) == ["rrt_pin.a:2: from rrt_pin.errors import InputError"]
+    assert _late_imports(sources) == ["rrt_pin.a:2: from rrt_pin.core.errors import InputError"]
 
 
 def test_run_files_see_every_option_of_every_command_without_argparse_privates():
-    from rrt_pin.cli import build_parser
+    from rrt_pin.cli.app import build_parser
 
     parser, subparsers = build_parser()
     for name, sub in subparsers.items():
@@ -533,5 +536,146 @@ def test_run_files_see_every_option_of_every_command_without_argparse_privates()
         defaults = set(vars(sub.parse_known_args(needs_command)[0]))
         missing = defaults - recorded - {"command_run", "verbose", "quiet", "spec", "help"}
         assert not missing, (name, missing)
-    source = (PACKAGE / "cli.py").read_text(encoding="utf-8")
+    source = (PACKAGE / "cli" / "app.py").read_text(encoding="utf-8")
     assert "._actions" not in source and "argparse._" not in source
+
+
+# --- layers: packages that read bottom to top ---------------------------------------------
+
+#: The layers, bottom to top. Each package's ``__init__`` docstring says what it may
+#: import ("May import: rrt_pin.core, …"): the test reads the rule from there.
+LAYERS = ("core", "io", "robot", "dynamics", "simulate", "compiled", "viewer", "sweeps", "cli")
+#: What stays at the top level besides the layers: the front (``import rrt_pin``).
+TOP_LEVEL = {"__init__.py", "__main__.py", "_version.py", "_moved.py", "py.typed"}
+
+
+def _may_import(docstring: str) -> set[str]:
+    match = re.search(r"May import: (.*?)(?:\.\s*$|\.\n)", docstring, re.S | re.M)
+    assert match, "no 'May import:' line"
+    return set(re.findall(r"rrt_pin\.(\w+)", match.group(1)))
+
+
+def _declared() -> dict[str, set[str]]:
+    return {
+        layer: _may_import(
+            ast.get_docstring(ast.parse((PACKAGE / layer / "__init__.py").read_text())) or ""
+        )
+        for layer in LAYERS
+    }
+
+
+def _layer(module: str) -> str | None:
+    parts = module.split(".")
+    return parts[1] if len(parts) > 1 and parts[1] in LAYERS else None
+
+
+def _crossings(graph: dict[str, set[str]], declared: dict[str, set[str]]) -> list[str]:
+    """Imports from one layer into another that its ``May import`` line does not allow."""
+    return [
+        f"{module} -> {target}"
+        for module, targets in sorted(graph.items())
+        for target in sorted(targets)
+        if _layer(module)
+        and _layer(target) not in (None, _layer(module))
+        and _layer(target) not in declared[_layer(module)]
+    ]
+
+
+def test_the_top_level_holds_only_the_layers_and_the_front():
+    entries = {p.name for p in PACKAGE.iterdir() if p.name != "__pycache__"}
+    assert entries == TOP_LEVEL | set(LAYERS), entries ^ (TOP_LEVEL | set(LAYERS))
+
+
+def test_each_layer_imports_only_the_layers_below_it():
+    """Every import, even inside a function or for type checkers, goes down the stack."""
+    declared = _declared()
+    for k, layer in enumerate(LAYERS):
+        assert declared[layer] <= set(LAYERS[:k]), (layer, declared[layer] - set(LAYERS[:k]))
+    assert not _crossings(_graph(), declared)
+    # the modules at the top level import only the front's small modules and the CLI
+    graph = _graph()
+    assert graph["rrt_pin.__main__"] <= {"rrt_pin.cli", "rrt_pin.cli.app"}
+    assert graph["rrt_pin._moved"] == set()
+
+
+def test_the_layer_rule_can_fail():
+    declared = _may_import('"""Things.\n\nMay import: rrt_pin.core, rrt_pin.robot.\n"""')
+    assert declared == {"core", "robot"}
+    graph = {
+        "rrt_pin.simulate.api": {"rrt_pin.compiled.integrate", "rrt_pin.core.errors"},
+        "rrt_pin.compiled.integrate": {"rrt_pin.simulate.options"},
+    }
+    found = _crossings(graph, {**_declared(), "simulate": {"core"}})
+    assert found == ["rrt_pin.simulate.api -> rrt_pin.compiled.integrate"]
+
+
+def test_the_front_doors_reach_a_backend_through_the_registry():
+    """Each backend's entries import and sit in a layer at or above the front doors."""
+    for backend in backends.BACKENDS.values():
+        for job, where in backend.entries:
+            found = backend.entry(job)
+            assert callable(found) or hasattr(found, "__file__"), (backend.name, job)
+            assert _layer(where.partition(":")[0]) in ("dynamics", "compiled"), where
+    with pytest.raises(KeyError):
+        backends.get("pinocchio").entry("simulate")
+
+
+def test_old_module_paths_warn_and_give_the_modules_at_their_new_place():
+    import importlib
+    import sys
+    import warnings
+
+    from rrt_pin import _moved
+
+    for old, new in [*_moved.MOVED.items(), ("rrt_pin.symbolic.kane", "rrt_pin.dynamics.symbolic.kane"),
+                     ("rrt_pin.commands.inverse", "rrt_pin.cli.commands.inverse")]:  # fmt: skip
+        sys.modules.pop(old, None)
+        if old in _moved.PUBLIC:  # public API: the same module, no warning
+            with warnings.catch_warnings():
+                warnings.simplefilter("error")
+                module = importlib.import_module(old)
+        else:
+            with pytest.warns(DeprecationWarning, match=re.escape(new)):
+                module = importlib.import_module(old)
+        assert module is importlib.import_module(new), old
+    assert _moved.PUBLIC == {f"rrt_pin.{n}" for n in rrt_pin._MODULES} - {"rrt_pin.simulate",
+                                                                         "rrt_pin.compiled"}  # fmt: skip
+    # the three 0.3 modules that became packages offer their old names
+    from rrt_pin.cli import main
+    from rrt_pin.robot import Robot
+
+    assert Robot is importlib.import_module("rrt_pin.robot.robot").Robot
+    assert main is importlib.import_module("rrt_pin.cli.app").main
+    with pytest.warns(DeprecationWarning, match="rrt_pin.io.files"):
+        from rrt_pin.io import atomic_write
+    assert atomic_write is importlib.import_module("rrt_pin.io.files").atomic_write
+    # a name that never existed is still an error
+    with pytest.raises(ModuleNotFoundError):
+        importlib.import_module("rrt_pin.nothing_here")
+
+
+#: Modules that may exceed :data:`MAX_LINES`: the numba kernels (each integrator's loop
+#: kept whole in one function for the compiler, their branches side by side).
+LONG_KERNELS = {"compiled/_jit_integrators.py", "compiled/_jit_batch.py"}
+MAX_LINES = 600
+
+
+def _too_long(root: Path, allowed: set[str]) -> list[str]:
+    return [
+        f"{path.relative_to(root)}: {n} lines"
+        for path in sorted(root.rglob("*.py"))
+        if str(path.relative_to(root)) not in allowed
+        and (n := len(path.read_text(encoding="utf-8").splitlines())) > MAX_LINES
+    ]
+
+
+def test_no_module_is_over_600_lines_but_the_numba_kernels():
+    assert not _too_long(PACKAGE, LONG_KERNELS)
+    for name in LONG_KERNELS:
+        assert "@" in (PACKAGE / name).read_text(encoding="utf-8")  # still jitted kernels
+
+
+def test_the_length_rule_can_fail(tmp_path):
+    (tmp_path / "long.py").write_text("x = 1\n" * (MAX_LINES + 1))
+    (tmp_path / "short.py").write_text("x = 1\n" * MAX_LINES)
+    assert _too_long(tmp_path, set()) == [f"long.py: {MAX_LINES + 1} lines"]

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from rrt_pin.cli import main
+from rrt_pin.cli.app import main
 from tests.bad_inputs import CASES, make_files
 
 ROOT = Path(__file__).resolve().parents[1]

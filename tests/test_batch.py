@@ -5,19 +5,20 @@ import pinocchio as pin
 import pytest
 from scipy.integrate import solve_ivp
 
-from rrt_pin.control import (
+from rrt_pin.core.errors import DivergenceError, InputError
+from rrt_pin.dynamics.inverse import default_num_threads
+from rrt_pin.robot.model import rrt_model
+from rrt_pin.robot.params import Params
+from rrt_pin.robot.robot import Robot
+from rrt_pin.robot.robots import chapter_arm
+from rrt_pin.simulate import BatchResult, simulate, simulate_batch
+from rrt_pin.simulate.control import (
     ChapterController,
     SeedController,
     chapter_controller,
     pd_gravity_controller,
     seed_controller,
 )
-from rrt_pin.errors import DivergenceError, InputError
-from rrt_pin.inverse import default_num_threads
-from rrt_pin.model import rrt_model
-from rrt_pin.params import Params
-from rrt_pin.robots import chapter_arm
-from rrt_pin.simulate import BatchResult, simulate, simulate_batch
 
 T = np.linspace(0.0, 15.0, 301)  # [s]
 ACCURACY = 1e-8  # max |q error| of the batch defaults against tight single references
@@ -59,7 +60,7 @@ def variants():
 @pytest.fixture(scope="module")
 def batch(variants):
     model, controllers, q0s, qd0s = variants
-    return simulate_batch(model, controllers, q0s, qd0s, T)
+    return simulate_batch(Robot.from_model(model), controllers, q0s, qd0s, T)
 
 
 def test_batch_result_contract(batch, variants):
@@ -85,7 +86,7 @@ def test_batch_matches_tight_single_references(batch, variants):
 def test_batch_equals_single_runs(batch, variants):
     model, controllers, q0s, qd0s = variants
     for i in range(B):
-        single = simulate(model, controllers[i], q0s[i], qd0s[i], T)
+        single = simulate(Robot.from_model(model), controllers[i], q0s[i], qd0s[i], T)
         np.testing.assert_allclose(batch.q[i], single.q, rtol=0, atol=2 * ACCURACY)
         np.testing.assert_allclose(batch.qd[i], single.qd, rtol=0, atol=20 * ACCURACY)
 
@@ -101,10 +102,12 @@ def test_batch_efforts_are_each_laws_output(batch, variants):
 def test_fixed_step_batch_equals_single_runs_step_for_step(method, variants):
     model, controllers, q0s, qd0s = variants
     t = np.linspace(0.0, 2.0, 101)
-    batch = simulate_batch(model, controllers, q0s, qd0s, t, method=method)
+    batch = simulate_batch(Robot.from_model(model), controllers, q0s, qd0s, t, method=method)
     assert batch.step == pytest.approx(0.02)
     for i in range(B):
-        single = simulate(model, controllers[i], q0s[i], qd0s[i], t, method=method)
+        single = simulate(
+            Robot.from_model(model), controllers[i], q0s[i], qd0s[i], t, method=method
+        )
         np.testing.assert_allclose(batch.q[i], single.q, rtol=0, atol=1e-12)
         np.testing.assert_allclose(batch.qd[i], single.qd, rtol=0, atol=1e-11)
 
@@ -113,7 +116,9 @@ def test_fixed_step_batch_equals_single_runs_step_for_step(method, variants):
 def test_scipy_methods_on_a_batch(method, variants):
     model, controllers, q0s, qd0s = variants
     t = np.linspace(0.0, 2.0, 21)
-    batch = simulate_batch(model, controllers[:2], q0s[:2], qd0s[:2], t, method=method, rtol=1e-10)
+    batch = simulate_batch(
+        Robot.from_model(model), controllers[:2], q0s[:2], qd0s[:2], t, method=method, rtol=1e-10
+    )
     for i in range(2):
         ref = tight_reference(model, controllers[i], q0s[i], qd0s[i], t)
         assert np.abs(batch.q[i] - ref).max() <= ACCURACY
@@ -122,8 +127,8 @@ def test_scipy_methods_on_a_batch(method, variants):
 def test_two_threads_give_the_same_numbers(variants):
     model, controllers, q0s, qd0s = variants
     t = np.linspace(0.0, 1.0, 11)
-    one = simulate_batch(model, controllers, q0s, qd0s, t, threads=1)
-    two = simulate_batch(model, controllers, q0s, qd0s, t, threads=2)
+    one = simulate_batch(Robot.from_model(model), controllers, q0s, qd0s, t, threads=1)
+    two = simulate_batch(Robot.from_model(model), controllers, q0s, qd0s, t, threads=2)
     np.testing.assert_array_equal(one.q, two.q)
 
 
@@ -131,13 +136,13 @@ def test_pd_gravity_batch_on_a_mismatched_law_and_one_controller_for_all(variant
     """PD + gravity variants (folded), and a seed law whose m3 differs from the model's."""
     model, controllers, q0s, qd0s = variants
     t = np.linspace(0.0, 3.0, 31)
-    pdg = [pd_gravity_controller(model, c.kp, c.kd, c.qf) for c in controllers]
-    batch = simulate_batch(model, pdg, q0s, qd0s, t)
+    pdg = [pd_gravity_controller(Robot.from_model(model), c.kp, c.kd, c.qf) for c in controllers]
+    batch = simulate_batch(Robot.from_model(model), pdg, q0s, qd0s, t)
     for i in (0, B - 1):
         ref = tight_reference(model, pdg[i], q0s[i], qd0s[i], t)
         assert np.abs(batch.q[i] - ref).max() <= ACCURACY
     wrong = seed_controller(Params(m3=44.0))  # compensates a heavier slider than the model's
-    batch = simulate_batch(model, wrong, q0s, qd0s, t)
+    batch = simulate_batch(Robot.from_model(model), wrong, q0s, qd0s, t)
     for i in (0, B - 1):
         ref = tight_reference(model, wrong, q0s[i], qd0s[i], t)
         assert np.abs(batch.q[i] - ref).max() <= ACCURACY
@@ -146,7 +151,7 @@ def test_pd_gravity_batch_on_a_mismatched_law_and_one_controller_for_all(variant
 
 def test_efforts_can_be_skipped(variants):
     model, controllers, q0s, qd0s = variants
-    r = simulate_batch(model, controllers, q0s, qd0s, [0.0, 0.1], efforts=False)
+    r = simulate_batch(Robot.from_model(model), controllers, q0s, qd0s, [0.0, 0.1], efforts=False)
     assert r.tau is None
     with pytest.raises(InputError, match="efforts=False"):
         r.variant(0)
@@ -168,19 +173,21 @@ def test_bad_input_is_refused(variants, change, words):
     model, controllers, q0s, qd0s = variants
     kwargs = {"q0s": q0s, "qd0s": qd0s, "t_eval": [0.0, 1.0], **change}
     with pytest.raises(InputError) as info:
-        simulate_batch(model, controllers, **kwargs)
+        simulate_batch(Robot.from_model(model), controllers, **kwargs)
     assert words in str(info.value)
 
 
 def test_controllers_of_any_kind_share_one_batch(variants):
     """Laws that do not share one gravity term run variant by variant, each as its single run."""
     model, controllers, q0s, qd0s = variants
-    mixed = [*controllers[:-2], pd_gravity_controller(model, 1.0, 1.0, [0, 0, 0])]
+    mixed = [*controllers[:-2], pd_gravity_controller(Robot.from_model(model), 1.0, 1.0, [0, 0, 0])]
     mixed.append(seed_controller(Params(m2=61.0)))  # eq. (31) of a heavier arm: not folded
     t = np.linspace(0.0, 1.0, 11)
-    batch = simulate_batch(model, mixed, q0s, qd0s, t, rtol=1e-11, atol=1e-12)
+    batch = simulate_batch(Robot.from_model(model), mixed, q0s, qd0s, t, rtol=1e-11, atol=1e-12)
     for i in (0, B - 2, B - 1):
-        one = simulate(model, mixed[i], q0s[i], qd0s[i], t, rtol=1e-11, atol=1e-12)
+        one = simulate(
+            Robot.from_model(model), mixed[i], q0s[i], qd0s[i], t, rtol=1e-11, atol=1e-12
+        )
         np.testing.assert_allclose(batch.q[i], one.q, rtol=0, atol=1e-8)
         np.testing.assert_allclose(batch.tau[i], one.tau, rtol=1e-8, atol=1e-6)
 
@@ -195,7 +202,7 @@ def test_a_diverging_variant_is_named():
     q0s = np.tile(p.q0, (4, 1))
     with pytest.raises(DivergenceError) as info:
         simulate_batch(
-            model,
+            Robot.from_model(model),
             controllers,
             q0s,
             np.zeros((4, 3)),
@@ -207,7 +214,7 @@ def test_a_diverging_variant_is_named():
 
 
 def test_default_threads_follow_the_free_cpus_during_the_run(monkeypatch):
-    from rrt_pin import cpus
+    from rrt_pin.core import cpus
     from rrt_pin.simulate.closed_loop import Threads
 
     monkeypatch.setattr(cpus, "available", lambda: 2)
@@ -226,7 +233,7 @@ def test_default_threads_follow_the_free_cpus_during_the_run(monkeypatch):
 
 
 def test_a_batch_under_contention_runs_on_the_free_cpu_and_gives_the_same_states(monkeypatch):
-    from rrt_pin import cpus
+    from rrt_pin.core import cpus
 
     arm = chapter_arm()
     d = arm.defaults

@@ -1,7 +1,7 @@
 """Compiled batches that keep final states or metrics only, and their threads.
 
 Each lean result is checked against an independent computation: the full
-batch's last row, :func:`rrt_pin.metrics.batch_metrics` (numpy) on the full
+batch's last row, :func:`rrt_pin.simulate.metrics.batch_metrics` (numpy) on the full
 trajectories, one thread against several, the Pinocchio backend.
 """
 
@@ -12,10 +12,10 @@ import importlib.util
 import numpy as np
 import pytest
 
-from rrt_pin.control import ChapterController
-from rrt_pin.errors import InputError
-from rrt_pin.metrics import GROUPS, batch_metrics
-from rrt_pin.params import Params
+from rrt_pin.core.errors import InputError
+from rrt_pin.robot.params import Params
+from rrt_pin.simulate.control import ChapterController
+from rrt_pin.simulate.metrics import GROUPS, batch_metrics
 
 pytestmark = pytest.mark.skipif(
     importlib.util.find_spec("numba") is None, reason="numba not installed (rrt-pin[fast])"
@@ -164,9 +164,9 @@ def test_threads_give_the_same_bits_and_are_kept(compiled):
 def test_threads_share_a_batch_laid_out_while_it_runs(compiled, method):
     # More variants than the first parts laid out (64, then 256 at a time): the
     # helpers start on the first part and take the others as they are laid out.
-    from rrt_pin.compiled import integrate
+    from rrt_pin.compiled import lanes
 
-    count = integrate._FIRST_PART + 2 * integrate._PART + 5
+    count = lanes._FIRST_PART + 2 * lanes._PART + 5
     variants = _variants(count, seed=5)
     step = {"step": 0.01} if method == "rk4" else {}
     runs = [
@@ -179,7 +179,7 @@ def test_threads_share_a_batch_laid_out_while_it_runs(compiled, method):
         for name, value in runs[0].metrics.items():
             np.testing.assert_array_equal(r.metrics[name], value)
     # each variant is its own single run, whichever thread took it
-    for i in (0, integrate._FIRST_PART, count - 1):
+    for i in (0, lanes._FIRST_PART, count - 1):
         one = _batch(
             compiled, tuple(v[i : i + 1] for v in variants), GRID[:101], keep="metrics",
             method=method, threads=1, **step,
@@ -190,9 +190,9 @@ def test_threads_share_a_batch_laid_out_while_it_runs(compiled, method):
 def test_a_bad_controller_laid_out_late_stops_the_threads(compiled):
     # The third part holds a bad controller: the helpers, already running the first
     # parts, stop; the call says which variant, and the next batch runs as usual.
-    from rrt_pin.compiled import integrate
+    from rrt_pin.compiled import lanes
 
-    count = integrate._FIRST_PART + 2 * integrate._PART
+    count = lanes._FIRST_PART + 2 * lanes._PART
     plants, laws, q0s, qd0s = _variants(count, seed=6)
     bad = count - 3
     laws = [*laws[:bad], object(), *laws[bad + 1 :]]
@@ -209,8 +209,8 @@ def test_a_bad_controller_laid_out_late_stops_the_threads(compiled):
     [(2, 0, 64, 2), (2, 1, 64, 1), (4, 1, 64, 3), (1, 0, 64, 1), (2, 0, 20, 1)],
 )
 def test_default_threads_follow_the_free_cpus(compiled, monkeypatch, cpus, busy, count, threads):
-    from rrt_pin import cpus as module
-    from rrt_pin.compiled.integrate import MIN_PER_THREAD
+    from rrt_pin.compiled.lanes import MIN_PER_THREAD
+    from rrt_pin.core import cpus as module
 
     monkeypatch.setattr(module, "available", lambda: cpus)
     monkeypatch.setattr(module, "busy", lambda: busy)
@@ -218,7 +218,7 @@ def test_default_threads_follow_the_free_cpus(compiled, monkeypatch, cpus, busy,
     r = _batch(compiled, _variants(count), GRID[:11], keep="final")
     assert r.threads == threads
     # simulate_batch hands its default over, and keeps an explicit count
-    from rrt_pin.robots import chapter_arm
+    from rrt_pin.robot.robots import chapter_arm
     from rrt_pin.simulate import simulate_batch
 
     plants, laws, q0s, qd0s = _variants(count)
@@ -229,7 +229,7 @@ def test_default_threads_follow_the_free_cpus(compiled, monkeypatch, cpus, busy,
 
 
 def test_simulate_batch_keeps_the_same_on_both_backends(compiled):
-    from rrt_pin.robots import chapter_arm
+    from rrt_pin.robot.robots import chapter_arm
     from rrt_pin.simulate import simulate_batch
 
     base = Params()
@@ -264,7 +264,7 @@ def test_simulate_batch_keeps_the_same_on_both_backends(compiled):
 
 @pytest.mark.parametrize("backend", ["compiled", "pinocchio"])
 def test_an_unknown_keep_is_one_line_naming_it(compiled, backend):
-    from rrt_pin.robots import chapter_arm
+    from rrt_pin.robot.robots import chapter_arm
     from rrt_pin.simulate import simulate_batch
 
     plants, laws, q0s, qd0s = _variants(2)
@@ -282,9 +282,9 @@ def test_an_unknown_keep_is_one_line_naming_it(compiled, backend):
 
 def test_integrate_arrays_lean_rows(compiled):
     """The sweeps' entry point: final rows and metrics rows from prepared arrays."""
-    from rrt_pin.compiled import codes
-    from rrt_pin.compiled.integrate import integrate_arrays
-    from rrt_pin.kernel import param_vector
+    from rrt_pin.compiled.lanes import integrate_arrays
+    from rrt_pin.dynamics.kernel import param_vector
+    from rrt_pin.simulate import codes
 
     plants, laws, q0s, qd0s = _variants(5)
     P = np.array([param_vector(p) for p in plants])
@@ -306,7 +306,8 @@ def test_integrate_arrays_lean_rows(compiled):
 
 def test_integrate_arrays_fills_its_rows_as_it_goes(compiled):
     """``fill`` lays rows out during the call: the metrics' targets follow C's rows."""
-    from rrt_pin.compiled.integrate import _batch_arrays, integrate_arrays
+    from rrt_pin.compiled.integrate import _batch_arrays
+    from rrt_pin.compiled.lanes import integrate_arrays
 
     count = 100
     plants, laws, q0s, qd0s = _variants(count, seed=7)
@@ -344,8 +345,8 @@ def test_batch_laws_of_another_arm_equal_single_runs(compiled):
         one = compiled.simulate_compiled(plants[i], laws[i], q0s[i], qd0s[i], t)
         np.testing.assert_array_equal(batch.q[i], one.q)
         np.testing.assert_array_equal(batch.tau[i], one.tau)
-    from rrt_pin.compiled import codes
     from rrt_pin.compiled.integrate import _batch_arrays
+    from rrt_pin.simulate import codes
 
     _, kinds, _ = _batch_arrays(plants, laws)
     assert (

@@ -7,7 +7,8 @@ import io
 import numpy as np
 import pytest
 
-from rrt_pin.bench import BenchRow, Progress, _on_front, median_time, pareto_front, write_rows
+from rrt_pin.cli.bench_measure import BenchRow, Progress, median_time, pareto_front, write_rows
+from rrt_pin.cli.bench_report import _on_front
 
 
 def test_pareto_front_by_brute_force(rng):
@@ -69,7 +70,7 @@ def test_mpmath_reference_agrees_with_pinocchio(seed_model, seed_params, rng):
     pytest.importorskip("mpmath")
     import pinocchio as pin
 
-    from rrt_pin.bench import mpmath_inverse_reference
+    from rrt_pin.cli.bench_measure import mpmath_inverse_reference
     from tests.support import random_states
 
     q, qd, qdd = random_states(rng, 20)
@@ -83,7 +84,7 @@ def test_mpmath_reference_agrees_with_pinocchio(seed_model, seed_params, rng):
 
 @pytest.mark.slow
 def test_bench_quick_end_to_end(tmp_path, capsys):
-    from rrt_pin.cli import main
+    from rrt_pin.cli.app import main
 
     assert main(["bench", "--quick", "--out", str(tmp_path)]) == 0
     out, err = capsys.readouterr()
@@ -101,7 +102,7 @@ def test_bench_quick_end_to_end(tmp_path, capsys):
     assert 0 < float(compiled[5]) <= 1  # a fraction of the machine's limit
     # the RNEA generated for another robot (UR5 in --quick), its flops counted in its source
     from rrt_pin.compiled.rnea import kernel_for
-    from rrt_pin.robots import get
+    from rrt_pin.robot.robots import get
 
     generated = by_name["compiled inverse generated for ur5"]
     assert int(generated[2]) == kernel_for(get("ur5").model).flops > 0
@@ -112,7 +113,7 @@ def test_bench_quick_end_to_end(tmp_path, capsys):
 
 def _fake_measurements(monkeypatch):
     """run_bench with its measurements replaced by three rows (the outputs are what is tested)."""
-    from rrt_pin import bench
+    from rrt_pin.cli import bench_report as bench
 
     row = BenchRow("pinocchio", "odepack", "rtol=1e-09", 0.002, 500, 6e-11)
     monkeypatch.setattr(bench, "direct_work_precision", lambda **k: ([row], [row], 0.0))
@@ -124,8 +125,8 @@ def _fake_measurements(monkeypatch):
 def test_bench_out_on_a_read_only_disk_is_refused_before_any_work(tiny_fs, monkeypatch, capsys):
     import subprocess
 
-    from rrt_pin import bench
-    from rrt_pin.cli import main
+    from rrt_pin.cli import bench_report as bench
+    from rrt_pin.cli.app import main
 
     if subprocess.run(["mount", "-o", "remount,ro", str(tiny_fs)], capture_output=True).returncode:
         pytest.skip("cannot remount read-only")
@@ -139,8 +140,8 @@ def test_bench_out_on_a_read_only_disk_is_refused_before_any_work(tiny_fs, monke
 
 
 def test_bench_out_on_a_full_disk_leaves_nothing(tiny_fs, monkeypatch, capsys):
-    from rrt_pin import bench
-    from rrt_pin.cli import main
+    from rrt_pin.cli import bench_report as bench
+    from rrt_pin.cli.app import main
 
     _fake_measurements(monkeypatch)
     (tiny_fs / "filler").write_bytes(b"x" * (64 * 1024 - 8192))  # leave too little for a PNG
@@ -159,7 +160,8 @@ def test_bench_out_on_a_full_disk_leaves_nothing(tiny_fs, monkeypatch, capsys):
 
 
 def test_kernel_rows_put_each_kernel_against_the_fma_limit():
-    from rrt_pin import flops, kernel
+    from rrt_pin.cli import flops
+    from rrt_pin.dynamics import kernel
 
     counts = flops.kernel_flops()
     rows = flops.kernel_rows({"symbolic inverse": 50.0, "pinocchio rnea loop": 1000.0}, 2.5e9)
@@ -172,8 +174,8 @@ def test_kernel_rows_put_each_kernel_against_the_fma_limit():
 
 def test_flop_counts_are_those_of_the_generated_source():
     pytest.importorskip("numba")
-    from rrt_pin import flops
-    from rrt_pin.symbolic import codegen
+    from rrt_pin.cli import flops
+    from rrt_pin.dynamics.symbolic import codegen
 
     shared = sum(codegen.flop_count(src) for _, src in codegen.SHARED_LINES)
     inverse = sum(codegen.flop_count(src) for _, src in codegen.INVERSE_LINES)
@@ -185,7 +187,7 @@ def test_flop_counts_are_those_of_the_generated_source():
 
 def test_the_fma_rate_is_a_plausible_core_rate():
     pytest.importorskip("numba")
-    from rrt_pin.flops import fma_rate
+    from rrt_pin.cli.flops import fma_rate
 
     rate = fma_rate(0.05)
     assert 1e8 < rate < 2e11  # between a slow core and 4x today's widest vector unit
@@ -195,8 +197,8 @@ def test_rows_csv_quotes_a_name_with_a_comma():
     """A kernel or setting named with a comma stays one column (read back by the csv module)."""
     import csv
 
-    from rrt_pin.bench import rows_csv
-    from rrt_pin.flops import KernelRow
+    from rrt_pin.cli.bench_measure import rows_csv
+    from rrt_pin.cli.flops import KernelRow
 
     text = rows_csv([KernelRow("a, b", 1.5, 3, 2.0, 50.0, 0.04)], KernelRow)
     header, row = list(csv.reader(text.splitlines()))

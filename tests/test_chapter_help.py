@@ -7,10 +7,10 @@ import re
 
 import numpy as np
 
-from rrt_pin.commands import _chapter
-from rrt_pin.control import chapter_controller
-from rrt_pin.params import Params
-from rrt_pin.trajectory import rest_to_rest
+from rrt_pin.cli.commands import _chapter
+from rrt_pin.dynamics.trajectory import rest_to_rest
+from rrt_pin.robot.params import Params
+from rrt_pin.simulate.control import chapter_controller
 
 _ENV = {"sin": math.sin, "cos": math.cos, "pi": math.pi}
 
@@ -61,7 +61,7 @@ def test_eq31_as_printed_is_the_law():
 
 
 def test_help_shows_them(capsys):
-    from rrt_pin.cli import main
+    from rrt_pin.cli.app import main
 
     for command, text in (("inverse", _chapter.EQ30), ("simulate", _chapter.EQ31)):
         try:

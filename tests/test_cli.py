@@ -5,9 +5,9 @@ import sys
 
 import pytest
 
-from rrt_pin.cli import main
-from rrt_pin.params import Params
-from rrt_pin.urdf import urdf_xml
+from rrt_pin.cli.app import main
+from rrt_pin.robot.params import Params
+from rrt_pin.robot.urdf import urdf_xml
 from tests.support import robot_urdf
 
 
@@ -102,7 +102,7 @@ def test_help_mentions_si_units(capsys):
 
 
 def test_import_is_light():
-    code = "import sys, rrt_pin, rrt_pin.cli; print(sorted(m for m in ('pinocchio', 'numpy', 'meshcat', 'sympy', 'matplotlib', 'numba') if m in sys.modules))"
+    code = "import sys, rrt_pin, rrt_pin.cli.app; print(sorted(m for m in ('pinocchio', 'numpy', 'meshcat', 'sympy', 'matplotlib', 'numba') if m in sys.modules))"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]"
 
@@ -139,9 +139,9 @@ def test_auto_backend_picks_compiled_only_when_built_and_faster(
     monkeypatch, requested, rrt, built, loaded, aot, task, method, work, expected
 ):
     import rrt_pin.compiled as compiled
-    from rrt_pin.commands._common import resolve_backend
-    from rrt_pin.robot import Robot
-    from rrt_pin.robots import chapter_arm
+    from rrt_pin.cli.commands._common import resolve_backend
+    from rrt_pin.robot.robot import Robot
+    from rrt_pin.robot.robots import chapter_arm
 
     robot = chapter_arm() if rrt else Robot.from_urdf(robot_urdf("ur5"))
     monkeypatch.setattr(compiled, "is_compiled", lambda: built)
@@ -220,7 +220,7 @@ def test_run_file_options_are_parsed_as_flags(tmp_path, capsys):
 
 
 def test_a_csv_with_a_byte_order_mark_reads(tmp_path):
-    from rrt_pin.csvio import read_csv
+    from rrt_pin.io.csvio import read_csv
 
     path = tmp_path / "bom.csv"
     path.write_bytes("\ufefft,q1\n0,1\n".encode())
@@ -259,8 +259,8 @@ def test_verbosity_flags_anywhere_on_the_line(argv, says_wrote, says_why, tmp_pa
 def test_verbosity_levels():
     import logging
 
-    from rrt_pin._logging import NOTICE
-    from rrt_pin.cli import verbosity_level
+    from rrt_pin.cli.app import verbosity_level
+    from rrt_pin.core._logging import NOTICE
 
     assert verbosity_level(0, 0) == NOTICE
     assert verbosity_level(1, 0) == logging.INFO and verbosity_level(5, 0) == logging.DEBUG

@@ -8,20 +8,21 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-import rrt_pin.model
-from rrt_pin.cli import main
-from rrt_pin.commands import inverse as command
-from rrt_pin.csvio import read_csv
-from rrt_pin.grid import time_grid
-from rrt_pin.inverse import inverse_dynamics
-from rrt_pin.model import load_urdf_model, rrt_model
-from rrt_pin.params import Params
-from rrt_pin.trajectory import rest_to_rest
-from rrt_pin.wrenches import RRT_WRENCH_COLUMNS, joint_wrenches, wrench_table
+import rrt_pin.robot.model
+from rrt_pin.cli.app import main
+from rrt_pin.cli.commands import inverse as command
+from rrt_pin.core.grid import time_grid
+from rrt_pin.dynamics.inverse import inverse_dynamics
+from rrt_pin.dynamics.trajectory import rest_to_rest
+from rrt_pin.dynamics.wrenches import RRT_WRENCH_COLUMNS, joint_wrenches, wrench_table
+from rrt_pin.io.csvio import read_csv
+from rrt_pin.robot.model import load_urdf_model
+from rrt_pin.robot.params import Params
+from rrt_pin.robot.robots import chapter_arm
 from tests.support import DERIVED, TIGHT, holding_efforts, robot_urdf
 
 HEADER = "t,q1,q2,q3,qd1,qd2,qd3,qdd1,qdd2,qdd3,T01x,T12y,F23z"
-HAS_KERNEL = importlib.util.find_spec("rrt_pin.kernel") is not None
+HAS_KERNEL = importlib.util.find_spec("rrt_pin.dynamics.kernel") is not None
 
 
 def run(argv, capsys):
@@ -50,7 +51,7 @@ def test_csv_contract(seed_csv, seed_params):
     np.testing.assert_array_equal(data[:, 1:4], traj.q)
     np.testing.assert_array_equal(data[:, 4:7], traj.qd)
     np.testing.assert_array_equal(data[:, 7:10], traj.qdd)
-    tau = inverse_dynamics(rrt_model(p), traj.q, traj.qd, traj.qdd)
+    tau = inverse_dynamics(chapter_arm(p), traj.q, traj.qd, traj.qdd)
     np.testing.assert_array_equal(data[:, 10:13], tau)
     assert data[0, 0] == 0.0 and data[-1, 0] == 15.0
 
@@ -89,7 +90,7 @@ def test_wrench_columns(tmp_path, capsys, seed_params):
     assert header == HEADER.split(",") + list(RRT_WRENCH_COLUMNS)
     p = seed_params
     traj = rest_to_rest(p.q0, p.qf, p.Tp, time_grid(p.Tp, 0.01))
-    _, table = wrench_table(joint_wrenches(rrt_model(p), traj.q, traj.qd, traj.qdd), rrt=True)
+    _, table = wrench_table(joint_wrenches(chapter_arm(p), traj.q, traj.qd, traj.qdd), rrt=True)
     np.testing.assert_array_equal(data[:, 13:], table)
 
 
@@ -126,7 +127,7 @@ def test_scene_options(tmp_path, capsys):
     np.testing.assert_array_equal(data[0, 1:4], [0, 0, 0.1])
 
 
-@pytest.mark.skipif(not HAS_KERNEL, reason="rrt_pin/kernel.py not generated yet")
+@pytest.mark.skipif(not HAS_KERNEL, reason="rrt_pin/dynamics/kernel.py not generated yet")
 def test_symbolic_backend_agrees(tmp_path, capsys, seed_csv):
     path = tmp_path / "sym.csv"
     assert run(["inverse", "--backend", "symbolic", "--csv", str(path)], capsys)[0] == 0
@@ -270,7 +271,7 @@ def test_no_geometry_is_built(tmp_path, capsys, monkeypatch):
     def refuse(*args, **kwargs):
         raise AssertionError("geometry built")
 
-    monkeypatch.setattr(rrt_pin.model, "build_geometry", refuse)
+    monkeypatch.setattr(rrt_pin.robot.model, "build_geometry", refuse)
     for name in ("buildGeomFromUrdf", "buildGeomFromUrdfString"):
         monkeypatch.setattr(pin, name, refuse)
     assert run(["inverse", "--dt", "0.1", "--csv", str(tmp_path / "a.csv")], capsys)[0] == 0
@@ -406,7 +407,7 @@ def test_subprocess_bad_input(tmp_path):
 
 
 def test_wrench_help_names_match_the_library():
-    from rrt_pin.robots import chapter_arm
+    from rrt_pin.robot.robots import chapter_arm
 
     arm = chapter_arm()
     columns = ("t", *arm.q_names, *arm.qd_names, *arm.qdd_names, *arm.effort_names)
@@ -415,7 +416,7 @@ def test_wrench_help_names_match_the_library():
         assert name in command._WRENCH_HELP
 
 
-@pytest.mark.skipif(not HAS_KERNEL, reason="rrt_pin/kernel.py not generated yet")
+@pytest.mark.skipif(not HAS_KERNEL, reason="rrt_pin/dynamics/kernel.py not generated yet")
 def test_subprocess_symbolic_backend_needs_no_pinocchio(tmp_path):
     out = tmp_path / "sym.csv"
     args = ["-X", "importtime", "-m", "rrt_pin", "inverse", "--backend", "symbolic"]

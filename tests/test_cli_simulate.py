@@ -3,15 +3,17 @@
 import numpy as np
 import pytest
 
-from rrt_pin.cli import main
-from rrt_pin.control import pd_gravity_controller, seed_controller
-from rrt_pin.csvio import read_csv
-from rrt_pin.grid import time_grid
-from rrt_pin.methods import METHODS
-from rrt_pin.metrics import settling_times
-from rrt_pin.model import load_urdf_model, rrt_model
-from rrt_pin.params import Params
+from rrt_pin.cli.app import main
+from rrt_pin.core.grid import time_grid
+from rrt_pin.io.csvio import read_csv
+from rrt_pin.robot.model import load_urdf_model
+from rrt_pin.robot.params import Params
+from rrt_pin.robot.robot import Robot
+from rrt_pin.robot.robots import chapter_arm
 from rrt_pin.simulate import simulate
+from rrt_pin.simulate.control import pd_gravity_controller, seed_controller
+from rrt_pin.simulate.methods import METHODS
+from rrt_pin.simulate.metrics import settling_times
 from tests.support import robot_urdf
 
 HEADER = ["t", "q1", "q2", "q3", "qd1", "qd2", "qd3", "T01x", "T12y", "F23z"]
@@ -33,7 +35,7 @@ def test_csv_contract(tmp_path, capsys):
     assert header == HEADER and data.shape == (1501, 10)
     assert data[0, 0] == 0.0 and data[-1, 0] == 15.0
     p = Params()
-    expected = simulate(rrt_model(p), seed_controller(p), p.q0, p.qd0, time_grid(15.0, 0.01))
+    expected = simulate(chapter_arm(p), seed_controller(p), p.q0, p.qd0, time_grid(15.0, 0.01))
     # Shortest round-trip numbers: the file holds the simulation's numbers exactly.
     np.testing.assert_array_equal(data, expected.table())
 
@@ -74,7 +76,7 @@ def test_options_reach_the_simulation(tmp_path, capsys):
     p = Params(m3=30.0, q10=0.1, q20=0.2, q30=0.3, gamma01=100.0, gamma12=100.0, gamma23=100.0)
     p = p.with_overrides({"beta01": 50.0, "beta12": 60.0, "beta23": 70.0})
     expected = simulate(
-        rrt_model(p), seed_controller(p), p.q0, p.qd0, time_grid(2.0, 0.05), method="rk4"
+        chapter_arm(p), seed_controller(p), p.q0, p.qd0, time_grid(2.0, 0.05), method="rk4"
     )
     np.testing.assert_array_equal(data, expected.table())
 
@@ -98,8 +100,8 @@ def test_any_urdf(tmp_path, capsys):
     assert header[:2] == ["t", "q_shoulder_pan_joint"]
     assert header[7] == "qd_shoulder_pan_joint" and header[-1] == "tau_wrist_3_joint"
     model = load_urdf_model(urdf)
-    c = pd_gravity_controller(model, 100.0, 20.0, qf)
-    expected = simulate(model, c, np.zeros(6), np.zeros(6), time_grid(2.0, 0.01))
+    c = pd_gravity_controller(Robot.from_model(model), 100.0, 20.0, qf)
+    expected = simulate(Robot.from_model(model), c, np.zeros(6), np.zeros(6), time_grid(2.0, 0.01))
     np.testing.assert_array_equal(data, expected.table())
 
 

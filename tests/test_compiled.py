@@ -9,8 +9,8 @@ import sys
 import numpy as np
 import pytest
 
-from rrt_pin.errors import InputError
-from rrt_pin.params import Params
+from rrt_pin.core.errors import InputError
+from rrt_pin.robot.params import Params
 from tests.support import TIGHT, random_states
 
 pytestmark = pytest.mark.skipif(
@@ -73,7 +73,7 @@ def _worst_relative(a: np.ndarray, b: np.ndarray) -> float:
 
 @pytest.mark.parametrize("name", sorted(PARAM_SETS))
 def test_dynamics_match_pinocchio_at_random_states(compiled, rng, name):
-    from rrt_pin.model import rrt_model
+    from rrt_pin.robot.model import rrt_model
 
     params = PARAM_SETS[name]
     q, qd, qdd = random_states(rng, N_STATES)
@@ -121,7 +121,7 @@ def test_single_state_shapes(compiled, seed_params):
 
 
 def test_matches_the_numpy_kernel(compiled, rng):
-    from rrt_pin import kernel
+    from rrt_pin.dynamics import kernel
 
     params = PARAM_SETS["general"]
     q, qd, qdd = random_states(rng, 300)
@@ -206,8 +206,8 @@ def test_vectorized_sine_and_cosine_match_libm():
 
 def test_large_angles_use_libm(compiled, seed_params, rng):
     """Blocks holding |q2| >= SINCOS_LIMIT take the libm path; both agree with the numpy kernel."""
-    from rrt_pin import kernel
     from rrt_pin.compiled._jit_dynamics import SINCOS_LIMIT
+    from rrt_pin.dynamics import kernel
 
     q, qd, qdd = random_states(rng, 1200)
     q[700, 1] = 3.0 * SINCOS_LIMIT
@@ -260,7 +260,7 @@ def test_cache_marker_follows_the_sources(tmp_path, monkeypatch):
         assert _cache.is_cached()
         # Another source text gives another fingerprint, hence an empty directory.
         _cache._fingerprint_inputs.cache_clear()
-        monkeypatch.setattr(_cache, "JIT_MODULES", (*_cache.JIT_MODULES, "rrt_pin.params"))
+        monkeypatch.setattr(_cache, "JIT_MODULES", (*_cache.JIT_MODULES, "rrt_pin.robot.params"))
         assert _cache.fingerprint() != path.name
         assert not _cache.is_cached()
     finally:

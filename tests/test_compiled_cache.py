@@ -35,7 +35,7 @@ TIGHT = 1e-12
 #: A cheap function of the backend (about 0.5 s to compile), damaged alone.
 SMALL = "mass_matrix_batch"
 
-# Uses the backend like the CLI (logging configured as in rrt_pin.cli), or like a
+# Uses the backend like the CLI (logging configured as in rrt_pin.cli.app), or like a
 # library (no logging: the warning goes through `warnings`), and prints a JSON summary.
 PROBE = r"""
 import json, logging, sys
@@ -44,9 +44,9 @@ if sys.argv[1] == "cli":
 import numpy as np
 import rrt_pin
 import rrt_pin.compiled as compiled
-from rrt_pin.inverse import inverse_dynamics
-from rrt_pin.model import rrt_model
-from rrt_pin.params import Params
+from rrt_pin.dynamics.inverse import inverse_dynamics
+from rrt_pin.robot.params import Params
+from rrt_pin.robot.robots import chapter_arm
 
 before = compiled.is_compiled()
 report = compiled.ensure_compiled()
@@ -55,7 +55,7 @@ q = np.column_stack([rng.uniform(-3, 3, 7), rng.uniform(-3, 3, 7), rng.uniform(-
 qd, qdd = rng.normal(0, 2, (7, 3)), rng.normal(0, 5, (7, 3))
 params = Params()
 got = compiled.inverse_dynamics(q, qd, qdd, params)
-ref = inverse_dynamics(rrt_model(params), q, qd, qdd, backend="pinocchio")
+ref = inverse_dynamics(chapter_arm(params), q, qd, qdd, backend="pinocchio")
 error = float((np.abs(got - ref).max(axis=1) / np.abs(ref).max(axis=1)).max())
 print(json.dumps({
     "package": rrt_pin.__file__,

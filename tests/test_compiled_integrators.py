@@ -8,9 +8,11 @@ import math
 import numpy as np
 import pytest
 
-from rrt_pin.control import SeedController, pd_gravity_controller, seed_controller
-from rrt_pin.errors import DivergenceError, InputError
-from rrt_pin.params import Params
+from rrt_pin.core.errors import DivergenceError, InputError
+from rrt_pin.robot.params import Params
+from rrt_pin.robot.robot import Robot
+from rrt_pin.robot.robots import chapter_arm
+from rrt_pin.simulate.control import SeedController, pd_gravity_controller, seed_controller
 
 pytestmark = pytest.mark.skipif(
     importlib.util.find_spec("numba") is None, reason="numba not installed (rrt-pin[fast])"
@@ -33,7 +35,7 @@ def compiled():
 @pytest.fixture(scope="session")
 def reference():
     """The seed's run at rtol 1e-13 by SciPy + pin.aba (DOP853, cross-checked with Radau)."""
-    from rrt_pin.reference import seed_reference
+    from rrt_pin.simulate.reference import seed_reference
 
     ref = seed_reference()
     assert ref.difference_q < 1e-11
@@ -46,7 +48,7 @@ def _scipy_run(params, controller, q0, qd0, t, method, rtol, atol):
     import pinocchio as pin
     from scipy.integrate import solve_ivp
 
-    from rrt_pin.model import rrt_model
+    from rrt_pin.robot.model import rrt_model
 
     model = rrt_model(params)
     data = model.createData()
@@ -117,8 +119,8 @@ def test_same_trajectories_as_the_pinocchio_backend(compiled, seed_params, seed_
 
     ctrl = seed_controller(seed_params)
     args = (ctrl, seed_params.q0, seed_params.qd0, SEED_GRID)
-    pin_run = simulate(seed_model, *args, method=method)
-    ours = simulate(seed_model, *args, method=method, backend="compiled", params=seed_params)
+    pin_run = simulate(chapter_arm(seed_params), *args, method=method)
+    ours = simulate(chapter_arm(seed_params), *args, method=method, backend="compiled")
     assert ours.backend == "compiled"
     assert ours.n_evals == pin_run.n_evals
     tol = 1e-10 if method in ADAPTIVE else 1e-12
@@ -133,8 +135,8 @@ def test_controller_built_for_another_arm(compiled, seed_params, seed_model):
 
     wrong = seed_controller(seed_params.with_overrides({"m2": 50.0, "m3": 45.0}))
     args = (wrong, seed_params.q0, seed_params.qd0, SEED_GRID)
-    pin_run = simulate(seed_model, *args, method="DOP853")
-    ours = simulate(seed_model, *args, method="DOP853", backend="compiled", params=seed_params)
+    pin_run = simulate(chapter_arm(seed_params), *args, method="DOP853")
+    ours = simulate(chapter_arm(seed_params), *args, method="DOP853", backend="compiled")
     assert ours.n_evals == pin_run.n_evals
     assert np.abs(ours.q - pin_run.q).max() <= 1e-10
     np.testing.assert_allclose(ours.tau, pin_run.tau, rtol=1e-12, atol=1e-9)
@@ -148,7 +150,9 @@ def test_pd_gravity_controller_equals_eq31_on_the_arm(compiled, seed_params, see
     seed = compiled.simulate_compiled(
         seed_params, seed_controller(seed_params), seed_params.q0, seed_params.qd0, SEED_GRID
     )
-    pd = pd_gravity_controller(seed_model, seed_params.kp, seed_params.kd, seed_params.qf)
+    pd = pd_gravity_controller(
+        chapter_arm(seed_params), seed_params.kp, seed_params.kd, seed_params.qf
+    )
     other = compiled.simulate_compiled(
         seed_params, pd, seed_params.q0, seed_params.qd0, SEED_GRID, model=seed_model
     )
@@ -232,12 +236,11 @@ def _variants(rng, count: int):
 
 @pytest.mark.parametrize("method", ("DOP853", "rk4"))
 def test_batch_equals_single_runs(compiled, rng, method):
-    from rrt_pin.model import rrt_model
 
     plants, controllers, q0s, qd0s = _variants(rng, 5)
     # One variant compensates gravity through the kernel (pd_gravity on its own arm).
     controllers[3] = pd_gravity_controller(
-        rrt_model(plants[3]), (200, 250, 40), (400, 200, 120), plants[3].qf
+        chapter_arm(plants[3]), (200, 250, 40), (400, 200, 120), plants[3].qf
     )
     t = SEED_GRID[::10]
     batch = compiled.simulate_batch_compiled(plants, controllers, q0s, qd0s, t, method=method)
@@ -345,10 +348,10 @@ def test_bad_inputs_are_refused(compiled, seed_params, kwargs, match):
 
 
 def test_foreign_models_are_refused(compiled, seed_params):
-    from rrt_pin.model import rrt_model
+    from rrt_pin.robot.model import rrt_model
 
     other = rrt_model(seed_params.with_overrides({"m3": 10.0}))
-    pd = pd_gravity_controller(other, 1.0, 1.0, seed_params.qf)
+    pd = pd_gravity_controller(Robot.from_model(other), 1.0, 1.0, seed_params.qf)
     with pytest.raises(InputError, match="compensates the gravity of the RRT arm only"):
         compiled.simulate_compiled(seed_params, pd, seed_params.q0, seed_params.qd0, SEED_GRID)
     with pytest.raises(InputError, match="use backend 'pinocchio'"):
@@ -386,8 +389,8 @@ def test_gains_other_than_the_plants_keep_the_folded_gravity(compiled, seed_para
 
     retuned = seed_controller(seed_params.with_overrides({"gamma01": 500.0, "beta23": 90.0}))
     args = (retuned, seed_params.q0, seed_params.qd0, SEED_GRID)
-    pin_run = simulate(seed_model, *args, method="RK45")
-    ours = simulate(seed_model, *args, method="RK45", backend="compiled", params=seed_params)
+    pin_run = simulate(chapter_arm(seed_params), *args, method="RK45")
+    ours = simulate(chapter_arm(seed_params), *args, method="RK45", backend="compiled")
     assert ours.n_evals == pin_run.n_evals
     assert np.abs(ours.q - pin_run.q).max() <= 1e-12
     np.testing.assert_allclose(ours.tau, retuned.efforts(ours.q, ours.qd), rtol=1e-13, atol=1e-10)

@@ -14,9 +14,10 @@ import importlib.util
 import numpy as np
 import pytest
 
-from rrt_pin.control import ChapterController, pd_gravity_controller
-from rrt_pin.errors import DivergenceError
-from rrt_pin.params import Params
+from rrt_pin.core.errors import DivergenceError
+from rrt_pin.robot.params import Params
+from rrt_pin.robot.robots import chapter_arm
+from rrt_pin.simulate.control import ChapterController, pd_gravity_controller
 
 pytestmark = pytest.mark.skipif(
     importlib.util.find_spec("numba") is None, reason="numba not installed (rrt-pin[fast])"
@@ -47,7 +48,6 @@ def lanes(monkeypatch):
 def _mixed(count: int, seed: int = 3):
     """Variants of every controller kind, in turn: none, eq. (31) of the plant (folded),
     eq. (31) built for another arm, PD plus the plant's gravity."""
-    from rrt_pin.model import rrt_model
 
     rng = np.random.default_rng(seed)
     base = Params()
@@ -63,7 +63,7 @@ def _mixed(count: int, seed: int = 3):
                 None,
                 ChapterController(kp=kp, kd=kd, qf=base.qf, params=plant),
                 ChapterController(kp=kp, kd=kd, qf=base.qf, params=base),
-                pd_gravity_controller(rrt_model(plant), kp, kd, base.qf),
+                pd_gravity_controller(chapter_arm(plant), kp, kd, base.qf),
             )[i % 4]
         )
         plants.append(plant)
@@ -73,8 +73,8 @@ def _mixed(count: int, seed: int = 3):
 
 
 def test_the_mixed_variants_cover_every_controller_kind():
-    from rrt_pin.compiled import codes
     from rrt_pin.compiled.integrate import _law
+    from rrt_pin.simulate import codes
 
     plants, controllers, _, _ = _mixed(8)
     kinds = {_law(c, p)[0] for c, p in zip(controllers, plants, strict=True)}
@@ -108,8 +108,9 @@ def test_every_variant_is_its_single_run_bit_for_bit(compiled, lanes, method, co
 @pytest.mark.parametrize("method", ["DOP853", "RK45"])
 def test_kept_finals_and_metrics_do_not_depend_on_the_lanes(compiled, lanes, method):
     from rrt_pin.compiled import _jit_metrics
-    from rrt_pin.compiled.integrate import _batch_arrays, integrate_arrays
-    from rrt_pin.metrics import SETTLING_BAND
+    from rrt_pin.compiled.integrate import _batch_arrays
+    from rrt_pin.compiled.lanes import integrate_arrays
+    from rrt_pin.simulate.metrics import SETTLING_BAND
 
     plants, controllers, q0s, qd0s = _mixed(9, seed=5)
     P, kinds, C = _batch_arrays(plants, controllers)[:3]
@@ -138,7 +139,8 @@ def test_kept_finals_and_metrics_do_not_depend_on_the_lanes(compiled, lanes, met
 
 def test_failing_variants_leave_their_neighbours_alone(compiled, lanes):
     """Start-up, mid-run failures and libm's sine (|q2| >= SINCOS_LIMIT) beside normal lanes."""
-    from rrt_pin.compiled.integrate import _batch_arrays, failure, integrate_arrays
+    from rrt_pin.compiled.integrate import _batch_arrays
+    from rrt_pin.compiled.lanes import failure, integrate_arrays
 
     plants, controllers, q0s, qd0s = _mixed(10, seed=9)
     qd0s[1] = (1e160, 0.0, 0.0)  # non-finite q̈2 at t = 0: fails while starting
@@ -172,8 +174,8 @@ def test_failing_variants_leave_their_neighbours_alone(compiled, lanes):
 
 def test_long_output_grids_use_fewer_lanes_and_keep_the_bits(compiled, lanes):
     """Scratch runs stay bounded (9 values an output time a lane): fewer lanes, same numbers."""
-    from rrt_pin.compiled import codes
-    from rrt_pin.compiled.integrate import LANE_SCRATCH_BYTES, lanes_for
+    from rrt_pin.compiled.lanes import LANE_SCRATCH_BYTES, lanes_for
+    from rrt_pin.simulate import codes
 
     assert lanes_for(1501, codes.KEEP_METRICS, 16) == 16
     assert lanes_for(10**7, codes.KEEP_TRAJECTORIES, 16) == 1
@@ -195,7 +197,8 @@ def test_long_output_grids_use_fewer_lanes_and_keep_the_bits(compiled, lanes):
 @pytest.mark.parametrize("keep", ["trajectories", "final", "metrics"])
 def test_a_spent_step_budget_is_the_single_runs_failure(compiled, lanes, keep):
     """Every lane stops at its budget at the same time and coordinate as its single run."""
-    from rrt_pin.compiled.integrate import _batch_arrays, failure, integrate_arrays
+    from rrt_pin.compiled.integrate import _batch_arrays
+    from rrt_pin.compiled.lanes import failure, integrate_arrays
 
     plants, controllers, q0s, qd0s = _mixed(6, seed=13)
     controllers[0] = controllers[1]  # metrics need a target: no passive variant

@@ -5,13 +5,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rrt_pin.cli import main
-from rrt_pin.control import pd_gravity_controller
-from rrt_pin.csvio import read_csv
-from rrt_pin.grid import time_grid
-from rrt_pin.robot import Robot
-from rrt_pin.robots import example_robot_data_dir, get
+from rrt_pin.cli.app import main
+from rrt_pin.core.grid import time_grid
+from rrt_pin.io.csvio import read_csv
+from rrt_pin.robot.robot import Robot
+from rrt_pin.robot.robots import example_robot_data_dir, get
 from rrt_pin.simulate import simulate, simulate_batch
+from rrt_pin.simulate.control import pd_gravity_controller
 
 ARM = """<?xml version="1.0"?>
 <robot name="swing">
@@ -58,7 +58,7 @@ def test_a_continuous_joint_reproduces_the_revolute_answer(tmp_path, method):
     t = time_grid(3.0, 0.05)
     for kind in ("continuous", "revolute"):
         robot = _robot(tmp_path, kind)
-        law = pd_gravity_controller(robot.model, [60.0, 30.0], [4.0, 2.0], [4.0, -3.5])
+        law = pd_gravity_controller(robot, [60.0, 30.0], [4.0, 2.0], [4.0, -3.5])
         options = TIGHT_RUN if method in ("odepack", "DOP853", "Radau") else {"step": 0.005}
         runs.append(simulate(robot, law, [0.2, 0.1], [0.0, 0.0], t, method=method, **options))
     cont, rev = runs
@@ -77,10 +77,10 @@ def test_example_robot_data_double_pendulum_continuous_runs_as_its_revolute_twin
     t = time_grid(2.0, 0.02)
     out = []
     for robot in (cont, rev):
-        law = pd_gravity_controller(robot.model, 20.0, 3.0, [np.pi + 0.5, -0.5])
+        law = pd_gravity_controller(robot, 20.0, 3.0, [np.pi + 0.5, -0.5])
         out.append(simulate(robot, law, [0.0, 0.0], None, t, **TIGHT_RUN))
     np.testing.assert_allclose(out[0].q, out[1].q, rtol=0, atol=1e-10)
-    batch = simulate_batch(cont, [law_c := pd_gravity_controller(cont.model, 20.0, 3.0,
+    batch = simulate_batch(cont, [law_c := pd_gravity_controller(cont, 20.0, 3.0,
                                                                   [np.pi + 0.5, -0.5])] * 2,
                            np.zeros((2, 2)), None, t, **TIGHT_RUN)  # fmt: skip
     assert law_c.nv == 2
@@ -100,7 +100,7 @@ def test_simulate_cli_on_a_continuous_arm_reports_angles(tmp_path, capsys):
     np.testing.assert_allclose(data[-1, 1:3], [4.0, -3.5], atol=1e-3)
     assert np.abs(np.diff(data[:, 1])).max() < 0.5
     # the viewer plays the same CSV back as Pinocchio configurations
-    from rrt_pin.playback import motion_keyframes
+    from rrt_pin.viewer.playback import motion_keyframes
 
     frames = motion_keyframes(Robot.from_urdf(urdf), str(out), 30.0)
     assert frames.q.shape == (301, 4)

@@ -6,15 +6,17 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from rrt_pin.control import (
+from rrt_pin.core.errors import InputError, ParameterError
+from rrt_pin.robot.model import load_urdf_model, rrt_model
+from rrt_pin.robot.params import Params
+from rrt_pin.robot.robot import Robot
+from rrt_pin.robot.robots import chapter_arm
+from rrt_pin.simulate.control import (
     PDGravityController,
     SeedController,
     pd_gravity_controller,
     seed_controller,
 )
-from rrt_pin.errors import InputError, ParameterError
-from rrt_pin.model import load_urdf_model, rrt_model
-from rrt_pin.params import Params
 from tests.support import TIGHT, holding_efforts, random_states, robot_urdf
 
 
@@ -59,7 +61,9 @@ def test_seed_law_gravity_is_eq15_and_other_arms(rng):
 def test_seed_and_pd_gravity_agree_on_the_rrt_arm(seed_params, seed_model, rng):
     """The seed's law is PD plus exactly Pinocchio's generalized gravity of the arm."""
     seed = seed_controller(seed_params)
-    pdg = pd_gravity_controller(seed_model, seed_params.kp, seed_params.kd, seed_params.qf)
+    pdg = pd_gravity_controller(
+        chapter_arm(seed_params), seed_params.kp, seed_params.kd, seed_params.qf
+    )
     assert pdg.kind == "pd_gravity"
     q, qd, _ = random_states(rng, 200)
     for a, b in zip(q, qd, strict=True):
@@ -72,7 +76,7 @@ def test_batched_efforts_equal_single_calls(kind, seed_params, seed_model, rng):
     c = (
         seed_controller(seed_params)
         if kind == "seed"
-        else pd_gravity_controller(seed_model, [1.0, 2.0, 3.0], 4.0, [0.1, 0.2, 0.3])
+        else pd_gravity_controller(chapter_arm(seed_params), [1.0, 2.0, 3.0], 4.0, [0.1, 0.2, 0.3])
     )
     q, qd, _ = random_states(rng, 30)
     batch = c.efforts(q, qd)
@@ -87,7 +91,7 @@ def test_pd_gravity_on_another_model(rng):
     data = model.createData()
     kp, kd = np.arange(1.0, 7.0), np.full(6, 2.5)
     qf = rng.uniform(-1, 1, 6)
-    c = pd_gravity_controller(model, kp, kd, qf)
+    c = pd_gravity_controller(Robot.from_model(model), kp, kd, qf)
     q = rng.uniform(-np.pi, np.pi, (10, 6))
     qd = rng.normal(0, 1, (10, 6))
     batch = c.efforts(q, qd)
@@ -102,7 +106,9 @@ def test_derivatives_match_finite_differences(kind, seed_params, seed_model, rng
     c = (
         seed_controller(seed_params)
         if kind == "seed"
-        else pd_gravity_controller(seed_model, seed_params.kp, seed_params.kd, seed_params.qf)
+        else pd_gravity_controller(
+            chapter_arm(seed_params), seed_params.kp, seed_params.kd, seed_params.qf
+        )
     )
     q, qd, _ = random_states(rng, 5)
     h = 1e-6
@@ -121,7 +127,7 @@ def test_gravity_compensation_is_recognised_only_for_the_same_arm(seed_params, s
     assert not seed.compensates_gravity_of(rrt_model(seed_params.with_overrides({"m3": 41.0})))
     tuned = Params(gamma01=1.0, beta23=3.0, q1f=0.2, q20=0.1, I3x=4.5, L1=0.5)
     assert seed_controller(tuned).compensates_gravity_of(rrt_model(tuned))
-    pdg = pd_gravity_controller(seed_model, 1.0, 1.0, [0, 0, 0])
+    pdg = pd_gravity_controller(chapter_arm(seed_params), 1.0, 1.0, [0, 0, 0])
     assert pdg.compensates_gravity_of(seed_model)
     other = rrt_model(seed_params.with_overrides({"g": 9.0}))
     assert not pdg.compensates_gravity_of(other)
@@ -129,14 +135,14 @@ def test_gravity_compensation_is_recognised_only_for_the_same_arm(seed_params, s
 
 def test_pd_gravity_keeps_its_own_copy_of_the_model(seed_params):
     model = rrt_model(seed_params)
-    c = pd_gravity_controller(model, 1.0, 1.0, [0, 0, 0])
+    c = pd_gravity_controller(Robot.from_model(model), 1.0, 1.0, [0, 0, 0])
     before = c(np.zeros(3) + 0.3, np.zeros(3))
     model.gravity.linear[:] = (0.0, 0.0, -1.0)
     np.testing.assert_array_equal(c(np.zeros(3) + 0.3, np.zeros(3)), before)
 
 
 def test_scalar_gains_apply_to_every_joint(seed_model):
-    c = pd_gravity_controller(seed_model, 7.0, 0.5, [0.1, 0.2, 0.3])
+    c = pd_gravity_controller(Robot.from_model(seed_model), 7.0, 0.5, [0.1, 0.2, 0.3])
     assert c.kp == (7.0, 7.0, 7.0) and c.kd == (0.5, 0.5, 0.5)
 
 
@@ -164,7 +170,7 @@ def test_bad_gains_and_targets_are_refused_naming_the_value(
     good = {"kp": [1.0, 1.0, 1.0], "kd": [1.0, 1.0, 1.0], "qf": [0.0, 0.0, 0.0]}
     error = ParameterError if field in ("kp", "kd") and "gain" in words else InputError
     with pytest.raises(error) as info:
-        pd_gravity_controller(seed_model, **{**good, field: value})
+        pd_gravity_controller(chapter_arm(seed_params), **{**good, field: value})
     assert words in str(info.value)
     with pytest.raises(error) as info:
         SeedController(**{**good, field: value}, params=seed_params)

@@ -6,7 +6,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rrt_pin.control import (
+from rrt_pin.core.errors import InputError
+from rrt_pin.core.grid import time_grid
+from rrt_pin.dynamics.trajectory import RestToRest, rest_to_rest
+from rrt_pin.robot.robots import chapter_arm
+from rrt_pin.simulate import simulate, simulate_batch
+from rrt_pin.simulate.control import (
     Controller,
     TrackingController,
     as_controller,
@@ -14,12 +19,7 @@ from rrt_pin.control import (
     regulator,
     tracking_controller,
 )
-from rrt_pin.errors import InputError
-from rrt_pin.grid import time_grid
-from rrt_pin.reference import reference_run
-from rrt_pin.robots import chapter_arm
-from rrt_pin.simulate import simulate, simulate_batch
-from rrt_pin.trajectory import RestToRest, rest_to_rest
+from rrt_pin.simulate.reference import reference_run
 from tests.support import robot_urdf
 
 TRACKED = 1e-6  # max |q − q_d(t)| of computed torque along eq. (30) [rad, m]
@@ -98,7 +98,7 @@ def test_computed_torque_tracks_eq30(arm):
     assert np.abs(run.q - planned.q).max() <= TRACKED
     assert np.abs(run.qd - planned.qd).max() <= 10 * TRACKED
     # feed-forward: on the motion, the efforts are the inverse dynamics of the motion
-    from rrt_pin.inverse import inverse_dynamics
+    from rrt_pin.dynamics.inverse import inverse_dynamics
 
     tau = inverse_dynamics(arm, planned.q, planned.qd, planned.qdd)
     assert np.abs(run.tau - tau).max() <= 1e-3 * np.abs(tau).max()
@@ -119,7 +119,7 @@ def test_computed_torque_recovers_from_an_offset_in_a_batch(arm):
 
 
 def test_tracking_a_sampled_trajectory_on_another_robot():
-    from rrt_pin.robot import Robot
+    from rrt_pin.robot.robot import Robot
 
     robot = Robot.from_urdf(robot_urdf("ur5"))
     q0, qf = np.zeros(6), np.array([0.3, -0.4, 0.5, 0.0, 0.2, 0.1])
@@ -133,7 +133,7 @@ def test_tracking_a_sampled_trajectory_on_another_robot():
 def test_regulator_of_a_robot_is_its_default_law(arm):
     law = regulator(arm)
     assert law.kind == "chapter" and law.kp == arm.defaults.kp
-    from rrt_pin.robot import Robot
+    from rrt_pin.robot.robot import Robot
 
     ur5 = Robot.from_urdf(robot_urdf("ur5"))
     with pytest.raises(InputError, match="no default kp, kd, qf"):
@@ -170,7 +170,7 @@ def test_a_law_for_another_robot_is_refused(arm):
 
 def test_passive_motion_without_a_controller(arm):
     """controller=None: no effort; energy is conserved (no damping, no input)."""
-    from rrt_pin.symplectic import mechanical_energy
+    from rrt_pin.simulate.symplectic import mechanical_energy
 
     t = time_grid(1.0, 0.01)
     run = simulate(arm, None, arm.defaults.q0, None, t, rtol=1e-12, atol=1e-14)

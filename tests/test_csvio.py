@@ -3,9 +3,9 @@ import re
 import numpy as np
 import pytest
 
-from rrt_pin.csvio import csv_text, read_csv, read_csv_table, write_csv
-from rrt_pin.errors import InputError
-from rrt_pin.grid import time_grid
+from rrt_pin.core.errors import InputError
+from rrt_pin.core.grid import time_grid
+from rrt_pin.io.csvio import csv_text, read_csv, read_csv_table, write_csv
 
 
 def test_round_trip_at_full_precision(tmp_path, rng):
@@ -129,7 +129,7 @@ def test_blank_and_comment_lines_are_skipped(tmp_path, skipped):
 
 
 def test_a_csv_beyond_the_cap_is_refused_unread(tmp_path, monkeypatch):
-    import rrt_pin.csvio as csvio
+    import rrt_pin.io.csvio as csvio
 
     path = tmp_path / "x.csv"
     path.write_text("t,q1\n0,1\n")

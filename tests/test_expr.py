@@ -11,10 +11,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rrt_pin.errors import OverrideError, ParameterError, RunFileError
-from rrt_pin.expr import MAX_LENGTH, ExpressionError, evaluate
-from rrt_pin.params import Params, parse_number, parse_overrides
-from rrt_pin.runfile import load_runfile, resolve_params
+from rrt_pin.cli.runfile import load_runfile, resolve_params
+from rrt_pin.core.errors import OverrideError, ParameterError, RunFileError
+from rrt_pin.core.expr import MAX_LENGTH, ExpressionError, evaluate
+from rrt_pin.robot.params import Params, parse_number, parse_overrides
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -101,8 +101,8 @@ def test_hostile_expressions_finish_in_a_subprocess():
     # deep parentheses: run them in a child with a generous timeout.
     code = (
         "import sys\n"
-        "from rrt_pin.params import parse_number\n"
-        "from rrt_pin.errors import OverrideError\n"
+        "from rrt_pin.robot.params import parse_number\n"
+        "from rrt_pin.core.errors import OverrideError\n"
         f"for text in {HOSTILE!r}:\n"
         "    try:\n"
         "        parse_number(text, 'L1')\n"
@@ -181,7 +181,7 @@ def test_explicit_rod_inertias_with_a_huge_length_survive_overrides():
 
 
 def test_importing_params_stays_cheap():
-    code = "import sys, rrt_pin.params, rrt_pin.expr; print('numpy' in sys.modules)"
+    code = "import sys, rrt_pin.robot.params, rrt_pin.core.expr; print('numpy' in sys.modules)"
     proc = subprocess.run(
         [sys.executable, "-c", code],
         capture_output=True,

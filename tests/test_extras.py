@@ -8,8 +8,8 @@ from pathlib import Path
 
 import pytest
 
-from rrt_pin.errors import RrtPinError
-from rrt_pin.extras import EXTRAS, MissingExtra, install_hint, require
+from rrt_pin.core.errors import RrtPinError
+from rrt_pin.core.extras import EXTRAS, MissingExtra, install_hint, require
 
 ROOT = Path(__file__).resolve().parents[1]
 

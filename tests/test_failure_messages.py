@@ -9,12 +9,13 @@ import warnings
 import numpy as np
 import pytest
 
-from rrt_pin import methods
-from rrt_pin.control import chapter_controller
-from rrt_pin.errors import DivergenceError, InputError
-from rrt_pin.model import build_model
-from rrt_pin.params import Params
-from rrt_pin.simulate import simulate
+from rrt_pin.core.errors import DivergenceError, InputError
+from rrt_pin.robot.model import build_model
+from rrt_pin.robot.params import Params
+from rrt_pin.robot.robot import Robot
+from rrt_pin.robot.robots import chapter_arm
+from rrt_pin.simulate import methods, simulate
+from rrt_pin.simulate.control import chapter_controller
 from rrt_pin.simulate.scipy_runs import eval_budget
 
 
@@ -53,8 +54,8 @@ def test_tolerance_below_the_floor_is_refused_not_a_divergence():
         ("compiled", "DOP853"),
     ):
         with pytest.raises(InputError, match=f"below {method}'s floor"):
-            simulate(build_model(p), chapter_controller(p), p.q0, p.qd0, [0.0, 1.0],
-                     method=method, rtol=1e-15, backend=backend, params=p)  # fmt: skip
+            simulate(chapter_arm(p), chapter_controller(p), p.q0, p.qd0, [0.0, 1.0],
+                     method=method, rtol=1e-15, backend=backend)  # fmt: skip
     assert all(m.min_rtol == methods.RTOL_FLOOR for m in methods.METHODS.values() if m.adaptive)
 
 
@@ -62,13 +63,33 @@ def test_rtol_alone_tightens_the_whole_run():
     p = Params()
     model, law = build_model(p), chapter_controller(p)
     t = np.linspace(0.0, 15.0, 151)
-    run = simulate(model, law, p.q0, p.qd0, t, method="DOP853", rtol=1e-12, estimate_error=False)
+    run = simulate(
+        Robot.from_model(model),
+        law,
+        p.q0,
+        p.qd0,
+        t,
+        method="DOP853",
+        rtol=1e-12,
+        estimate_error=False,
+    )
     assert run.atol == pytest.approx(1e-14)  # rtol/100: the defaults' ratio
-    given = simulate(model, law, p.q0, p.qd0, t, method="DOP853", rtol=1e-12, atol=1e-9,
+    given = simulate(Robot.from_model(model), law, p.q0, p.qd0, t, method="DOP853", rtol=1e-12, atol=1e-9,
                      estimate_error=False)  # fmt: skip
     assert given.atol == 1e-9  # an explicit atol is kept
-    ref = simulate(model, law, p.q0, p.qd0, t, method="Radau", rtol=1e-13, estimate_error=False)
-    default = simulate(model, law, p.q0, p.qd0, t, method="DOP853", estimate_error=False)
+    ref = simulate(
+        Robot.from_model(model),
+        law,
+        p.q0,
+        p.qd0,
+        t,
+        method="Radau",
+        rtol=1e-13,
+        estimate_error=False,
+    )
+    default = simulate(
+        Robot.from_model(model), law, p.q0, p.qd0, t, method="DOP853", estimate_error=False
+    )
     err = lambda r: np.abs(r.q - ref.q).max()  # noqa: E731
     assert err(run) < err(default)  # --rtol alone is now more accurate than the default
 
@@ -86,7 +107,7 @@ def test_stiff_explicit_run_stops_within_its_budget_once():
 
     t = np.linspace(0.0, 2.0, 21)
     with pytest.raises(DivergenceError) as info:
-        simulate(build_model(p), Counting(), p.q0, p.qd0, t, method="RK45", params=p,
+        simulate(chapter_arm(p), Counting(), p.q0, p.qd0, t, method="RK45",
                  estimate_error=False)  # fmt: skip
     message = str(info.value)
     assert "simulation stopped at" in message and "gave up after 120,000 evaluations" in message

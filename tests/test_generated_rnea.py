@@ -1,4 +1,4 @@
-"""Inverse dynamics generated from a Pinocchio model (rrt_pin.rnea_source) and compiled (rrt_pin.compiled.rnea).
+"""Inverse dynamics generated from a Pinocchio model (rrt_pin.dynamics.rnea_source) and compiled (rrt_pin.compiled.rnea).
 
 Every kernel is checked sample by sample against ``pin.rnea`` at random states;
 each model is compiled once per session (module-scope fixtures).
@@ -18,10 +18,16 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from rrt_pin.errors import InputError
-from rrt_pin.inverse import inverse_dynamics
-from rrt_pin.model import rrt_model
-from rrt_pin.rnea_source import MAX_JOINTS, UnsupportedJoint, rnea_source, unsupported_joint
+from rrt_pin.core.errors import InputError
+from rrt_pin.dynamics.inverse import inverse_dynamics
+from rrt_pin.dynamics.rnea_source import (
+    MAX_JOINTS,
+    UnsupportedJoint,
+    rnea_source,
+    unsupported_joint,
+)
+from rrt_pin.robot.model import rrt_model
+from rrt_pin.robot.robot import Robot
 from tests.support import robot_urdf
 
 needs_numba = pytest.mark.skipif(importlib.util.find_spec("numba") is None, reason="no numba")
@@ -163,7 +169,8 @@ def _trivial(lines) -> list[str]:
 @needs_numba
 def test_the_compiled_kernel_agrees_with_pinocchio_sample_by_sample(case):
     name, model, (q, qd, qdd), ref = case
-    tau = inverse_dynamics(model, q, qd, qdd, backend="compiled")
+    robot = Robot.from_model(model)  # its coordinates: angles for continuous joints
+    tau = inverse_dynamics(robot, robot.coordinates(q), qd, qdd, backend="compiled")
     assert tau.shape == ref.shape
     assert worst(tau, ref) <= AGREEMENT, name
 
@@ -171,7 +178,7 @@ def test_the_compiled_kernel_agrees_with_pinocchio_sample_by_sample(case):
 @needs_numba
 @pytest.mark.parametrize("robot_name", ["ur5", "panda"])
 def test_a_robot_takes_joint_coordinates(robot_name):
-    from rrt_pin.robots import get
+    from rrt_pin.robot.robots import get
 
     robot = get(robot_name)
     assert robot.supports("compiled", "inverse") and not robot.supports("compiled", "simulate")
@@ -186,7 +193,7 @@ def test_a_robot_takes_joint_coordinates(robot_name):
 
 @needs_numba
 def test_continuous_joints_take_angles_through_a_robot():
-    from rrt_pin.robot import Robot
+    from rrt_pin.robot.robot import Robot
 
     model = tree_model()
     robot = Robot.from_model(model)
@@ -207,7 +214,7 @@ def test_the_chapter_arm_keeps_its_closed_form(monkeypatch):
     """
     import rrt_pin.compiled
     from rrt_pin.compiled import rnea
-    from rrt_pin.robots import chapter_arm
+    from rrt_pin.robot.robots import chapter_arm
 
     calls = []
 
@@ -223,7 +230,7 @@ def test_the_chapter_arm_keeps_its_closed_form(monkeypatch):
     arm = chapter_arm()
     q = np.zeros((8, 3))
     inverse_dynamics(arm, q, q, q, backend="compiled")
-    inverse_dynamics(rrt_model(), q, q, q, backend="compiled", params=arm.params)
+    inverse_dynamics(chapter_arm(arm.params), q, q, q, backend="compiled")
     assert calls == [arm.params, arm.params]
 
 
@@ -233,9 +240,9 @@ def test_one_and_two_threads_give_the_same_bits():
 
     model = _models()["panda"]()
     q, qd, qdd = random_batch(model, 2 * kernel_for(model).min_per_thread + 3, seed=2)
-    one = inverse_dynamics(model, q, qd, qdd, backend="compiled", num_threads=1)
-    two = inverse_dynamics(model, q, qd, qdd, backend="compiled", num_threads=2)
-    default = inverse_dynamics(model, q, qd, qdd, backend="compiled")
+    one = inverse_dynamics(Robot.from_model(model), q, qd, qdd, backend="compiled", num_threads=1)
+    two = inverse_dynamics(Robot.from_model(model), q, qd, qdd, backend="compiled", num_threads=2)
+    default = inverse_dynamics(Robot.from_model(model), q, qd, qdd, backend="compiled")
     assert np.array_equal(one, two) and np.array_equal(one, default)
 
 
@@ -248,7 +255,11 @@ def test_armature_is_added_as_pinocchio_does():
     ref = pin_loop(model, q, qd, qdd)
     without = pin_loop(tree_model(), q, qd, qdd)
     assert worst(without, ref) > 1e-3  # the armature matters here
-    assert worst(inverse_dynamics(model, q, qd, qdd, backend="compiled"), ref) <= AGREEMENT
+    robot = Robot.from_model(model)
+    assert (
+        worst(inverse_dynamics(robot, robot.coordinates(q), qd, qdd, backend="compiled"), ref)
+        <= AGREEMENT
+    )
 
 
 @needs_numba
@@ -258,7 +269,7 @@ def test_read_only_inputs_are_taken_as_they_are():
 
     model = _models()["ur5"]()
     q, qd, qdd = random_batch(model, 300, seed=5)
-    want = inverse_dynamics(model, q, qd, qdd, backend="compiled", num_threads=1)
+    want = inverse_dynamics(Robot.from_model(model), q, qd, qdd, backend="compiled", num_threads=1)
     frozen = []
     for a in (q, qd, qdd):
         a = a.copy()
@@ -277,7 +288,7 @@ def test_non_finite_input_is_refused_naming_the_array(array, index, bad):
     arrays = dict(zip(("q", "qd", "qdd"), random_batch(model, 1200), strict=True))  # 2 threads
     arrays[array][index] = bad
     with pytest.raises(InputError, match=rf"{array}\[{index[0]}, {index[1]}\]={bad!r}"):
-        inverse_dynamics(model, **arrays, backend="compiled", num_threads=2)
+        inverse_dynamics(Robot.from_model(model), **arrays, backend="compiled", num_threads=2)
 
 
 @needs_numba
@@ -289,12 +300,12 @@ def test_a_nan_in_any_column_is_refused():
         bad = qdd.copy()
         bad[4, k] = np.nan
         with pytest.raises(InputError, match=rf"qdd\[4, {k}\]=nan"):
-            inverse_dynamics(model, q, qd, bad, backend="compiled")
+            inverse_dynamics(Robot.from_model(model), q, qd, bad, backend="compiled")
 
 
 @needs_numba
 def test_overflowing_efforts_name_the_sample_and_joint():
-    from rrt_pin.robots import get
+    from rrt_pin.robot.robots import get
 
     robot = get("ur5")
     rng = np.random.default_rng(1)
@@ -304,15 +315,16 @@ def test_overflowing_efforts_name_the_sample_and_joint():
         InputError, match=r"the efforts overflow: tau_\w+ = (nan|-?inf) at sample 17"
     ):
         inverse_dynamics(robot, q, qd, qdd, backend="compiled")
-    model = robot.model
-    with pytest.raises(InputError, match=r"the efforts overflow: joint \d = .* at sample 17"):
-        inverse_dynamics(model, q, qd, qdd, backend="compiled")
+    model = robot.model  # a bare model (deprecated) names the joint by its index
+    with pytest.warns(DeprecationWarning, match="pinocchio.Model is deprecated"):
+        with pytest.raises(InputError, match=r"the efforts overflow: joint \d = .* at sample 17"):
+            inverse_dynamics(model, q, qd, qdd, backend="compiled")
 
 
 def test_unsupported_joints_are_refused_naming_the_joint():
     model = pin.buildModelFromUrdf(str(robot_urdf("ur5")), pin.JointModelFreeFlyer())
     assert "FreeFlyer" in unsupported_joint(model)
-    with pytest.raises(UnsupportedJoint) as info:
+    with pytest.warns(DeprecationWarning), pytest.raises(UnsupportedJoint) as info:
         inverse_dynamics(model, np.zeros(model.nq), np.zeros(model.nv), np.zeros(model.nv),
                          backend="compiled")  # fmt: skip
     message = str(info.value)
@@ -335,9 +347,9 @@ def test_too_many_joints_are_refused():
 def test_the_generator_imports_without_numba():
     code = (
         "import sys; sys.modules['numba'] = None\n"
-        "import rrt_pin, rrt_pin.rnea_source, rrt_pin.robots\n"
-        "from rrt_pin.model import rrt_model\n"
-        "g = rrt_pin.rnea_source.rnea_source(rrt_model())\n"
+        "import rrt_pin, rrt_pin.dynamics.rnea_source, rrt_pin.robot.robots\n"
+        "from rrt_pin.robot.model import rrt_model\n"
+        "g = rrt_pin.dynamics.rnea_source.rnea_source(rrt_model())\n"
         "print(g.nv, g.flops > 0, 'numba' in sys.modules and sys.modules['numba'] is not None)\n"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT)
@@ -347,7 +359,7 @@ def test_the_generator_imports_without_numba():
 _SECOND = """
 import json, sys
 from rrt_pin.compiled import rnea
-from rrt_pin.model import rrt_model
+from rrt_pin.robot.model import rrt_model
 k = rnea.kernel_for(rrt_model())
 print(json.dumps({"origin": k.origin, "path": str(k.path),
                   "hits": sum(k.kernel.stats.cache_hits.values()),
@@ -386,8 +398,8 @@ def test_one_kernel_per_source_in_a_process():
 
 @needs_numba
 def test_the_cli_runs_a_urdf_robot_on_the_compiled_backend(tmp_path, capsys):
-    from rrt_pin.cli import main
-    from rrt_pin.csvio import read_csv
+    from rrt_pin.cli.app import main
+    from rrt_pin.io.csvio import read_csv
 
     urdf = str(robot_urdf("ur5"))
     motion = ["--q0", "0,-1,1,0,1,0", "--qf", "1,-2,2,-1,0,1", "--tf", "2", "--dt", "0.01"]

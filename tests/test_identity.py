@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import gc
 
-from rrt_pin.identity import IdentityCache
+from rrt_pin.core.identity import IdentityCache
 
 
 class Thing:

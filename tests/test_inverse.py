@@ -7,15 +7,17 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from rrt_pin.errors import InputError
-from rrt_pin.grid import time_grid
-from rrt_pin.inverse import inverse_dynamics
-from rrt_pin.model import load_urdf_model, rrt_model
-from rrt_pin.params import Params
-from rrt_pin.trajectory import rest_to_rest
+from rrt_pin.core.errors import InputError
+from rrt_pin.core.grid import time_grid
+from rrt_pin.dynamics.inverse import inverse_dynamics
+from rrt_pin.dynamics.trajectory import rest_to_rest
+from rrt_pin.robot.model import load_urdf_model, rrt_model
+from rrt_pin.robot.params import Params
+from rrt_pin.robot.robot import Robot
+from rrt_pin.robot.robots import chapter_arm
 from tests.support import DERIVED, TIGHT, holding_efforts, kinetic_energy, random_states, robot_urdf
 
-HAS_KERNEL = importlib.util.find_spec("rrt_pin.kernel") is not None
+HAS_KERNEL = importlib.util.find_spec("rrt_pin.dynamics.kernel") is not None
 
 
 # An independent Lagrangian, typed from the seed's T (general central inertias) and V.
@@ -109,14 +111,14 @@ def test_typed_lagrangian_derivatives_match_finite_differences(rng):
 def test_batched_equals_per_sample_rnea_on_the_seed_run(seed_model, seed_params):
     traj = seed_run(seed_params)
     assert len(traj) == 15001
-    tau = inverse_dynamics(seed_model, traj.q, traj.qd, traj.qdd)
+    tau = inverse_dynamics(chapter_arm(seed_params), traj.q, traj.qd, traj.qdd)
     assert tau.shape == (15001, 3)
     assert_close_rel(tau, rnea_loop(seed_model, traj.q, traj.qd, traj.qdd), TIGHT)
 
 
 def test_rnea_matches_the_lagrangian_over_the_whole_run(seed_model, seed_params):
     traj = seed_run(seed_params)
-    tau = inverse_dynamics(seed_model, traj.q, traj.qd, traj.qdd)
+    tau = inverse_dynamics(chapter_arm(seed_params), traj.q, traj.qd, traj.qdd)
     assert_close_rel(
         tau, lagrange_inverse_dynamics(seed_params, traj.q, traj.qd, traj.qdd), DERIVED
     )
@@ -129,14 +131,14 @@ def test_rnea_matches_the_lagrangian_over_the_whole_run(seed_model, seed_params)
 )
 def test_rnea_matches_the_lagrangian_at_random_states(params, rng):
     q, qd, qdd = random_states(rng, 2000)
-    tau = inverse_dynamics(rrt_model(params), q, qd, qdd)
+    tau = inverse_dynamics(chapter_arm(params), q, qd, qdd)
     assert_close_rel(tau, lagrange_inverse_dynamics(params, q, qd, qdd), DERIVED)
 
 
 def test_the_lagrangian_comparison_can_fail(seed_model, seed_params, rng):
     # A 1 % error in one of the slider's inertias (I3z) shows, far above the tolerance.
     q, qd, qdd = random_states(rng, 200)
-    tau = inverse_dynamics(seed_model, q, qd, qdd)
+    tau = inverse_dynamics(chapter_arm(seed_params), q, qd, qdd)
     wrong = lagrange_inverse_dynamics(Params(I3z=1.01), q, qd, qdd)
     with pytest.raises(AssertionError):
         assert_close_rel(tau, wrong, 1e4 * DERIVED)
@@ -146,7 +148,7 @@ def test_seed_values_at_rest_at_both_ends(seed_model, seed_params):
     # t = 0: T01x = 0, T12y = g·c2·(m2·L2 + m3·(L2 + q3)), F23z = g·m3·s2 at q(0); t = Tp: at qf.
     p = seed_params
     traj = rest_to_rest(p.q0, p.qf, p.Tp, [0.0, p.Tp])
-    tau = inverse_dynamics(seed_model, traj.q, traj.qd, traj.qdd)
+    tau = inverse_dynamics(chapter_arm(seed_params), traj.q, traj.qd, traj.qdd)
     for row, q in ((0, p.q0), (1, p.qf)):
         expected = holding_efforts(p, np.array(q))
         scale = np.abs(expected).max()
@@ -163,7 +165,7 @@ def test_other_arms_batched_rnea_and_crba_plus_nle(robot, rng):
     q = rng.uniform(lo, hi, (n, model.nq))
     qd = rng.normal(0.0, 1.5, (n, model.nv))
     qdd = rng.normal(0.0, 4.0, (n, model.nv))
-    tau = inverse_dynamics(model, q, qd, qdd)
+    tau = inverse_dynamics(Robot.from_model(model), q, qd, qdd)
     assert_close_rel(tau, rnea_loop(model, q, qd, qdd), TIGHT)
     data = model.createData()
     for i in range(0, n, 10):
@@ -176,29 +178,33 @@ def test_other_arms_batched_rnea_and_crba_plus_nle(robot, rng):
 
 def test_threads_do_not_change_the_result(seed_model, rng):
     q, qd, qdd = random_states(rng, 3000)
-    one = inverse_dynamics(seed_model, q, qd, qdd, num_threads=1)
-    two = inverse_dynamics(seed_model, q, qd, qdd, num_threads=2)
+    one = inverse_dynamics(Robot.from_model(seed_model), q, qd, qdd, num_threads=1)
+    two = inverse_dynamics(Robot.from_model(seed_model), q, qd, qdd, num_threads=2)
     np.testing.assert_array_equal(one, two)
 
 
 def test_single_state_empty_batch_and_gravity_changes(seed_params):
     model = rrt_model(seed_params)
     q = np.array(seed_params.q0)
-    tau = inverse_dynamics(model, q, np.zeros(3), np.zeros(3))
+    tau = inverse_dynamics(Robot.from_model(model), q, np.zeros(3), np.zeros(3))
     assert tau.shape == (3,)  # one sample in, (nv,) out, as pin.rnea
     np.testing.assert_allclose(tau, holding_efforts(seed_params, q), rtol=TIGHT, atol=1e-12)
-    assert inverse_dynamics(model, np.empty((0, 3)), np.empty((0, 3)), np.empty((0, 3))).shape == (
+    assert inverse_dynamics(
+        Robot.from_model(model), np.empty((0, 3)), np.empty((0, 3)), np.empty((0, 3))
+    ).shape == (
         0,
         3,
     )
     model.gravity.linear[:] = 0.0  # the thread pool copies the model on each call
-    np.testing.assert_array_equal(inverse_dynamics(model, q, np.zeros(3), np.zeros(3)), 0.0)
+    np.testing.assert_array_equal(
+        inverse_dynamics(Robot.from_model(model), q, np.zeros(3), np.zeros(3)), 0.0
+    )
 
 
 def test_inputs_are_not_modified(seed_model, rng):
     q, qd, qdd = random_states(rng, 10)
     copies = [a.copy() for a in (q, qd, qdd)]
-    inverse_dynamics(seed_model, q, qd, qdd)
+    inverse_dynamics(Robot.from_model(seed_model), q, qd, qdd)
     for a, b in zip((q, qd, qdd), copies, strict=True):
         np.testing.assert_array_equal(a, b)
 
@@ -206,24 +212,26 @@ def test_inputs_are_not_modified(seed_model, rng):
 # --- the other backends ----------------------------------------------------------------
 
 
-@pytest.mark.skipif(not HAS_KERNEL, reason="rrt_pin/kernel.py not generated yet")
+@pytest.mark.skipif(not HAS_KERNEL, reason="rrt_pin/dynamics/kernel.py not generated yet")
 def test_symbolic_backend_matches_pinocchio_and_the_lagrangian(seed_model, seed_params):
     traj = seed_run(seed_params)
-    sym = inverse_dynamics(None, traj.q, traj.qd, traj.qdd, backend="symbolic", params=seed_params)
-    assert_close_rel(sym, inverse_dynamics(seed_model, traj.q, traj.qd, traj.qdd), DERIVED)
+    sym = inverse_dynamics(chapter_arm(seed_params), traj.q, traj.qd, traj.qdd, backend="symbolic")
+    assert_close_rel(
+        sym, inverse_dynamics(chapter_arm(seed_params), traj.q, traj.qd, traj.qdd), DERIVED
+    )
     assert_close_rel(
         sym, lagrange_inverse_dynamics(seed_params, traj.q, traj.qd, traj.qdd), DERIVED
     )
 
 
 def test_compiled_backend_reports_when_unavailable(seed_params, monkeypatch):
-    from rrt_pin import backends
-    from rrt_pin.extras import MissingExtra
+    from rrt_pin.core import backends
+    from rrt_pin.core.extras import MissingExtra
 
     monkeypatch.setattr(backends.Backend, "available", lambda self: self.name != "compiled")
     with pytest.raises(MissingExtra, match=r"numba not found \(needed for backend 'compiled'\)"):
         inverse_dynamics(
-            None, np.zeros(3), np.zeros(3), np.zeros(3), backend="compiled", params=seed_params
+            chapter_arm(seed_params), np.zeros(3), np.zeros(3), np.zeros(3), backend="compiled"
         )
 
 
@@ -237,13 +245,16 @@ def test_compiled_backend_reports_when_unavailable(seed_params, monkeypatch):
         (dict(qd=np.array([[0, 0, 0]] * 3 + [[0, np.inf, 0]])), "qd[3, 1]=inf must be finite"),
         (dict(qdd=[["a", 0, 0]] * 4), "qdd is not an array of numbers"),
         (dict(backend="fast"), "backend='fast' is not one of pinocchio, symbolic, compiled"),
-        (dict(backend="symbolic"), "backend='symbolic' needs the chapter's arm"),
+        (dict(backend="symbolic"), "backend='symbolic' computes the chapter's RRT arm only"),
         (dict(model=None), "backend='pinocchio' needs a Robot or a Pinocchio model"),
         (dict(num_threads=0), "num_threads=0 must be >= 1"),
     ],
 )
 def test_bad_input_names_the_problem(seed_model, kwargs, words):
-    args = dict(model=seed_model, q=np.zeros((4, 3)), qd=np.zeros((4, 3)), qdd=np.zeros((4, 3)))
+    args = dict(
+        model=Robot.from_model(seed_model), q=np.zeros((4, 3)), qd=np.zeros((4, 3)),
+        qdd=np.zeros((4, 3)),
+    )  # fmt: skip
     args.update(kwargs)
     with pytest.raises(InputError) as info:
         inverse_dynamics(**args)
@@ -252,14 +263,14 @@ def test_bad_input_names_the_problem(seed_model, kwargs, words):
 
 def test_kernel_backends_refuse_other_models(seed_params):
     ur5 = load_urdf_model(robot_urdf("ur5"))
-    with pytest.raises(InputError, match="model.nq=6"):
+    with pytest.warns(DeprecationWarning), pytest.raises(InputError, match="model.nq=6"):
         inverse_dynamics(
             ur5, np.zeros(3), np.zeros(3), np.zeros(3), backend="symbolic", params=seed_params
         )
 
 
 def test_default_threads_follow_omp_num_threads(monkeypatch):
-    from rrt_pin.inverse import default_num_threads
+    from rrt_pin.dynamics.inverse import default_num_threads
 
     monkeypatch.delenv("OMP_NUM_THREADS", raising=False)
     cpus = default_num_threads()

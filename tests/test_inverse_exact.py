@@ -7,12 +7,13 @@ import importlib.util
 import numpy as np
 import pytest
 
-from rrt_pin.errors import InputError
-from rrt_pin.grid import time_grid
-from rrt_pin.inverse import inverse_dynamics
-from rrt_pin.model import rrt_model
-from rrt_pin.params import Params
-from rrt_pin.trajectory import rest_to_rest
+from rrt_pin.core.errors import InputError
+from rrt_pin.core.grid import time_grid
+from rrt_pin.dynamics.inverse import inverse_dynamics
+from rrt_pin.dynamics.trajectory import rest_to_rest
+from rrt_pin.robot.model import rrt_model
+from rrt_pin.robot.params import Params
+from rrt_pin.robot.robots import chapter_arm
 from tests.support import random_params, random_states
 
 BACKENDS = [
@@ -35,7 +36,7 @@ def _relative(tau: np.ndarray, ref: np.ndarray) -> np.ndarray:
 def case(request):
     """States, their 30-digit efforts: the chapter's run (eq. 30) or random states and arm."""
     pytest.importorskip("mpmath")
-    from rrt_pin.bench import mpmath_inverse_reference
+    from rrt_pin.cli.bench_measure import mpmath_inverse_reference
 
     if request.param == "chapter":
         p = Params()
@@ -53,9 +54,9 @@ def case(request):
 def test_every_backend_agrees_with_the_30_digit_reference(case, backend):
     p, q, qd, qdd, ref = case
     if backend == "pinocchio":
-        tau = inverse_dynamics(rrt_model(p), q, qd, qdd)
+        tau = inverse_dynamics(chapter_arm(p), q, qd, qdd)
     else:
-        tau = inverse_dynamics(None, q, qd, qdd, backend=backend, params=p)
+        tau = inverse_dynamics(chapter_arm(p), q, qd, qdd, backend=backend)
     worst = _relative(tau, ref)
     assert worst.max() <= AGREEMENT, dict(zip(("T01x", "T12y", "F23z"), worst, strict=True))
 
@@ -66,8 +67,8 @@ def test_the_rpy_mount_alone_misses_the_agreement(case):
     (small: 5.8 N·m at most, against hundreds for the others) is off by ~7e-14 relative."""
     import pinocchio as pin
 
-    from rrt_pin.model import model_from_xml
-    from rrt_pin.urdf import urdf_xml
+    from rrt_pin.robot.model import model_from_xml
+    from rrt_pin.robot.urdf import urdf_xml
 
     p, q, qd, qdd, ref = case
     model = model_from_xml(urdf_xml(p))
@@ -80,7 +81,7 @@ def test_the_rpy_mount_alone_misses_the_agreement(case):
 def test_mount_rotation_is_the_exact_permutation():
     import pinocchio as pin
 
-    from rrt_pin.urdf import MOUNT_ROTATION, MOUNT_RPY
+    from rrt_pin.robot.urdf import MOUNT_ROTATION, MOUNT_RPY
 
     exact = np.array(MOUNT_ROTATION)
     # What the URDF's roll/pitch/yaw stand for, computed independently.
@@ -105,7 +106,7 @@ def test_nonfinite_inputs_are_named_alike_by_the_kernel_backends(backend, column
     name = ("q", "qd", "qdd")[column // 3]
     arrays[column // 3][613, column % 3] = value
     with pytest.raises(InputError) as info:
-        inverse_dynamics(None, *arrays, backend=backend, params=Params())
+        inverse_dynamics(chapter_arm(Params()), *arrays, backend=backend)
     assert f"{name}[613, {column % 3}]={value!r} must be finite" in str(info.value)
 
 
@@ -114,18 +115,18 @@ def test_overflowing_efforts_are_named_alike(backend):
     q, qd, qdd = np.zeros((600, 3)), np.zeros((600, 3)), np.zeros((600, 3))
     qd[517] = 1e200  # finite, but q̇² overflows
     with pytest.raises(InputError, match="the efforts overflow: .* at sample 517"):
-        inverse_dynamics(None, q, qd, qdd, backend=backend, params=Params())
+        inverse_dynamics(chapter_arm(Params()), q, qd, qdd, backend=backend)
 
 
 @pytest.mark.parametrize("backend", BACKENDS[2:])
 def test_huge_finite_values_are_no_false_alarm(backend):
     """τ1 + τ2 + τ3 may overflow while each τ is finite: the result is still returned."""
-    from rrt_pin import kernel
+    from rrt_pin.dynamics import kernel
 
     p = Params()
     q, qd, qdd = np.zeros((3, 3)), np.zeros((3, 3)), np.zeros((3, 3))
     qdd[1] = 0.7e308 / np.diag(kernel.mass_matrix(q[1], p))  # each τ_i ≈ 0.7e308
-    tau = inverse_dynamics(None, q, qd, qdd, backend=backend, params=p)
-    expected = inverse_dynamics(None, q, qd, qdd, backend="symbolic", params=p)
+    tau = inverse_dynamics(chapter_arm(p), q, qd, qdd, backend=backend)
+    expected = inverse_dynamics(chapter_arm(p), q, qd, qdd, backend="symbolic")
     assert np.isfinite(tau).all()
     np.testing.assert_allclose(tau, expected, rtol=1e-15)

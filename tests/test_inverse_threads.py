@@ -8,12 +8,14 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from rrt_pin import cpus, robots
-from rrt_pin import inverse as inv
-from rrt_pin.errors import InputError
-from rrt_pin.inverse import inverse_dynamics
-from rrt_pin.robots import chapter_arm
-from rrt_pin.trajectory import rest_to_rest
+from rrt_pin.core import cpus
+from rrt_pin.core.errors import InputError
+from rrt_pin.dynamics import inverse as inv
+from rrt_pin.dynamics.inverse import inverse_dynamics
+from rrt_pin.dynamics.trajectory import rest_to_rest
+from rrt_pin.robot import robots
+from rrt_pin.robot.robot import Robot
+from rrt_pin.robot.robots import chapter_arm
 
 
 def _motion(n: int = 4001):
@@ -37,12 +39,12 @@ def test_the_pool_is_kept_between_calls_and_rebuilt_when_the_model_changes():
     inv._POOLS.clear()
     first = inv._pool(model, 2)
     assert inv._pool(model, 2) is first and inv._pool(model, 1) is first  # big enough
-    before = inverse_dynamics(model, m.q, m.qd, m.qdd, num_threads=2)
+    before = inverse_dynamics(Robot.from_model(model), m.q, m.qd, m.qdd, num_threads=2)
     saved = model.gravity.linear.copy()
     try:
         model.gravity.linear = np.array([0.0, 0.0, -1.62])  # the Moon: a changed model
         assert inv._pool(model, 2) is not first
-        moon = inverse_dynamics(model, m.q, m.qd, m.qdd, num_threads=2)
+        moon = inverse_dynamics(Robot.from_model(model), m.q, m.qd, m.qdd, num_threads=2)
         assert not np.allclose(moon, before)  # the new gravity was used, not a stale copy
     finally:
         model.gravity.linear = saved

@@ -15,10 +15,10 @@ from pathlib import Path
 
 import pytest
 
-import rrt_pin.io as rio
-from rrt_pin.commands._common import check_writable
-from rrt_pin.errors import InputError
-from rrt_pin.io import (
+import rrt_pin.io.files as rio
+from rrt_pin.cli.commands._common import check_writable
+from rrt_pin.core.errors import InputError
+from rrt_pin.io.files import (
     OutputError,
     atomic_write,
     atomic_write_bytes,
@@ -569,7 +569,7 @@ def test_stdout_twice_is_refused(capfd):
 
 
 def test_cli_urdf_through_a_symlink_and_to_stdout(tmp_path, capfd, monkeypatch):
-    from rrt_pin.cli import main
+    from rrt_pin.cli.app import main
 
     monkeypatch.chdir(tmp_path)  # a broken '-' would land here
 
@@ -588,7 +588,7 @@ def test_cli_urdf_through_a_symlink_and_to_stdout(tmp_path, capfd, monkeypatch):
 
 def test_io_imports_only_the_standard_library():
     code = (
-        "import sys; import rrt_pin.io; "
+        "import sys; import rrt_pin.io.files; "
         "print(sorted(m for m in sys.modules if m.split('.')[0] in "
         "{'numpy', 'pinocchio', 'matplotlib', 'scipy'}))"
     )

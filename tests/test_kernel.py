@@ -1,4 +1,4 @@
-"""The generated expressions (rrt_pin/_kernel_terms.py) and their wrappers (rrt_pin/kernel.py) against Pinocchio, numba and the generator."""
+"""The generated expressions (rrt_pin/dynamics/_kernel_terms.py) and their wrappers (rrt_pin/dynamics/kernel.py) against Pinocchio, numba and the generator."""
 
 import subprocess
 import sys
@@ -7,10 +7,10 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from rrt_pin import kernel
-from rrt_pin.errors import InputError
-from rrt_pin.model import rrt_model
-from rrt_pin.params import Params
+from rrt_pin.core.errors import InputError
+from rrt_pin.dynamics import kernel
+from rrt_pin.robot.model import rrt_model
+from rrt_pin.robot.params import Params
 from tests.support import DERIVED, TIGHT, holding_efforts, random_params, random_states, rel_err
 
 N_STATES = 120
@@ -143,23 +143,23 @@ def test_numba_compiles_terms_unchanged(rng):
 
 
 def test_kernel_imports_no_sympy():
-    code = "import sys, rrt_pin.kernel; print('sympy' in sys.modules)"
+    code = "import sys, rrt_pin.dynamics.kernel; print('sympy' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"
 
 
 def test_committed_kernel_is_the_generators_output():
     pytest.importorskip("sympy")
-    from rrt_pin.symbolic.codegen import KERNEL_PATH, kernel_source
+    from rrt_pin.dynamics.symbolic.codegen import KERNEL_PATH, kernel_source
 
     assert KERNEL_PATH.read_text(encoding="utf-8") == kernel_source(), (
-        "rrt_pin/_kernel_terms.py drifted from the derivation: run python -m rrt_pin.symbolic.codegen"
+        "rrt_pin/dynamics/_kernel_terms.py drifted from the derivation: run python -m rrt_pin.dynamics.symbolic.codegen"
     )
 
 
 def test_drift_check_can_fail(tmp_path):
     pytest.importorskip("sympy")
-    from rrt_pin.symbolic.codegen import kernel_source, main
+    from rrt_pin.dynamics.symbolic.codegen import kernel_source, main
 
     stale = tmp_path / "kernel.py"
     stale.write_text(kernel_source().replace("x1 = cos(q2)", "x1 = sin(q2)"), encoding="utf-8")
@@ -179,7 +179,7 @@ def test_drift_check_can_fail(tmp_path):
 )
 def test_the_plans_are_proved_and_a_wrong_line_is_caught(monkeypatch, table, name, wrong, message):
     pytest.importorskip("sympy")
-    from rrt_pin.symbolic import codegen
+    from rrt_pin.dynamics.symbolic import codegen
 
     codegen.check_inverse_plan()  # the committed plans equal Kane's equations
     lines = list(getattr(codegen, table))
@@ -192,7 +192,7 @@ def test_the_plans_are_proved_and_a_wrong_line_is_caught(monkeypatch, table, nam
 
 def test_flop_count_counts_operations():
     pytest.importorskip("sympy")
-    from rrt_pin.symbolic.codegen import flop_count
+    from rrt_pin.dynamics.symbolic.codegen import flop_count
 
     assert flop_count("a*b + c - d**2") == 4
     assert flop_count("-(a + b)*c") == 3

@@ -13,12 +13,12 @@ import numpy as np
 import pytest
 
 from rrt_pin import time_grid
-from rrt_pin.control import Controller, regulator
-from rrt_pin.errors import ArgumentTypeError, ControllerError, DivergenceError, InputError
-from rrt_pin.inverse import inverse_dynamics
-from rrt_pin.params import Params
-from rrt_pin.robots import chapter_arm
+from rrt_pin.core.errors import ArgumentTypeError, ControllerError, DivergenceError, InputError
+from rrt_pin.dynamics.inverse import inverse_dynamics
+from rrt_pin.robot.params import Params
+from rrt_pin.robot.robots import chapter_arm
 from rrt_pin.simulate import EstimateWarning, simulate, simulate_batch
+from rrt_pin.simulate.control import Controller, regulator
 
 T = np.linspace(0.0, 0.2, 11)
 
@@ -180,18 +180,24 @@ def test_a_controller_subclass_is_checked_too(arm):
 
 
 # --- params= that would be ignored, model types (earlier defects) -----------------------
+def deprecated_params() -> pytest.WarningsRecorder:
+    """``params=`` beside a Robot is deprecated (the Robot carries them): still checked."""
+    return pytest.warns(DeprecationWarning, match=r"params=\) is deprecated")
+
+
 def test_params_as_a_dict_is_refused_as_a_type_error(arm):
-    with pytest.raises(ArgumentTypeError) as info:
+    with deprecated_params(), pytest.raises(ArgumentTypeError) as info:
         simulate(arm, None, arm.defaults.q0, None, T, params={"L1": 1}, estimate_error=False)
     assert isinstance(info.value, TypeError) and isinstance(info.value, InputError)
     _one_line(info.value, "params must be a rrt_pin.Params", "dict")
 
 
 def test_params_of_another_arm_are_refused_not_ignored(arm):
-    with pytest.raises(InputError) as info:
+    with deprecated_params(), pytest.raises(InputError) as info:
         simulate(arm, None, arm.defaults.q0, None, T, params=Params(L1=1.0), estimate_error=False)
     _one_line(info.value, "would be ignored", "L1 = 1 vs 0.4", "chapter_arm(params)")
-    run = simulate(arm, None, arm.defaults.q0, None, T, params=Params(), estimate_error=False)
+    with deprecated_params():
+        run = simulate(arm, None, arm.defaults.q0, None, T, params=Params(), estimate_error=False)
     assert run.q.shape == (T.size, 3)  # the arm's own parameters are fine
     with pytest.raises(InputError, match="runs on backend='compiled' only"):
         simulate_batch(arm, None, np.tile(arm.defaults.q0, (2, 1)), None, T,
@@ -204,11 +210,12 @@ def test_inverse_dynamics_names_a_model_of_the_wrong_type(arm):
         inverse_dynamics("str", z, z, z)
     assert isinstance(info.value, TypeError) and info.value.argument == "model"
     _one_line(info.value, "model must be a rrt_pin.Robot, a pinocchio.Model", "not str")
-    with pytest.raises(ArgumentTypeError, match="params must be"):
+    with deprecated_params(), pytest.raises(ArgumentTypeError, match="params must be"):
         inverse_dynamics(arm, z, z, z, params={"L1": 1})
-    with pytest.raises(InputError, match="would be ignored"):
+    with deprecated_params(), pytest.raises(InputError, match="would be ignored"):
         inverse_dynamics(arm, z, z, z, params=Params(m3=1.0))
-    assert inverse_dynamics(arm, z, z, z, params=Params()).shape == (3,)
+    with deprecated_params():
+        assert inverse_dynamics(arm, z, z, z, params=Params()).shape == (3,)
 
 
 # --- the error estimate's failure is said (earlier: silently None) ----------------------
@@ -302,7 +309,7 @@ def test_no_numpy_reprs_in_grid_messages():
 
 
 def test_the_summary_says_why_the_estimate_is_missing(arm):
-    from rrt_pin.commands.simulate import summary, summary_text
+    from rrt_pin.cli.commands.simulate import summary, summary_text
 
     def trap(t, q, qd):
         return np.full(3, np.nan) if abs(t - 0.025) < 1e-12 else -10.0 * qd
@@ -319,7 +326,7 @@ def test_the_summary_says_why_the_estimate_is_missing(arm):
 
 def test_the_compiled_backend_never_runs_a_subclass_as_the_chapter_law(arm):
     pytest.importorskip("numba")
-    from rrt_pin.control import ChapterController, chapter_controller
+    from rrt_pin.simulate.control import ChapterController, chapter_controller
 
     base = chapter_controller()
 

@@ -19,11 +19,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rrt_pin import cpus, memory
-from rrt_pin.cli import main
-from rrt_pin.errors import InputError, MemoryLimitError, RrtPinError
-from rrt_pin.inverse import inverse_dynamics
-from rrt_pin.robots import chapter_arm
+from rrt_pin.cli.app import main
+from rrt_pin.core import cpus, memory
+from rrt_pin.core.errors import InputError, MemoryLimitError, RrtPinError
+from rrt_pin.dynamics.inverse import inverse_dynamics
+from rrt_pin.robot.robot import Robot
+from rrt_pin.robot.robots import chapter_arm
 from tests.bad_inputs import chain_urdf
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -111,7 +112,7 @@ def test_a_data_that_does_not_fit_is_refused_before_it_is_made(monkeypatch):
     monkeypatch.setattr(memory, "limits", lambda: [memory.Limit(100 << 20, "MemAvailable")])
     q = np.zeros((4, 100))
     with pytest.raises(MemoryLimitError) as info:
-        inverse_dynamics(model, q, q, q, num_threads=1)
+        inverse_dynamics(Robot.from_model(model), q, q, q, num_threads=1)
     e = info.value
     assert isinstance(e, MemoryError) and isinstance(e, RrtPinError)
     assert e.need == memory.data_bytes(model) * 2 + 100 * 16_384 * 8 + memory.THREAD_RESIDENT
@@ -167,7 +168,7 @@ def test_the_cli_refuses_a_chain_too_large_for_the_cap_in_one_line(tmp_path):
 
 
 def test_a_controller_too_large_for_the_cap_is_refused_before_its_data(tmp_path):
-    # The regulator's own Data (rrt_pin/control.py) is checked before it is made.
+    # The regulator's own Data (rrt_pin/simulate/control.py) is checked before it is made.
     ones = ",".join(["1"] * 300)
     args = ["-m", "rrt_pin", "simulate", *_chain_files(tmp_path, 300), "--kp", ones, "--kd", ones]
     done = _capped([*args, "--tf", "0.01", "--csv", str(tmp_path / "o.csv")], 1 * GB, tmp_path)
@@ -179,7 +180,7 @@ def test_a_controller_too_large_for_the_cap_is_refused_before_its_data(tmp_path)
 
 
 def test_a_raw_memory_error_in_any_command_is_one_line(monkeypatch, capsys):
-    from rrt_pin.commands import inverse
+    from rrt_pin.cli.commands import inverse
 
     def exhausted(args):
         raise MemoryError("std::bad_alloc")
@@ -195,9 +196,9 @@ BATCH = r"""
 import json, logging, sys
 import numpy as np
 logging.basicConfig(level=logging.WARNING, format="%(message)s")
-from rrt_pin.control import chapter_controller
-from rrt_pin.params import Params
-from rrt_pin.robots import chapter_arm
+from rrt_pin.simulate.control import chapter_controller
+from rrt_pin.robot.params import Params
+from rrt_pin.robot.robots import chapter_arm
 from rrt_pin.simulate import simulate_batch
 
 p = Params()
@@ -225,10 +226,11 @@ def test_an_asked_thread_count_is_cut_to_the_pools_that_fit(tmp_path):
 import json, logging
 import numpy as np, pinocchio as pin
 logging.basicConfig(level=logging.WARNING, format="%(message)s")
-from rrt_pin.inverse import inverse_dynamics
+from rrt_pin.dynamics.inverse import inverse_dynamics
+from rrt_pin.robot.robot import Robot
 from tests.bad_inputs import chain_urdf
 
-model = pin.buildModelFromXML(chain_urdf(150))  # a Data: ~115 MB
+model = Robot.from_model(pin.buildModelFromXML(chain_urdf(150)))  # a Data: ~115 MB
 rng = np.random.default_rng(3)
 q, qd, qdd = (rng.uniform(-1, 1, (64 * 256, 150)) for _ in range(3))
 many = inverse_dynamics(model, q, qd, qdd, num_threads=64)  # 7.4 GB of copies asked

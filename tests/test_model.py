@@ -4,10 +4,10 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from rrt_pin.errors import UrdfError
-from rrt_pin.model import build_geometry, load_urdf_model, model_from_xml, rrt_model
-from rrt_pin.params import Params
-from rrt_pin.urdf import urdf_xml
+from rrt_pin.core.errors import UrdfError
+from rrt_pin.robot.model import build_geometry, load_urdf_model, model_from_xml, rrt_model
+from rrt_pin.robot.params import Params
+from rrt_pin.robot.urdf import urdf_xml
 from tests.support import (
     TIGHT,
     holding_efforts,

@@ -2,9 +2,9 @@ import math
 
 import pytest
 
-from rrt_pin.errors import OverrideError, ParameterError, RunFileError
-from rrt_pin.params import Params, param_names, parse_number, parse_overrides
-from rrt_pin.runfile import load_runfile, resolve_params
+from rrt_pin.cli.runfile import load_runfile, resolve_params
+from rrt_pin.core.errors import OverrideError, ParameterError, RunFileError
+from rrt_pin.robot.params import Params, param_names, parse_number, parse_overrides
 
 
 def test_seed_values():

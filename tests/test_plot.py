@@ -5,9 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rrt_pin.cli import main
-from rrt_pin.errors import InputError
-from rrt_pin.plot import (
+from rrt_pin.cli.app import main
+from rrt_pin.core.errors import InputError
+from rrt_pin.robot.robots import chapter_arm, get
+from rrt_pin.viewer.plot import (
     MAGNITUDES,
     MAX_CURVES,
     _groups,
@@ -16,7 +17,6 @@ from rrt_pin.plot import (
     plot_format,
     position_panels,
 )
-from rrt_pin.robots import chapter_arm, get
 
 MAGIC = {"png": b"\x89PNG\r\n\x1a\n", "svg": b"<?xml", "pdf": b"%PDF-"}
 
@@ -86,8 +86,8 @@ def test_every_curve_of_the_arm_is_labelled_and_targets_drawn():
 def test_ur5_wrist_is_not_a_flat_line_beside_the_shoulder():
     import matplotlib.pyplot as plt
 
-    from rrt_pin.inverse import inverse_dynamics
-    from rrt_pin.trajectory import rest_to_rest
+    from rrt_pin.dynamics.inverse import inverse_dynamics
+    from rrt_pin.dynamics.trajectory import rest_to_rest
 
     ur5 = get("ur5")
     t = np.linspace(0, 15, 301)
@@ -114,7 +114,7 @@ def test_title_names_the_robot(tmp_path, capsys):
 
     arm = chapter_arm()
     t = np.linspace(0, 1, 5)
-    from rrt_pin import plot
+    from rrt_pin.viewer import plot
 
     captured = {}
     real = plot.figure

@@ -3,7 +3,7 @@
 import re
 from pathlib import Path
 
-from rrt_pin.cli import build_parser
+from rrt_pin.cli.app import build_parser
 
 ROOT = Path(__file__).resolve().parents[1]
 README = (ROOT / "README.md").read_text(encoding="utf-8")
@@ -57,7 +57,7 @@ def test_no_issue_numbers_in_code_docs_or_help():
 
 def test_cli_reference_names_every_option():
     """Each command's row of the README's CLI table names every long option it takes."""
-    from rrt_pin.cli import build_parser
+    from rrt_pin.cli.app import build_parser
 
     _, subparsers = build_parser()
     shared = {"--help", "--verbose", "--quiet", "--set", "--config", "--scene"}  # described once

@@ -7,11 +7,11 @@ import pinocchio as pin
 import pytest
 
 import rrt_pin
-from rrt_pin import robots
-from rrt_pin.cli import main
-from rrt_pin.errors import InputError, RrtPinError
-from rrt_pin.params import Params
-from rrt_pin.robot import Robot
+from rrt_pin.cli.app import main
+from rrt_pin.core.errors import InputError, RrtPinError
+from rrt_pin.robot import robots
+from rrt_pin.robot.params import Params
+from rrt_pin.robot.robot import Robot
 from tests.support import robot_urdf
 
 
@@ -20,7 +20,7 @@ def test_the_chapter_arm_needs_no_pinocchio_until_its_model_is_used():
     import sys
 
     code = (
-        "import sys, rrt_pin.robots as r; arm = r.chapter_arm(); "
+        "import sys, rrt_pin.robot.robots as r; arm = r.chapter_arm(); "
         "print(arm.q_names, arm.effort_units, 'pinocchio' in sys.modules); arm.model; "
         "print('pinocchio' in sys.modules)"
     )

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from rrt_pin.cli import main
+from rrt_pin.cli.app import main
+from rrt_pin.robot.robot import Robot
 
 
 def _rows(path) -> int:
@@ -59,10 +60,10 @@ def test_a_bad_value_names_its_table(tmp_path, capsys):
 
 def test_integration_step_is_apart_from_the_output_interval(tmp_path, capsys):
     """--step sets a fixed-step method's step; --dt only the rows (default step: --dt)."""
-    from rrt_pin.control import chapter_controller
-    from rrt_pin.model import build_model
-    from rrt_pin.params import Params
+    from rrt_pin.robot.model import build_model
+    from rrt_pin.robot.params import Params
     from rrt_pin.simulate import simulate
+    from rrt_pin.simulate.control import chapter_controller
 
     out = tmp_path / "s.csv"
     argv = ["simulate", "--method", "rk4", "--tf", "1", "--dt", "0.1", "--csv", str(out)]
@@ -70,7 +71,7 @@ def test_integration_step_is_apart_from_the_output_interval(tmp_path, capsys):
     fine = np.loadtxt(out, delimiter=",", skiprows=1)
     assert fine.shape[0] == 11
     p = Params()
-    expected = simulate(build_model(p), chapter_controller(p), p.q0, p.qd0,
+    expected = simulate(Robot.from_model(build_model(p)), chapter_controller(p), p.q0, p.qd0,
                         np.linspace(0, 1, 11), method="rk4", step=0.001)  # fmt: skip
     np.testing.assert_allclose(fine[:, 1:4], expected.q, rtol=0, atol=1e-13)
     assert main(argv) == 0  # without --step: the step is --dt, a coarser run

@@ -7,15 +7,16 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from rrt_pin.control import as_controller, pd_gravity_controller, seed_controller
-from rrt_pin.errors import DivergenceError, InputError, RrtPinError
-from rrt_pin.methods import METHODS, names
-from rrt_pin.model import load_urdf_model, rrt_model
-from rrt_pin.params import Params
-from rrt_pin.reference import reference_run, seed_reference
-from rrt_pin.robot import Robot
+from rrt_pin.core.errors import DivergenceError, InputError, RrtPinError
+from rrt_pin.robot.model import load_urdf_model, rrt_model
+from rrt_pin.robot.params import Params
+from rrt_pin.robot.robot import Robot
+from rrt_pin.robot.robots import chapter_arm
 from rrt_pin.simulate import SimulationResult, simulate
 from rrt_pin.simulate.closed_loop import ClosedLoop
+from rrt_pin.simulate.control import as_controller, pd_gravity_controller, seed_controller
+from rrt_pin.simulate.methods import METHODS, names
+from rrt_pin.simulate.reference import reference_run, seed_reference
 from tests.support import TIGHT, random_states, robot_urdf
 
 ADAPTIVE_METHODS = names(adaptive=True)
@@ -50,7 +51,11 @@ def reference():
 @pytest.fixture(scope="module")
 def seed_run(seed_model, seed_params, reference):
     return simulate(
-        seed_model, seed_controller(seed_params), seed_params.q0, seed_params.qd0, reference.t
+        chapter_arm(seed_params),
+        seed_controller(seed_params),
+        seed_params.q0,
+        seed_params.qd0,
+        reference.t,
     )
 
 
@@ -127,7 +132,7 @@ def test_plain_callable_controller_takes_the_general_path(seed_model, seed_param
     c = seed_controller(seed_params)
     plain = lambda q, qd: c.efforts(0.0, q, qd)  # noqa: E731  (no feedback(): no folding)
     assert not _ClosedLoop(seed_model, plain).folded
-    r = simulate(seed_model, plain, seed_params.q0, seed_params.qd0, seed_run.t)
+    r = simulate(chapter_arm(seed_params), plain, seed_params.q0, seed_params.qd0, seed_run.t)
     np.testing.assert_allclose(r.q, seed_run.q, rtol=0, atol=1e-9)
     np.testing.assert_allclose(r.tau, seed_run.tau, rtol=0, atol=1e-6)
 
@@ -137,21 +142,23 @@ def test_mismatched_law_is_not_folded(seed_params, reference):
     model = rrt_model(seed_params.with_overrides({"m3": 45.0}))
     c = seed_controller(seed_params)
     assert not _ClosedLoop(model, c).folded
-    r = simulate(model, c, seed_params.q0, seed_params.qd0, reference.t)
+    r = simulate(Robot.from_model(model), c, seed_params.q0, seed_params.qd0, reference.t)
     ref = reference_run(model, c, seed_params.q0, seed_params.qd0, reference.t, methods=("DOP853",))
     assert np.abs(r.q - ref.q).max() <= DEFAULT_ACCURACY
 
 
 def test_pd_gravity_controller_matches_the_seed_run(seed_model, seed_params, seed_run):
-    c = pd_gravity_controller(seed_model, seed_params.kp, seed_params.kd, seed_params.qf)
-    r = simulate(seed_model, c, seed_params.q0, seed_params.qd0, seed_run.t)
+    c = pd_gravity_controller(
+        chapter_arm(seed_params), seed_params.kp, seed_params.kd, seed_params.qf
+    )
+    r = simulate(chapter_arm(seed_params), c, seed_params.q0, seed_params.qd0, seed_run.t)
     np.testing.assert_allclose(r.q, seed_run.q, rtol=0, atol=1e-12)
 
 
 @pytest.mark.parametrize("method", METHODS)
 def test_each_method_runs_and_converges(method, seed_model, seed_params, reference):
     r = simulate(
-        seed_model,
+        chapter_arm(seed_params),
         seed_controller(seed_params),
         seed_params.q0,
         seed_params.qd0,
@@ -176,7 +183,15 @@ def test_fixed_step_methods_have_their_order(method, order, seed_model, seed_par
     ref = reference_run(seed_model, c, seed_params.q0, seed_params.qd0, t, methods=("DOP853",)).q
     errors = [
         np.abs(
-            simulate(seed_model, c, seed_params.q0, seed_params.qd0, t, method=method, step=h).q
+            simulate(
+                chapter_arm(seed_params),
+                c,
+                seed_params.q0,
+                seed_params.qd0,
+                t,
+                method=method,
+                step=h,
+            ).q
             - ref
         ).max()
         for h in (0.02, 0.01)
@@ -218,9 +233,9 @@ def test_analytic_jacobian_matches_finite_differences(folded, seed_model, seed_p
 def test_any_urdf_with_pd_gravity_converges():
     model = load_urdf_model(robot_urdf("ur5"))
     qf = np.array([0.5, -1.0, 1.0, 0.0, 0.3, 0.0])
-    c = pd_gravity_controller(model, 100.0, 20.0, qf)
+    c = pd_gravity_controller(Robot.from_model(model), 100.0, 20.0, qf)
     t = np.linspace(0.0, 5.0, 51)
-    r = simulate(model, c, np.zeros(6), np.zeros(6), t)
+    r = simulate(Robot.from_model(model), c, np.zeros(6), np.zeros(6), t)
     assert np.abs(r.q[-1] - qf).max() < 1e-4
     assert r.q_names[0] == "q_shoulder_pan_joint" and r.qd_names[0] == "qd_shoulder_pan_joint"
     assert r.tau_names[-1] == "tau_wrist_3_joint"
@@ -236,9 +251,9 @@ def test_names_of_the_rrt_arm(seed_model):
 
 # --- bad input -------------------------------------------------------------------------
 @pytest.fixture
-def args(seed_model, seed_params):
+def args(seed_params):
     return {
-        "model": seed_model,
+        "model": chapter_arm(seed_params),
         "controller": seed_controller(seed_params),
         "q0": list(seed_params.q0),
         "qd0": [0.0, 0.0, 0.0],
@@ -279,7 +294,9 @@ def test_unsupported_joints_are_refused():
     model = pin.Model()
     model.addJoint(0, pin.JointModelSpherical(), pin.SE3.Identity(), "ball")
     with pytest.raises(RrtPinError, match="joint 'ball'"):
-        simulate(model, lambda q, v: np.zeros(3), [1, 0, 0, 0], [0, 0, 0], [0.0, 1.0])
+        simulate(
+            Robot.from_model(model), lambda q, v: np.zeros(3), [1, 0, 0, 0], [0, 0, 0], [0.0, 1.0]
+        )
 
 
 # --- divergence ------------------------------------------------------------------------
@@ -302,7 +319,14 @@ def test_a_non_finite_effort_is_reported_with_time_and_coordinate(
     crossing = reference.t[np.argmax(reference.q[:, 0] > 0.5)]  # q1 passes 0.5 rad here
     law = _inf_past(seed_controller(seed_params), 0.5)
     with pytest.raises(DivergenceError) as info:
-        simulate(seed_model, law, seed_params.q0, seed_params.qd0, reference.t, method=method)
+        simulate(
+            chapter_arm(seed_params),
+            law,
+            seed_params.q0,
+            seed_params.qd0,
+            reference.t,
+            method=method,
+        )
     e = info.value
     assert e.coordinate == "qd1"
     assert abs(e.t - crossing) < 0.02
@@ -315,7 +339,7 @@ def test_an_unstable_explicit_step_is_reported(method):
     p = Params(m3=1e-3, gamma23=1e7, beta23=0.0)
     with pytest.raises(DivergenceError) as info:
         simulate(
-            rrt_model(p), seed_controller(p), p.q0, p.qd0, np.linspace(0, 1, 101), method=method
+            chapter_arm(p), seed_controller(p), p.q0, p.qd0, np.linspace(0, 1, 101), method=method
         )
     assert info.value.coordinate == "qd3"
     assert 0.0 < info.value.t <= 1.0
@@ -334,7 +358,12 @@ def test_step_size_underflow_is_reported(seed_model, seed_params):
 
     with pytest.raises(DivergenceError) as info:
         simulate(
-            seed_model, noisy, seed_params.q0, seed_params.qd0, np.linspace(0, 2, 21), method="RK45"
+            chapter_arm(seed_params),
+            noisy,
+            seed_params.q0,
+            seed_params.qd0,
+            np.linspace(0, 2, 21),
+            method="RK45",
         )
     assert "spacing between numbers" in str(info.value)
     assert info.value.coordinate in ("q3", "qd3")
@@ -343,7 +372,7 @@ def test_step_size_underflow_is_reported(seed_model, seed_params):
 
 def test_a_law_that_returns_nan_at_an_output_time_is_caught(seed_model, seed_params):
     """Even if the integration succeeds, non-finite efforts never come back quietly."""
-    from rrt_pin.control import Controller
+    from rrt_pin.simulate.control import Controller
 
     class Flaky(Controller):
         nv = 3
@@ -360,19 +389,27 @@ def test_a_law_that_returns_nan_at_an_output_time_is_caught(seed_model, seed_par
             return tau
 
     with pytest.raises(DivergenceError, match="in F23z: the controller returned nan"):
-        simulate(seed_model, Flaky(), seed_params.q0, seed_params.qd0, np.linspace(0, 1, 11))
+        simulate(
+            chapter_arm(seed_params),
+            Flaky(),
+            seed_params.q0,
+            seed_params.qd0,
+            np.linspace(0, 1, 11),
+        )
 
 
 # --- compiled backend dispatch ---------------------------------------------------------
 def test_compiled_backend_is_dispatched_lazily(monkeypatch, seed_model, seed_params, seed_run):
     import rrt_pin.simulate.api as api
-    from rrt_pin import backends
+    from rrt_pin.core import backends
 
     calls, checked = [], []
 
     def run_one(params, controller, q0, qd0, t, options, max_steps=None, start=None):
         o = options
-        calls.append((params, o.method.name, o.rtol, o.atol, o.step, checked[-1]))
+        calls.append(
+            (params, o.method.name, o.rtol, o.atol, o.step, checked.pop() if checked else None)
+        )
         return seed_run
 
     def check_model(model, params):  # the model given is checked against the params used
@@ -382,39 +419,38 @@ def test_compiled_backend_is_dispatched_lazily(monkeypatch, seed_model, seed_par
     monkeypatch.setattr(api, "_compiled", lambda: fake)
     monkeypatch.setattr(api, "_prepare", lambda robot, backend, method=None: None)
     c = seed_controller(seed_params)
-    r = simulate(seed_model, c, seed_params.q0, seed_params.qd0, seed_run.t, backend="compiled")
+    r = simulate(
+        chapter_arm(seed_params), c, seed_params.q0, seed_params.qd0, seed_run.t, backend="compiled"
+    )
     np.testing.assert_array_equal(r.q, seed_run.q)
     # the backend's default method and the registry's default tolerances, named in the
     # result, then the error estimate's run at tolerances ten times tighter
-    assert calls[0] == (seed_params, "DOP853", 1e-10, 1e-12, None, seed_model)
+    # a Robot that carries its Params is not checked again
+    assert calls[0] == (seed_params, "DOP853", 1e-10, 1e-12, None, None)
     assert calls[1][:2] == (seed_params, "DOP853") and len(calls) == 2
     assert calls[1][2:4] == pytest.approx((1e-11, 1e-13), rel=1e-12)
     assert r.error_estimate == 0.0  # the fake returned the same run twice
-    simulate(
-        seed_model,
-        c,
-        seed_params.q0,
-        seed_params.qd0,
-        seed_run.t,
-        method="rk4",
-        backend="compiled",
-        step=0.1,
-    )
-    assert calls[-2:] == [(seed_params, "rk4", None, None, s, seed_model) for s in (0.1, 0.05)]
+    with pytest.warns(DeprecationWarning, match="pinocchio.Model is deprecated"):
+        simulate(seed_model, c, seed_params.q0, seed_params.qd0, seed_run.t, method="rk4",
+                 backend="compiled", step=0.1)  # fmt: skip
+    # a bare model (deprecated) is checked against the law's Params before each run
+    assert calls[-2:] == [(seed_params, "rk4", None, None, 0.1, seed_model),
+                          (seed_params, "rk4", None, None, 0.05, None)]  # fmt: skip
     monkeypatch.setattr(backends.Backend, "available", lambda self: False)
     monkeypatch.undo()
     monkeypatch.setattr(backends.Backend, "available", lambda self: self.name != "compiled")
-    from rrt_pin.extras import MissingExtra
+    from rrt_pin.core.extras import MissingExtra
 
     with pytest.raises(MissingExtra, match=r"numba not found .*\[fast\]"):
-        simulate(seed_model, c, seed_params.q0, seed_params.qd0, seed_run.t, backend="compiled")
+        simulate(chapter_arm(seed_params), c, seed_params.q0, seed_params.qd0, seed_run.t,
+                 backend="compiled")  # fmt: skip
 
 
 def test_compiled_backend_needs_the_arms_parameters(seed_model, seed_params):
     c = seed_controller(seed_params)
     with pytest.raises(InputError, match="needs|Params"):
         simulate(
-            seed_model,
+            Robot.from_model(seed_model),
             lambda q, v: c(q, v),
             seed_params.q0,
             seed_params.qd0,

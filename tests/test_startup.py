@@ -11,7 +11,7 @@ import pytest
 
 def _modules_after(argv: list[str], tmp_path) -> set[str]:
     code = (
-        "import sys; from rrt_pin.cli import main; "
+        "import sys; from rrt_pin.cli.app import main; "
         f"code = main({argv!r}); "
         "print(code); print(' '.join(sorted(sys.modules)))"
     )

@@ -11,21 +11,21 @@ import numpy as np
 import pytest
 
 import rrt_pin
-import rrt_pin.csvio
-import rrt_pin.tables
-from rrt_pin.cli import main
-from rrt_pin.commands import inverse as inverse_cmd
-from rrt_pin.commands import simulate as simulate_cmd
-from rrt_pin.commands._progress import Progress
-from rrt_pin.control import chapter_controller
-from rrt_pin.csvio import read_csv
-from rrt_pin.errors import InputError
-from rrt_pin.grid import MAX_SAMPLES, grid_size, grid_slice, time_grid
-from rrt_pin.inverse import inverse_dynamics
-from rrt_pin.params import Params
-from rrt_pin.robots import chapter_arm
-from rrt_pin.trajectory import rest_to_rest
-from rrt_pin.wrenches import joint_wrenches, wrench_table
+import rrt_pin.io.csvio
+import rrt_pin.io.tables
+from rrt_pin.cli.app import main
+from rrt_pin.cli.commands import inverse as inverse_cmd
+from rrt_pin.cli.commands import simulate as simulate_cmd
+from rrt_pin.cli.commands._progress import Progress
+from rrt_pin.core.errors import InputError
+from rrt_pin.core.grid import MAX_SAMPLES, grid_size, grid_slice, time_grid
+from rrt_pin.dynamics.inverse import inverse_dynamics
+from rrt_pin.dynamics.trajectory import rest_to_rest
+from rrt_pin.dynamics.wrenches import joint_wrenches, wrench_table
+from rrt_pin.io.csvio import read_csv
+from rrt_pin.robot.params import Params
+from rrt_pin.robot.robots import chapter_arm
+from rrt_pin.simulate.control import chapter_controller
 
 pa = pytest.importorskip("pyarrow")
 pq = pytest.importorskip("pyarrow.parquet")
@@ -69,13 +69,13 @@ def whole_inverse(p, dt, tf=None, wrenches=False):
     tau = inverse_dynamics(arm, traj.q, traj.qd, traj.qdd)
     cols = [t[:, None], traj.q, traj.qd, traj.qdd, tau]
     if wrenches:
-        cols.append(wrench_table(joint_wrenches(arm.model, traj.q, traj.qd, traj.qdd), True)[1])
+        cols.append(wrench_table(joint_wrenches(arm, traj.q, traj.qd, traj.qdd), True)[1])
     return np.hstack(cols)
 
 
 @pytest.mark.parametrize("suffix", [".csv", ".parquet"])
 def test_blocks_give_the_whole_computation_bit_for_bit(tmp_path, capsys, monkeypatch, suffix):
-    monkeypatch.setattr(rrt_pin.tables, "BLOCK_ROWS", 333)  # many blocks, a short last one
+    monkeypatch.setattr(rrt_pin.io.tables, "BLOCK_ROWS", 333)  # many blocks, a short last one
     path = tmp_path / f"w{suffix}"
     argv = ["inverse", "--wrenches", "--dt", "0.01", "--csv", str(path)]
     code, out, err = run(argv, capsys)
@@ -109,7 +109,7 @@ def traced_peak(argv):
 
 def test_memory_stays_flat_while_writing(tmp_path, capsys, monkeypatch):
     """Four times the rows, about the same peak of the Python heap (blocks of 5,000 rows)."""
-    monkeypatch.setattr(rrt_pin.tables, "BLOCK_ROWS", 5_000)
+    monkeypatch.setattr(rrt_pin.io.tables, "BLOCK_ROWS", 5_000)
     main(["inverse", "--tf", "1", "--dt", "0.5"])  # imports and builds the model first
     peaks, sizes = [], []
     for tf in ("20", "80"):  # 20,001 and 80,001 rows
@@ -150,7 +150,7 @@ def test_the_summary_is_printed_with_a_csv_and_matches_json(tmp_path, capsys):
     meta = doc["metadata"]
     assert meta["rrt_pin_version"] == rrt_pin.__version__
     assert meta["command_line"][:2] == ["rrt-pin", "simulate"] and str(js) in meta["command_line"]
-    from rrt_pin import methods
+    from rrt_pin.simulate import methods
 
     assert meta["method"] == "odepack" and meta["backend"] == "pinocchio"
     assert meta["rtol"] == methods.get("odepack").rtol  # the registry's default, recorded
@@ -227,7 +227,7 @@ def test_output_larger_than_the_free_space_is_refused_up_front(tmp_path, capsys,
 
 
 def test_progress_only_when_asked_or_on_a_terminal(tmp_path, capsys, monkeypatch):
-    import rrt_pin.commands._progress as progress
+    import rrt_pin.cli.commands._progress as progress
 
     monkeypatch.setattr(progress, "DELAY", 0.0)
     path = str(tmp_path / "a.csv")
@@ -285,7 +285,7 @@ def test_qd0_defaults_to_rest():
 def test_public_names():
     for name in ("time_grid", "simulate", "SimulationResult", "inverse_dynamics", "rest_to_rest"):
         assert name in rrt_pin.__all__ and getattr(rrt_pin, name) is not None
-    for module in ("grid", "tables", "csvio", "io"):
+    for module in ("core.grid", "io.tables", "io.csvio", "io.files", "io.targets"):
         mod = __import__(f"rrt_pin.{module}", fromlist=["__all__"])
         for name in mod.__all__:
             assert hasattr(mod, name), f"rrt_pin.{module}.{name}"
@@ -293,7 +293,7 @@ def test_public_names():
 
 def test_plot_of_a_long_run_is_thinned_evenly_with_both_ends(monkeypatch):
     monkeypatch.setattr(inverse_cmd, "PLOT_POINTS", 100)
-    monkeypatch.setattr(rrt_pin.tables, "BLOCK_ROWS", 64)
+    monkeypatch.setattr(rrt_pin.io.tables, "BLOCK_ROWS", 64)
     p = Params()
     job = inverse_cmd.InverseJob(chapter_arm(p), grid_size(10.0, 0.01), p.Tp, wrenches=False)
     job.run(None)

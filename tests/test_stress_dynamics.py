@@ -13,8 +13,8 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from rrt_pin.model import rrt_model
-from rrt_pin.params import Params
+from rrt_pin.robot.model import rrt_model
+from rrt_pin.robot.params import Params
 from tests.support import random_states
 
 EPS_ALGO = 1e-14  # per unit of cond(M): the accuracy ABA/RNEA should keep
@@ -114,7 +114,7 @@ def test_crba_equals_rnea_columns_at_1000_states(seed_model, rng):
 
 
 def test_symbolic_kernel_equals_pinocchio_at_1000_states(seed_model, seed_params, rng):
-    from rrt_pin import kernel
+    from rrt_pin.dynamics import kernel
 
     data = seed_model.createData()
     q, qd, qdd = random_states(rng, N_RANDOM)

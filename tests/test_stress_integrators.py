@@ -9,13 +9,15 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from rrt_pin.control import seed_controller
-from rrt_pin.errors import DivergenceError
-from rrt_pin.grid import time_grid
-from rrt_pin.model import rrt_model
-from rrt_pin.params import Params
+from rrt_pin.core.errors import DivergenceError
+from rrt_pin.core.grid import time_grid
+from rrt_pin.robot.model import rrt_model
+from rrt_pin.robot.params import Params
+from rrt_pin.robot.robot import Robot
+from rrt_pin.robot.robots import chapter_arm
 from rrt_pin.simulate import simulate
-from rrt_pin.symplectic import leapfrog, mechanical_energy
+from rrt_pin.simulate.control import seed_controller
+from rrt_pin.simulate.symplectic import leapfrog, mechanical_energy
 
 ENERGY_TOL = 1e-9  # |E(t) − E(0)| ≤ ENERGY_TOL · max T over the run
 GAINS = ("beta01", "gamma01", "beta12", "gamma12", "beta23", "gamma23")
@@ -49,7 +51,9 @@ def initial_states():
 )
 def test_passive_energy_is_conserved_by_a_tight_adaptive_method(seed_model, label, q0, qd0):
     t = time_grid(100.0, 0.5)
-    r = simulate(seed_model, passive, q0, qd0, t, method="DOP853", rtol=1e-12, atol=1e-14)
+    r = simulate(
+        Robot.from_model(seed_model), passive, q0, qd0, t, method="DOP853", rtol=1e-12, atol=1e-14
+    )
     E = mechanical_energy(seed_model, r.q, r.qd)
     T = kinetic(seed_model, r.q, r.qd)
     drift = np.abs(E - E[0]).max()
@@ -62,7 +66,9 @@ def test_a_loose_method_does_drift(seed_model):
     # The energy check can fail: explicit Euler-like loose integration breaks it.
     p = Params()
     t = time_grid(100.0, 0.5)
-    r = simulate(seed_model, passive, p.q0, p.qd0, t, method="symplectic_euler", step=0.01)
+    r = simulate(
+        Robot.from_model(seed_model), passive, p.q0, p.qd0, t, method="symplectic_euler", step=0.01
+    )
     E = mechanical_energy(seed_model, r.q, r.qd)
     assert np.abs(E - E[0]).max() > ENERGY_TOL * kinetic(seed_model, r.q, r.qd).max()
 
@@ -90,7 +96,14 @@ def test_leapfrog_is_second_order_and_time_reversible(seed_model):
     p = Params()
     t = np.array([0.0, 1.0])
     exact = simulate(
-        seed_model, passive, p.q0, [0.3, 0.2, 0.1], t, method="DOP853", rtol=1e-13, atol=1e-15
+        Robot.from_model(seed_model),
+        passive,
+        p.q0,
+        [0.3, 0.2, 0.1],
+        t,
+        method="DOP853",
+        rtol=1e-13,
+        atol=1e-15,
     )
     errs = []
     for h in (0.02, 0.01):
@@ -113,7 +126,7 @@ def _stiff(k: float) -> Params:
 def test_implicit_methods_reach_qf_under_stiff_gains(k, method):
     p = _stiff(k)
     r = simulate(
-        rrt_model(p), seed_controller(p), p.q0, p.qd0, time_grid(15.0, 0.01), method=method
+        chapter_arm(p), seed_controller(p), p.q0, p.qd0, time_grid(15.0, 0.01), method=method
     )
     assert np.abs(r.q[-1] - np.array(p.qf)).max() < 1e-3
 
@@ -125,8 +138,12 @@ def test_explicit_adaptive_methods_converge_under_stiff_gains(k, tf, method):
     p = _stiff(k)
     t = time_grid(tf, 0.01)
     model, ctrl = rrt_model(p), seed_controller(p)
-    r = simulate(model, ctrl, p.q0, p.qd0, t, method=method, rtol=1e-8, atol=1e-10)
-    ref = simulate(model, ctrl, p.q0, p.qd0, t, method="Radau", rtol=1e-11, atol=1e-13)
+    r = simulate(
+        Robot.from_model(model), ctrl, p.q0, p.qd0, t, method=method, rtol=1e-8, atol=1e-10
+    )
+    ref = simulate(
+        Robot.from_model(model), ctrl, p.q0, p.qd0, t, method="Radau", rtol=1e-11, atol=1e-13
+    )
     assert np.isfinite(r.q).all()
     assert np.abs(r.q - ref.q).max() < 1e-6
 
@@ -137,7 +154,7 @@ def test_explicit_fixed_step_methods_report_instability(k, method):
     p = _stiff(k)
     with pytest.raises(DivergenceError) as info:
         simulate(
-            rrt_model(p),
+            chapter_arm(p),
             seed_controller(p),
             p.q0,
             p.qd0,

@@ -17,8 +17,8 @@ import pyarrow.parquet as pq
 import pytest
 
 import rrt_pin.sweeps.run
-from rrt_pin.cli import main
-from rrt_pin.errors import ClusterError
+from rrt_pin.cli.app import main
+from rrt_pin.core.errors import ClusterError
 from rrt_pin.sweeps.run import sweep
 
 pytest.importorskip("distributed")

@@ -16,9 +16,9 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 
-import rrt_pin._read
-from rrt_pin.cli import main
-from rrt_pin.errors import SpecError
+import rrt_pin.io._read
+from rrt_pin.cli.app import main
+from rrt_pin.core.errors import SpecError
 from rrt_pin.sweeps.run import sweep
 from rrt_pin.sweeps.spec import MAX_VARIANTS, Axis, load_spec, spec_from_dict
 
@@ -77,7 +77,7 @@ def test_values_of_any_range_are_those_of_the_full_product():
 
 _HUGE = """
 import sys, time
-from rrt_pin.errors import SpecError
+from rrt_pin.core.errors import SpecError
 from rrt_pin.sweeps.spec import spec_from_dict
 for n in [10**9, 10**18, 1e300, 2**63 - 1]:
     spec = {"sweep": {"tf": 1.0, "dt": 0.1}, "vary": {"m3": {"linspace": [30, 50, n]}}}
@@ -204,7 +204,7 @@ def test_a_device_spec_is_refused_without_reading(tmp_path):
 
 
 def test_a_fifo_spec_nobody_writes_is_refused_not_waited_for(tmp_path, monkeypatch):
-    monkeypatch.setattr(rrt_pin._read, "FIFO_TIMEOUT", 0.3)
+    monkeypatch.setattr(rrt_pin.io._read, "FIFO_TIMEOUT", 0.3)
     fifo = tmp_path / "spec.fifo"
     os.mkfifo(fifo)
     with pytest.raises(SpecError) as info:
@@ -319,7 +319,7 @@ def test_run_files_for_sweep_and_bench(tmp_path, capsys, command, table, words):
 
 _RANDOM = """
 import sys
-from rrt_pin.errors import MemoryLimitError
+from rrt_pin.core.errors import MemoryLimitError
 from rrt_pin.sweeps.spec import spec_from_dict
 uniform = {"uniform": [30.0, 50.0]}
 spec = spec_from_dict({"sweep": {"tf": 1.0, "dt": 0.1, "count": int(sys.argv[1])},

@@ -16,8 +16,8 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 
-from rrt_pin.cli import main
-from rrt_pin.errors import InputError
+from rrt_pin.cli.app import main
+from rrt_pin.core.errors import InputError
 from rrt_pin.sweeps.run import SweepResult, sweep
 from rrt_pin.sweeps.spec import load_spec
 from rrt_pin.sweeps.store import Store

@@ -14,8 +14,9 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 
-from rrt_pin.cli import main
-from rrt_pin.errors import SpecError
+from rrt_pin.cli.app import main
+from rrt_pin.core.errors import SpecError
+from rrt_pin.robot.robot import Robot
 from rrt_pin.sweeps.run import sweep
 from rrt_pin.sweeps.spec import spec_from_dict
 
@@ -65,12 +66,12 @@ def test_spec_values_are_a_grid_times_random_samples():
 
 def test_metrics_equal_single_runs(reference):
     """Every metric of sampled variants equals a single simulate() of its parameters (1e-9)."""
-    from rrt_pin.control import regulator
-    from rrt_pin.grid import time_grid
-    from rrt_pin.metrics import settling_times
-    from rrt_pin.params import Params
-    from rrt_pin.robots import chapter_arm
+    from rrt_pin.core.grid import time_grid
+    from rrt_pin.robot.params import Params
+    from rrt_pin.robot.robots import chapter_arm
     from rrt_pin.simulate import simulate
+    from rrt_pin.simulate.control import regulator
+    from rrt_pin.simulate.metrics import settling_times
 
     _, rows = reference
     t = time_grid(3.0, 0.02)
@@ -228,16 +229,15 @@ def test_a_urdf_sweep_runs_on_pinocchio_batches(tmp_path):
     for name in ra:
         np.testing.assert_array_equal(ra[name], rb[name], err_msg=name)
     # a variant against a single run of its own parameters
-    from rrt_pin.control import pd_gravity_controller
-    from rrt_pin.grid import time_grid
-    from rrt_pin.robot import Robot
+    from rrt_pin.core.grid import time_grid
     from rrt_pin.simulate import simulate
+    from rrt_pin.simulate.control import pd_gravity_controller
 
     robot = Robot.from_urdf(robot_urdf("ur5"))
     qf = np.array(spec["base"]["qf"])
     kp = np.full(6, 100.0)
     kp[0] = ra["kp_1"][35]
-    run = simulate(robot, pd_gravity_controller(robot.model, kp, 20.0, qf), np.zeros(6), None,
+    run = simulate(robot, pd_gravity_controller(robot, kp, 20.0, qf), np.zeros(6), None,
                    time_grid(1.0, 0.05))  # fmt: skip
     errors = np.abs(run.q[-1] - qf)
     assert abs(ra["final_error_q_shoulder_pan_joint"][35] - errors[0]) <= 1e-8

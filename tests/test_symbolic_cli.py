@@ -7,7 +7,7 @@ import pytest
 
 pytest.importorskip("sympy")
 
-from rrt_pin.cli import main  # noqa: E402
+from rrt_pin.cli.app import main  # noqa: E402
 
 
 def run(argv, capsys):
@@ -109,6 +109,6 @@ def test_subprocess_bad_method():
 
 
 def test_command_module_import_is_light():
-    code = "import sys, rrt_pin.commands.equations; print('sympy' in sys.modules)"
+    code = "import sys, rrt_pin.cli.commands.equations; print('sympy' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"

@@ -6,13 +6,13 @@ import pytest
 
 sp = pytest.importorskip("sympy")
 
-from rrt_pin import kernel  # noqa: E402
-from rrt_pin.errors import ParameterError  # noqa: E402
-from rrt_pin.model import rrt_model  # noqa: E402
-from rrt_pin.params import Params  # noqa: E402
-from rrt_pin.symbolic import METHODS, EquationsOfMotion, equations_of_motion  # noqa: E402
-from rrt_pin.symbolic.simplify import trig_normal  # noqa: E402
-from rrt_pin.symbolic.symbols import L1, LB, to_plain  # noqa: E402
+from rrt_pin.core.errors import ParameterError  # noqa: E402
+from rrt_pin.dynamics import kernel  # noqa: E402
+from rrt_pin.dynamics.symbolic import METHODS, EquationsOfMotion, equations_of_motion  # noqa: E402
+from rrt_pin.dynamics.symbolic.simplify import trig_normal  # noqa: E402
+from rrt_pin.dynamics.symbolic.symbols import L1, LB, to_plain  # noqa: E402
+from rrt_pin.robot.model import rrt_model  # noqa: E402
+from rrt_pin.robot.params import Params  # noqa: E402
 from tests.support import DERIVED, TIGHT, random_params, random_states, rel_err  # noqa: E402  # noqa: E402
 
 N_STATES = 150
@@ -59,8 +59,8 @@ def test_kane_minus_lagrange_is_zero_symbolically():
 
 def test_kane_plus_lagrange_residuals_expand_to_zero_before_normalization():
     # Raw equations (K*r + Qr = 0 and d/dt ∂T/∂q̇r − ∂T/∂qr − Qr = 0), no normal form.
-    from rrt_pin.symbolic.kane import kane_equations
-    from rrt_pin.symbolic.lagrange import lagrange_equations
+    from rrt_pin.dynamics.symbolic.kane import kane_equations
+    from rrt_pin.dynamics.symbolic.lagrange import lagrange_equations
 
     for k, lag in zip(kane_equations(), lagrange_equations(), strict=True):
         assert sp.expand(sp.expand_trig(to_plain(k + lag))) == 0
@@ -70,8 +70,8 @@ def test_kane_equals_sympys_own_kanes_method():
     """A third derivation: sympy's KanesMethod with rigid bodies and loads."""
     from sympy.physics.mechanics import KanesMethod, Point, RigidBody, dynamicsymbols, inertia
 
-    from rrt_pin.symbolic import frames
-    from rrt_pin.symbolic import symbols as S
+    from rrt_pin.dynamics.symbolic import frames
+    from rrt_pin.dynamics.symbolic import symbols as S
 
     F0, F1, F2 = frames.frame0, frames.frame1, frames.frame2
     A = Point("A")
@@ -169,7 +169,7 @@ def test_pinocchio_comparison_has_teeth(numeric, states):
 
 
 def test_kernel_equals_the_sympy_expressions(states):
-    from rrt_pin.symbolic.codegen import kernel_expressions
+    from rrt_pin.dynamics.symbolic.codegen import kernel_expressions
 
     params, q, qd, _, _, _, _, _ = states
     args, exprs = kernel_expressions()

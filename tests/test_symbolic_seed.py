@@ -1,4 +1,4 @@
-"""Each intermediate result of rrt_pin.symbolic against the seed's printed formula.
+"""Each intermediate result of rrt_pin.dynamics.symbolic against the seed's printed formula.
 
 Where the seed is right the derived result equals the formula as printed;
 where it errs (docs/errata.md) the result equals the correction AND differs
@@ -14,8 +14,8 @@ sp = pytest.importorskip("sympy")
 
 from sympy.physics.mechanics import Point, inertia  # noqa: E402
 
-from rrt_pin.symbolic import energy, forces, frames, kane, kinematics, lagrange  # noqa: E402
-from rrt_pin.symbolic.symbols import (  # noqa: E402
+from rrt_pin.dynamics.symbolic import energy, forces, frames, kane, kinematics, lagrange  # noqa: E402
+from rrt_pin.dynamics.symbolic.symbols import (  # noqa: E402
     F23,
     L1,
     L2,
@@ -306,7 +306,7 @@ def test_T3_as_printed():
 
 def test_rod_inertias_are_the_seeds():
     # Fig. 2: m (2L)²/12 = m L²/3 for both rods; Params uses the same defaults.
-    from rrt_pin.params import Params
+    from rrt_pin.robot.params import Params
 
     p = Params()
     assert p.I1x == pytest.approx(p.m1 * (2 * p.L1) ** 2 / 12, rel=1e-15)

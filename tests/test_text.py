@@ -2,7 +2,7 @@
 
 import pytest
 
-from rrt_pin.text import duration
+from rrt_pin.core.text import duration
 
 
 @pytest.mark.parametrize(
@@ -30,7 +30,7 @@ def test_no_exponent_for_any_run_length():
 
 
 def test_long_name_lists_are_cut_with_their_count():
-    from rrt_pin.text import names
+    from rrt_pin.core.text import names
 
     assert names(["a", "b"]) == "a, b"
     assert (
@@ -40,7 +40,7 @@ def test_long_name_lists_are_cut_with_their_count():
 
 
 def test_arguments_are_spelled_as_the_caller_wrote_them():
-    from rrt_pin.text import argument, cli_spelling
+    from rrt_pin.core.text import argument, cli_spelling
 
     assert argument("rtol") == "rtol" and argument("zmq_url") == "zmq_url"
     with cli_spelling():
@@ -50,8 +50,8 @@ def test_arguments_are_spelled_as_the_caller_wrote_them():
 
 
 def test_a_library_message_names_the_argument_and_the_cli_the_flag(capsys):
-    from rrt_pin.cli import main
-    from rrt_pin.errors import InputError
+    from rrt_pin.cli.app import main
+    from rrt_pin.core.errors import InputError
     from rrt_pin.viewer.keyframes import keyframe_times
 
     with pytest.raises(InputError) as info:

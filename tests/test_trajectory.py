@@ -5,9 +5,9 @@ import math
 import numpy as np
 import pytest
 
-from rrt_pin.errors import InputError
-from rrt_pin.grid import time_grid
-from rrt_pin.trajectory import Trajectory, rest_to_rest
+from rrt_pin.core.errors import InputError
+from rrt_pin.core.grid import time_grid
+from rrt_pin.dynamics.trajectory import Trajectory, rest_to_rest
 from tests.support import TIGHT
 
 FD_STEP = 1e-4  # central differences [s]: error ~ h²·|q'''| ≈ 1e-8·|qf − q0|·(2π/Tp)²

@@ -7,8 +7,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rrt_pin.params import Params
-from rrt_pin.urdf import urdf_xml
+from rrt_pin.robot.params import Params
+from rrt_pin.robot.urdf import urdf_xml
 
 ROOT = Path(__file__).resolve().parents[1]
 COMMITTED = ROOT / "urdf" / "rrt.urdf"

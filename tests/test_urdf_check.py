@@ -10,13 +10,13 @@ import threading
 import pinocchio as pin
 import pytest
 
-from rrt_pin._quiet import captured_stderr
-from rrt_pin._read import read_text_capped
-from rrt_pin.errors import RunFileError, UrdfError
-from rrt_pin.model import build_geometry, load_urdf_model, model_from_xml
-from rrt_pin.runfile import load_runfile
-from rrt_pin.urdf import urdf_xml
-from rrt_pin.urdf_check import MAX_DEPTH, MAX_JOINTS, check_urdf_xml, mimic_joints
+from rrt_pin.cli.runfile import load_runfile
+from rrt_pin.core._quiet import captured_stderr
+from rrt_pin.core.errors import RunFileError, UrdfError
+from rrt_pin.io._read import read_text_capped
+from rrt_pin.robot.model import build_geometry, load_urdf_model, model_from_xml
+from rrt_pin.robot.urdf import urdf_xml
+from rrt_pin.robot.urdf_check import MAX_DEPTH, MAX_JOINTS, check_urdf_xml, mimic_joints
 from tests.bad_inputs import _LAUGHS, chain_urdf
 from tests.support import robot_urdf
 
@@ -143,7 +143,7 @@ def test_deep_nesting_is_refused(no_pinocchio):
 
 
 def test_text_larger_than_the_cap_is_refused(monkeypatch, no_pinocchio):
-    import rrt_pin.urdf_check as check
+    import rrt_pin.robot.urdf_check as check
 
     monkeypatch.setattr(check, "MAX_URDF_BYTES", 1000)
     with pytest.raises(UrdfError, match="larger than"):

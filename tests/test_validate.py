@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rrt_pin import validate
-from rrt_pin.errors import InputError
+from rrt_pin.core import validate
+from rrt_pin.core.errors import InputError
 
 
 @pytest.mark.parametrize("value", [1, 2.5, np.float32(0.5), np.int64(3), np.array(0.25)])

@@ -16,13 +16,13 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from rrt_pin.cli import main
-from rrt_pin.csvio import write_csv
-from rrt_pin.errors import InputError, ViewerError
-from rrt_pin.model import build_geometry, rrt_model
-from rrt_pin.params import Params
-from rrt_pin.trajectory import rest_to_rest
-from rrt_pin.urdf import urdf_xml
+from rrt_pin.cli.app import main
+from rrt_pin.core.errors import InputError, ViewerError
+from rrt_pin.dynamics.trajectory import rest_to_rest
+from rrt_pin.io.csvio import write_csv
+from rrt_pin.robot.model import build_geometry, rrt_model
+from rrt_pin.robot.params import Params
+from rrt_pin.robot.urdf import urdf_xml
 from rrt_pin.viewer import build_drawing, keyframe_times, resample
 from rrt_pin.viewer.keyframes import frame_placements
 from tests.support import TIGHT, mass_centres, seed_to_world, unit_vectors
@@ -312,7 +312,7 @@ def test_cylinders_turn_from_three_js_y_to_urdf_z(seed_scene):
 
 
 def test_meshes_of_another_urdf_become_meshcat_meshes():
-    from rrt_pin.model import load_urdf_model
+    from rrt_pin.robot.model import load_urdf_model
     from rrt_pin.viewer.meshcat_scene import shape_object
     from tests.support import robot_urdf
 
@@ -457,7 +457,7 @@ def test_meshes_that_cannot_be_found_are_skipped_with_a_warning(tmp_path, capsys
 
 
 def test_spheres_and_boxes_of_another_urdf():
-    from rrt_pin.model import model_from_xml
+    from rrt_pin.robot.model import model_from_xml
     from rrt_pin.viewer import visual_shapes
     from rrt_pin.viewer.meshcat_scene import shape_object
     from rrt_pin.viewer.show import _without_meshes
@@ -484,8 +484,8 @@ def test_spheres_and_boxes_of_another_urdf():
 
 def test_a_csv_needs_no_dynamics_and_is_resampled(tmp_path):
     """A CSV at 1 kHz of eq. (30) becomes the keyframes of eq. (30) at 30 fps."""
-    from rrt_pin.playback import motion_keyframes
-    from rrt_pin.robots import chapter_arm
+    from rrt_pin.robot.robots import chapter_arm
+    from rrt_pin.viewer.playback import motion_keyframes
 
     p = Params()
     t = np.arange(0, 15001) * 1e-3
@@ -503,8 +503,8 @@ def test_a_csv_needs_no_dynamics_and_is_resampled(tmp_path):
 
 def test_urdf_csv_columns(tmp_path):
     """q_<joint> (as `rrt-pin inverse --urdf` writes), the joint names and q1..qn all work."""
-    from rrt_pin.playback import motion_keyframes
-    from rrt_pin.robot import Robot
+    from rrt_pin.robot.robot import Robot
+    from rrt_pin.viewer.playback import motion_keyframes
     from tests.support import robot_urdf
 
     path = robot_urdf("ur5")
@@ -523,8 +523,8 @@ def test_urdf_csv_columns(tmp_path):
 
 def test_importing_the_package_and_the_cli_does_not_import_meshcat():
     code = (
-        "import sys, rrt_pin, rrt_pin.cli, rrt_pin.viewer, rrt_pin.commands.view\n"
-        "rrt_pin.cli.build_parser()\n"
+        "import sys, rrt_pin, rrt_pin.cli.app, rrt_pin.viewer, rrt_pin.cli.commands.view\n"
+        "rrt_pin.cli.app.build_parser()\n"
         "print(sorted(m for m in ('meshcat', 'tornado', 'zmq', 'selenium') if m in sys.modules))"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)

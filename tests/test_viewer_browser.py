@@ -37,10 +37,10 @@ def chromium_paths():
 @pytest.fixture(scope="module")
 def served(chromium_paths):
     """The seed's eq. (30) motion, served; yields (server, scene)."""
-    from rrt_pin.model import build_geometry, rrt_model
-    from rrt_pin.params import Params
-    from rrt_pin.trajectory import rest_to_rest
-    from rrt_pin.urdf import urdf_xml
+    from rrt_pin.dynamics.trajectory import rest_to_rest
+    from rrt_pin.robot.model import build_geometry, rrt_model
+    from rrt_pin.robot.params import Params
+    from rrt_pin.robot.urdf import urdf_xml
     from rrt_pin.viewer import build_drawing, keyframe_times
     from rrt_pin.viewer.meshcat_scene import scene_commands
     from rrt_pin.viewer.server import ViewerServer

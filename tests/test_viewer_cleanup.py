@@ -24,8 +24,8 @@ from pathlib import Path
 
 import pytest
 
-from rrt_pin.cli import main
-from rrt_pin.errors import UrdfError
+from rrt_pin.cli.app import main
+from rrt_pin.core.errors import UrdfError
 from rrt_pin.viewer.browser import (
     FOLDER_PREFIX,
     MAX_TMPDIR,
@@ -51,7 +51,7 @@ _SOURCES = ("From file", "assimp.cpp", ".cpp", "in function", "at line", "coal::
 
 
 def test_native_message_keeps_the_mesh_and_the_problem():
-    from rrt_pin._quiet import native_message
+    from rrt_pin.core._quiet import native_message
 
     assert native_message(COAL_TEXT) == (
         "mesh file /data/arm/bad.stl does not load: failed to determine STL storage representation"
@@ -125,7 +125,7 @@ def test_a_missing_mesh_is_one_clean_warning(tmp_path, capsys):
 
 
 def test_the_library_error_of_a_bad_mesh_is_clean(tmp_path):
-    from rrt_pin.model import build_geometry, model_from_xml
+    from rrt_pin.robot.model import build_geometry, model_from_xml
 
     mesh = tmp_path / "tool.stl"
     mesh.write_text("solid nothing\nendsolid nothing\n")

@@ -6,7 +6,7 @@ import subprocess
 
 import pytest
 
-from rrt_pin.cli import main
+from rrt_pin.cli.app import main
 from rrt_pin.viewer.browser import find_chromium
 
 pytestmark = pytest.mark.skipif(find_chromium() is None, reason="needs chromium and chromedriver")

@@ -13,6 +13,7 @@ import pytest
 
 pytest.importorskip("meshcat")
 
+from rrt_pin.robot.robot import Robot
 from rrt_pin.viewer.page import LegendEntry, page_html  # noqa: E402
 
 
@@ -28,13 +29,13 @@ def test_page_html_has_title_legend_and_readout_escaped():
 
 def test_show_serves_a_result_and_closes():
     from rrt_pin import show
-    from rrt_pin.control import chapter_controller
-    from rrt_pin.model import build_model
-    from rrt_pin.params import Params
+    from rrt_pin.robot.model import build_model
+    from rrt_pin.robot.params import Params
     from rrt_pin.simulate import simulate
+    from rrt_pin.simulate.control import chapter_controller
 
     p = Params()
-    run = simulate(build_model(p), chapter_controller(p), p.q0, p.qd0, np.linspace(0, 2, 21),
+    run = simulate(Robot.from_model(build_model(p)), chapter_controller(p), p.q0, p.qd0, np.linspace(0, 2, 21),
                    estimate_error=False)  # fmt: skip
     url = show(run, port=0)
     try:
@@ -50,7 +51,7 @@ def test_show_serves_a_result_and_closes():
 
 def test_show_needs_a_robot_for_other_results():
     from rrt_pin import show
-    from rrt_pin.errors import InputError
+    from rrt_pin.core.errors import InputError
 
     class Result:
         t = np.linspace(0, 1, 3)

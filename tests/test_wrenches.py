@@ -5,18 +5,20 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from rrt_pin.errors import InputError
-from rrt_pin.grid import time_grid
-from rrt_pin.inverse import inverse_dynamics
-from rrt_pin.model import load_urdf_model, rrt_model
-from rrt_pin.params import Params
-from rrt_pin.trajectory import rest_to_rest
-from rrt_pin.wrenches import (
+from rrt_pin.core.errors import InputError
+from rrt_pin.core.grid import time_grid
+from rrt_pin.dynamics.inverse import inverse_dynamics
+from rrt_pin.dynamics.trajectory import rest_to_rest
+from rrt_pin.dynamics.wrenches import (
     RRT_WRENCH_COLUMNS,
     generic_wrench_columns,
     joint_wrenches,
     wrench_table,
 )
+from rrt_pin.robot.model import load_urdf_model
+from rrt_pin.robot.params import Params
+from rrt_pin.robot.robot import Robot
+from rrt_pin.robot.robots import chapter_arm
 from tests.support import DERIVED, TIGHT, mass_centres, random_states, robot_urdf, unit_vectors
 
 I0 = np.array([1.0, 0.0, 0.0])  # the vertical ı0
@@ -81,7 +83,7 @@ def residuals(p, q, qd, qdd, force, moment):
 
 
 def check_balances(p, q, qd, qdd):
-    w = joint_wrenches(rrt_model(p), q, qd, qdd)
+    w = joint_wrenches(chapter_arm(p), q, qd, qdd)
     scale_f = np.abs(w.force).max()
     scale_m = np.abs(w.moment).max()
     worst = 0.0
@@ -124,7 +126,7 @@ def test_newton_euler_balance_at_fast_random_states(params, rng):
 def test_balance_check_can_fail(seed_params, rng):
     # Wrenches of a heavier slider do not balance the seed's links.
     q, qd, qdd = random_states(rng, 5)
-    w = joint_wrenches(rrt_model(Params(m3=40.5)), q, qd, qdd)
+    w = joint_wrenches(chapter_arm(Params(m3=40.5)), q, qd, qdd)
     res = residuals(seed_params, q[0], qd[0], qdd[0], w.force[0], w.moment[0])
     assert np.abs(res[0]).max() > 1e-3
 
@@ -132,8 +134,8 @@ def test_balance_check_can_fail(seed_params, rng):
 def test_axis_components_are_the_efforts(seed_model, seed_params):
     p = seed_params
     traj = rest_to_rest(p.q0, p.qf, p.Tp, time_grid(p.Tp, 0.01))
-    w = joint_wrenches(seed_model, traj.q, traj.qd, traj.qdd)
-    tau = inverse_dynamics(seed_model, traj.q, traj.qd, traj.qdd)
+    w = joint_wrenches(chapter_arm(seed_params), traj.q, traj.qd, traj.qdd)
+    tau = inverse_dynamics(chapter_arm(seed_params), traj.q, traj.qd, traj.qdd)
     np.testing.assert_allclose(w.moment[:, 0, 0], tau[:, 0], rtol=0, atol=TIGHT)  # T01x
     np.testing.assert_allclose(w.moment[:, 1, 1], tau[:, 1], rtol=TIGHT)  # T12y
     np.testing.assert_allclose(w.force[:, 2, 2], tau[:, 2], rtol=TIGHT)  # F23z
@@ -143,7 +145,7 @@ def test_holding_loads_at_rest(seed_model, seed_params):
     # At rest the base carries the whole weight along ı1 = ı0, and the slider its own.
     p = seed_params
     q = np.array(p.q0)
-    w = joint_wrenches(seed_model, q, np.zeros(3), np.zeros(3))
+    w = joint_wrenches(chapter_arm(seed_params), q, np.zeros(3), np.zeros(3))
     total = (p.m1 + p.m2 + p.m3) * p.g
     np.testing.assert_allclose(w.force[0, 0], [total, 0, 0], rtol=TIGHT, atol=TIGHT * total)
     s2, c2 = np.sin(q[1]), np.cos(q[1])
@@ -156,7 +158,7 @@ def test_holding_loads_at_rest(seed_model, seed_params):
 
 def test_rrt_table_columns(seed_model, seed_params, rng):
     q, qd, qdd = random_states(rng, 4)
-    w = joint_wrenches(seed_model, q, qd, qdd)
+    w = joint_wrenches(chapter_arm(seed_params), q, qd, qdd)
     names, table = wrench_table(w, rrt=True)
     assert names == RRT_WRENCH_COLUMNS and table.shape == (4, 15)
     assert len(set(names)) == 15 and not {"T01x", "T12y", "F23z"} & set(names)
@@ -181,7 +183,7 @@ def test_other_arms_base_wrench_is_the_momentum_rate(robot, rng):
         (n, model.nq),
     )
     qd, qdd = rng.normal(0, 1.5, (n, model.nv)), rng.normal(0, 4, (n, model.nv))
-    w = joint_wrenches(model, q, qd, qdd)
+    w = joint_wrenches(Robot.from_model(model), q, qd, qdd)
     assert w.joint_names == tuple(model.names[1:]) and w.force.shape == (n, model.njoints - 1, 3)
     names, table = wrench_table(w, rrt=False)
     assert names == generic_wrench_columns(w.joint_names)
@@ -207,6 +209,13 @@ def test_generic_column_names():
 
 def test_bad_input(seed_model):
     with pytest.raises(InputError, match="q has shape \\(2, 2\\) but needs \\(N, 3\\)"):
-        joint_wrenches(seed_model, np.zeros((2, 2)), np.zeros((2, 3)), np.zeros((2, 3)))
+        joint_wrenches(
+            Robot.from_model(seed_model), np.zeros((2, 2)), np.zeros((2, 3)), np.zeros((2, 3))
+        )
     with pytest.raises(InputError, match="qdd\\[1, 0\\]=nan must be finite"):
-        joint_wrenches(seed_model, np.zeros((2, 3)), np.zeros((2, 3)), [[0, 0, 0], [np.nan, 0, 0]])
+        joint_wrenches(
+            Robot.from_model(seed_model),
+            np.zeros((2, 3)),
+            np.zeros((2, 3)),
+            [[0, 0, 0], [np.nan, 0, 0]],
+        )

@@ -19,12 +19,14 @@ Public API (SI units throughout):
   chapter variants: gains, targets, initial states and masses per variant);
 * inverse dynamics of any other fixed-base robot with revolute, prismatic or
   continuous joints: :mod:`rrt_pin.compiled.rnea` (the RNEA generated from its
-  Pinocchio model by :mod:`rrt_pin.rnea_source`, compiled once per model and cached
+  Pinocchio model by :mod:`rrt_pin.dynamics.rnea_source`, compiled once per model and cached
   on disk by the hash of its source; not loaded by :func:`ensure_compiled`);
-* methods: those of :data:`rrt_pin.methods.METHODS` that run compiled
-  (``rrt_pin.methods.names("compiled")``): ``RK45``, ``DOP853`` (adaptive,
+* methods: those of :data:`rrt_pin.simulate.methods.METHODS` that run compiled
+  (``rrt_pin.simulate.methods.names("compiled")``): ``RK45``, ``DOP853`` (adaptive,
   step by step as SciPy's ``solve_ivp``), ``symplectic_euler``, ``rk4``,
-  ``verlet`` (fixed steps, as :mod:`rrt_pin.integrators`).
+  ``verlet`` (fixed steps, as :mod:`rrt_pin.simulate.integrators`).
+
+May import: rrt_pin.core, rrt_pin.io, rrt_pin.robot, rrt_pin.dynamics, rrt_pin.simulate.
 """
 
 from __future__ import annotations
@@ -163,7 +165,7 @@ def ensure_compiled() -> CompileReport:
     try:
         import numba  # noqa: F401
     except ImportError as e:
-        from rrt_pin.extras import MissingExtra
+        from rrt_pin.core.extras import MissingExtra
 
         raise MissingExtra("numba", "fast", "backend 'compiled'") from e
     imported = time.perf_counter()

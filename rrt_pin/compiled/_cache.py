@@ -2,7 +2,7 @@
 
 Numba's own cache (``cache=True``) checks only the source file of the function
 it caches, not the files that function calls into: regenerating
-``rrt_pin/_kernel_terms.py`` would leave stale machine code behind. So every compiled
+``rrt_pin/dynamics/_kernel_terms.py`` would leave stale machine code behind. So every compiled
 function of this package is cached in a directory named by a fingerprint of
 all the sources that go into the machine code (:data:`JIT_MODULES`), of where
 they are, and of the Python, numba and llvmlite versions and the CPU. A new
@@ -66,11 +66,11 @@ __all__ = [
 #: Modules the machine code depends on: those defining jitted functions and those
 #: whose values numba freezes into it as constants. Their text, path and (for
 #: numba < 0.68) stamp are fingerprinted. Add any new such module here, e.g.
-#: ``"rrt_pin.compiled.codes"``; a module ``rrt_pin.a.b`` is read from ``rrt_pin/a/b.py``.
+#: ``"rrt_pin.simulate.codes"``; a module ``rrt_pin.a.b`` is read from ``rrt_pin/a/b.py``.
 JIT_MODULES: tuple[str, ...] = (
-    "rrt_pin._kernel_terms",
-    "rrt_pin.kernel",
-    "rrt_pin.compiled.codes",
+    "rrt_pin.dynamics._kernel_terms",
+    "rrt_pin.dynamics.kernel",
+    "rrt_pin.simulate.codes",
     "rrt_pin.compiled._jit_dynamics",
     "rrt_pin.compiled._jit_metrics",
     "rrt_pin.compiled._jit_integrators",

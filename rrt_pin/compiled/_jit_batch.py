@@ -76,7 +76,7 @@ from rrt_pin.compiled._jit_integrators import (
     tableau,
 )
 from rrt_pin.compiled._jit_metrics import as_rows, variant_metrics
-from rrt_pin.compiled.codes import (
+from rrt_pin.simulate.codes import (
     KEEP_FINAL,
     KEEP_METRICS,
     KEEP_TRAJECTORIES,

@@ -9,7 +9,7 @@ compiled on their own. The public, validated wrappers are in
 
 Layouts shared with the integrators:
 
-* ``p``: the 15 physical parameters in ``rrt_pin.kernel.PARAM_ORDER`` (SI units);
+* ``p``: the 15 physical parameters in ``rrt_pin.dynamics.kernel.PARAM_ORDER`` (SI units);
 * a controller: ``kind`` 0 = no effort; 1 = eq. (31) of the chapter with its own
   parameters (another arm than the plant's); 2 = PD plus the plant's own G(q)
   (one kernel evaluation serves the dynamics and the compensation); 3 = eq. (31)
@@ -38,9 +38,9 @@ import math
 import numpy as np
 from numba import float64, int64, types
 
-from rrt_pin import kernel
 from rrt_pin.compiled._jit import CACHE_PROBLEMS, ORIGINS, SIGNATURES, jit
-from rrt_pin.compiled.codes import (
+from rrt_pin.dynamics import kernel
+from rrt_pin.simulate.codes import (
     KIND_CHAPTER,
     KIND_CHAPTER_FOLDED,
     KIND_NONE,

@@ -15,7 +15,7 @@ Fixed-step methods step from sample to sample of ``t_eval``, each interval cut
 into ``ceil(Δt / dt)`` equal substeps (one substep when ``dt <= 0``).
 
 Every run returns a status instead of raising (machine code cannot raise a
-Python exception cheaply): see the ``STATUS_*`` codes of :mod:`rrt_pin.compiled.codes`.
+Python exception cheaply): see the ``STATUS_*`` codes of :mod:`rrt_pin.simulate.codes`.
 """
 
 from __future__ import annotations
@@ -37,7 +37,7 @@ from rrt_pin.compiled._jit_dynamics import (
     jit,
     vsincos,
 )
-from rrt_pin.compiled.codes import (
+from rrt_pin.simulate.codes import (
     FIXED_STEP_FROM,
     KIND_CHAPTER,
     KIND_CHAPTER_FOLDED,
@@ -56,7 +56,7 @@ from rrt_pin.compiled.codes import (
 __all__ = ["integrate"]
 
 
-#: Verlet's fixed-point iterations stop at this relative change (as rrt_pin.integrators) …
+#: Verlet's fixed-point iterations stop at this relative change (as rrt_pin.simulate.integrators) …
 VERLET_TOL = 1e-14
 #: … or fail after this many iterations.
 VERLET_MAX_ITER = 50
@@ -645,7 +645,7 @@ def adaptive(method, y0, t_eval, atol, rtol, max_step, max_steps, p_arr, kind, c
 def fixed(method, y0, t_eval, dt, max_steps, p_arr, kind, c_arr, out_y):
     """Symplectic Euler (10), RK4 (11) or velocity Verlet (12); see ``integrate``.
 
-    The same formulas as :mod:`rrt_pin.integrators`:
+    The same formulas as :mod:`rrt_pin.simulate.integrators`:
 
     * symplectic (semi-implicit) Euler: q̇₁ = q̇₀ + h·a(q₀, q̇₀); q₁ = q₀ + h·q̇₁;
     * classic RK4 on (q, q̇);
@@ -782,7 +782,7 @@ def integrate(
     """Integrate one run from (t_eval[0], y0) and fill out_y (N, 6) and out_tau (N, 3).
 
     Args:
-        method: a ``METHOD_*`` code of :mod:`rrt_pin.compiled.codes`.
+        method: a ``METHOD_*`` code of :mod:`rrt_pin.simulate.codes`.
         y0: initial state (6,).
         t_eval: strictly increasing output times (N,) [s]; the run starts at t_eval[0].
         dt: fixed-step methods' largest step [s] (<= 0: one step per interval).

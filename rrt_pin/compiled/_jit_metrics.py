@@ -1,6 +1,6 @@
-"""The per-variant metrics of :func:`rrt_pin.metrics.batch_metrics` in one pass, in machine code.
+"""The per-variant metrics of :func:`rrt_pin.simulate.metrics.batch_metrics` in one pass, in machine code.
 
-Imported only when numba is installed; :func:`rrt_pin.metrics.batch_metrics`
+Imported only when numba is installed; :func:`rrt_pin.simulate.metrics.batch_metrics`
 (numpy) is the reference the tests compare it with. :func:`variant_metrics`
 is the one definition: :func:`metrics` applies it to stored runs (B, T, n), and
 the compiled batch (``keep="metrics"`` of
@@ -8,7 +8,7 @@ the compiled batch (``keep="metrics"`` of
 samples as soon as they are computed, so that no trajectory is kept.
 
 A row of metrics is laid out as the ``METRIC_*`` offsets of
-:mod:`rrt_pin.compiled.codes` say (:data:`~rrt_pin.compiled.codes.METRIC_WIDTH` values).
+:mod:`rrt_pin.simulate.codes` say (:data:`~rrt_pin.simulate.codes.METRIC_WIDTH` values).
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ from numba import float64, types
 from numba.extending import intrinsic
 
 from rrt_pin.compiled._jit import jit, warn_problems, wide_vectors
-from rrt_pin.compiled.codes import (
+from rrt_pin.simulate.codes import (
     METRIC_ENERGY,
     METRIC_EXCURSION,
     METRIC_FINAL,

@@ -1,7 +1,7 @@
 """Closed-form dynamics of the RRT arm in machine code, for one state or many.
 
-The same quantities as :mod:`rrt_pin.kernel` (the generated numpy kernel) and
-Pinocchio's CRBA/RNEA/ABA on :func:`rrt_pin.model.rrt_model`, computed by the
+The same quantities as :mod:`rrt_pin.dynamics.kernel` (the generated numpy kernel) and
+Pinocchio's CRBA/RNEA/ABA on :func:`rrt_pin.robot.model.rrt_model`, computed by the
 kernel's ``terms`` compiled with numba, one loop over the samples. Arrays have
 shape (N, 3) (or (3,) for one state); results keep that leading shape. Units:
 q [rad, rad, m], q̇ [rad/s, rad/s, m/s], q̈ [rad/s², rad/s², m/s²],
@@ -20,13 +20,13 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from rrt_pin.errors import InputError
-from rrt_pin.kernel import param_vector
-from rrt_pin.params import Params
-from rrt_pin.robot import CHAPTER_COLUMNS
+from rrt_pin.core.errors import InputError
+from rrt_pin.dynamics.kernel import param_vector
+from rrt_pin.robot.params import Params
+from rrt_pin.robot.robot import CHAPTER_COLUMNS
 
 if TYPE_CHECKING:
-    from rrt_pin.params import Params
+    from rrt_pin.robot.params import Params
 
 __all__ = [
     "coriolis",
@@ -47,10 +47,10 @@ _UNITS = {
 
 
 def param_array(params: Params) -> np.ndarray:
-    """The 15 physical parameters in ``rrt_pin.kernel.PARAM_ORDER`` (float64, SI units, read-only).
+    """The 15 physical parameters in ``rrt_pin.dynamics.kernel.PARAM_ORDER`` (float64, SI units, read-only).
 
     Raises:
-        InputError: ``params`` is not a :class:`~rrt_pin.params.Params`.
+        InputError: ``params`` is not a :class:`~rrt_pin.robot.params.Params`.
     """
     if not isinstance(params, Params):
         raise InputError(f"params must be a Params, not {type(params).__name__}")

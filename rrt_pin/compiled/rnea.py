@@ -1,6 +1,6 @@
 """Inverse dynamics of any supported fixed-base robot in machine code, generated from its model.
 
-:func:`rrt_pin.rnea_source.rnea_source` turns a ``pin.Model`` into the straight-line
+:func:`rrt_pin.dynamics.rnea_source.rnea_source` turns a ``pin.Model`` into the straight-line
 RNEA of one sample; :func:`module_source` wraps it in a loop over a batch,
 ``kernel(Q (N, nq), V (N, nv), A (N, nv), out (N, nv))``, which is written to a
 file named by the SHA-256 of that source, imported from there and compiled by
@@ -16,7 +16,7 @@ unrecorded file is deleted and the kernel compiled again. Each
 process keeps one kernel per source in memory.
 
 :func:`inverse_dynamics` splits a batch over threads as the compiled batches do
-(:func:`rrt_pin.compiled.integrate._in_slices`). Each call of the kernel
+(:func:`rrt_pin.compiled.lanes._in_slices`). Each call of the kernel
 returns 0.0 when every input and effort of its samples is finite, else NaN (one
 sum a sample, no branch), so non-finite values are searched only then.
 
@@ -42,10 +42,11 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from rrt_pin import cpus, rnea_source
-from rrt_pin.errors import InputError
-from rrt_pin.extras import MissingExtra
-from rrt_pin.identity import IdentityCache
+from rrt_pin.core import cpus
+from rrt_pin.core.errors import InputError
+from rrt_pin.core.extras import MissingExtra
+from rrt_pin.core.identity import IdentityCache
+from rrt_pin.dynamics import rnea_source
 
 if TYPE_CHECKING:
     import pinocchio as pin
@@ -354,7 +355,7 @@ def inverse_dynamics(
         qd: velocities (N, nv) [rad/s or m/s].
         qdd: accelerations (N, nv) [rad/s² or m/s²].
         num_threads: threads; default: the CPUs free now
-            (:func:`rrt_pin.cpus.threads_for`); never a thread with fewer samples
+            (:func:`rrt_pin.core.cpus.threads_for`); never a thread with fewer samples
             than :attr:`Kernel.min_per_thread`.
 
     Returns:
@@ -392,7 +393,7 @@ def inverse_dynamics(
     def run(a: int, b: int) -> None:
         checks.append(fn(q[a:b], qd[a:b], qdd[a:b], out[a:b]))
 
-    from rrt_pin.compiled.integrate import _in_slices
+    from rrt_pin.compiled.lanes import _in_slices
 
     _in_slices(run, n, threads)
     return out, not any(c != 0.0 for c in checks)

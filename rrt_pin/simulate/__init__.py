@@ -7,29 +7,42 @@ works however the package was imported).
 Layout (data flows down; nothing imports upwards):
 
 * :mod:`~rrt_pin.simulate.api`: :func:`simulate`, :func:`simulate_batch` —
-  inputs checked once (:mod:`rrt_pin.validate`), options resolved from the
+  inputs checked once (:mod:`rrt_pin.core.validate`), options resolved from the
   registries (:mod:`~rrt_pin.simulate.options`), then a backend runs;
 * :mod:`~rrt_pin.simulate.pinocchio_backend` (ABA) with
   :mod:`~rrt_pin.simulate.closed_loop` and :mod:`~rrt_pin.simulate.scipy_runs`;
-  the compiled backend is :mod:`rrt_pin.compiled.integrate`;
+  the compiled backend (:mod:`rrt_pin.compiled.integrate`, a layer above) is reached
+  through its entry in :mod:`rrt_pin.core.backends`;
 * :mod:`~rrt_pin.simulate.estimate`: the estimate of the global error in q
   that every run carries (``result.error_estimate``), from a second run;
-* :mod:`~rrt_pin.simulate.results`: what both backends return.
+  :mod:`~rrt_pin.simulate.energy`: the energy check of conservative runs;
+* :mod:`~rrt_pin.simulate.results`: what both backends return;
+* the registries and pieces both backends share: :mod:`~rrt_pin.simulate.methods`
+  (integrators), :mod:`~rrt_pin.simulate.integrators` and
+  :mod:`~rrt_pin.simulate.symplectic` (fixed-step formulas),
+  :mod:`~rrt_pin.simulate.contract` and :mod:`~rrt_pin.simulate.control` (the
+  controller contract, the laws), :mod:`~rrt_pin.simulate.metrics` (the ``Metric``
+  registry), :mod:`~rrt_pin.simulate.codes` (the compiled loop's constants);
+* :mod:`~rrt_pin.simulate.accuracy` and :mod:`~rrt_pin.simulate.reference`: the
+  accuracy catalogue and its high-precision references.
 
-Methods (:data:`rrt_pin.methods.METHODS`): ``odepack`` (the Pinocchio default:
+Methods (:data:`rrt_pin.simulate.methods.METHODS`): ``odepack`` (the Pinocchio default:
 ODEPACK's LSODA through ``odeint``), scipy's ``RK45``, ``DOP853``, ``LSODA``,
 ``Radau``, ``BDF`` (the implicit ones get the analytic Jacobian of the closed
 loop from ``pin.computeABADerivatives`` and the controller's
-:meth:`~rrt_pin.control.Controller.jacobian`), the fixed-step
+:meth:`~rrt_pin.simulate.control.Controller.jacobian`), the fixed-step
 ``symplectic_euler``, ``rk4``, ``verlet`` and the symplectic ``leapfrog``.
 Default tolerances: ``rtol=1e-12``, ``atol=1e-14`` for ``odepack``, ``rtol=1e-10``,
 ``atol=1e-12`` for the others, one run or a batch: chosen so that the default
 method of either backend keeps max |q − q_exact| ≤ 1e-8 rad or m
-(:data:`rrt_pin.methods.ACCURACY`) on every problem of :data:`rrt_pin.accuracy.PROBLEMS`.
+(:data:`rrt_pin.simulate.methods.ACCURACY`) on every problem of :data:`rrt_pin.simulate.accuracy.PROBLEMS`.
 
 A run that produces a non-finite state or whose integrator fails raises
-:class:`~rrt_pin.errors.DivergenceError` with the time and the coordinate; no
+:class:`~rrt_pin.core.errors.DivergenceError` with the time and the coordinate; no
 NaN is returned. Units are SI.
+
+May import: rrt_pin.core, rrt_pin.io, rrt_pin.robot, rrt_pin.dynamics (the compiled
+backend is reached through :mod:`rrt_pin.core.backends`).
 """
 
 from __future__ import annotations

@@ -8,29 +8,30 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from rrt_pin import backends, cpus, memory, validate
-from rrt_pin.control import Controller, _chapter_model, as_controller
-from rrt_pin.errors import InputError
-from rrt_pin.extras import MissingExtra
-from rrt_pin.identity import IdentityCache
-from rrt_pin.metrics import GROUPS, batch_metrics
-from rrt_pin.params import Params, check_params, plant_difference
-from rrt_pin.robot import Robot
-from rrt_pin.robots import chapter_arm
+from rrt_pin.core import backends, cpus, memory, validate
+from rrt_pin.core.errors import InputError
+from rrt_pin.core.extras import MissingExtra
+from rrt_pin.core.identity import IdentityCache
+from rrt_pin.robot.params import Params, check_params, plant_difference
+from rrt_pin.robot.robot import Robot, bare_model, params_given
+from rrt_pin.robot.robots import chapter_arm
+from rrt_pin.simulate import methods
+from rrt_pin.simulate.control import Controller, as_controller
 from rrt_pin.simulate.energy import check_energy, check_energy_batch
+from rrt_pin.simulate.metrics import GROUPS, batch_metrics
 from rrt_pin.simulate.options import Options, resolve
 from rrt_pin.simulate.results import KEEPS
 
 if TYPE_CHECKING:
-    from rrt_pin.params import Params
-    from rrt_pin.robot import Robot
+    from rrt_pin.robot.params import Params
+    from rrt_pin.robot.robot import Robot
     from rrt_pin.simulate.results import BatchResult, SimulationResult
 
 __all__ = ["as_robot", "default_threads", "simulate", "simulate_batch"]
 
 
 def as_robot(model: Any, params: Params | None = None) -> Robot:
-    """The :class:`~rrt_pin.robot.Robot` of ``model`` (a Robot, or a Pinocchio model).
+    """The :class:`~rrt_pin.robot.robot.Robot` of ``model`` (a Robot, or a Pinocchio model).
 
     A Pinocchio model equal to the chapter's arm built from ``params`` becomes
     that arm (so its closed-form backends apply).
@@ -77,17 +78,16 @@ def _params_for(robot: Robot, params: Any, controllers: Sequence[Any]) -> Params
         raise InputError(f"params must be a Params, not {type(params).__name__}")
     raise InputError(
         "backend 'compiled' simulates the chapter's RRT arm from its Params: pass the arm "
-        "(rrt_pin.robots.chapter_arm(params)), params=…, or a chapter controller"
+        "(rrt_pin.robot.robots.chapter_arm(params)), params=…, or a chapter controller"
     )
 
 
 def _compiled() -> Any:
 
-    if not backends.get("compiled").available():
+    compiled = backends.get("compiled")
+    if not compiled.available():
         raise MissingExtra("numba", "fast", "backend 'compiled'")
-    from rrt_pin.compiled import integrate
-
-    return integrate
+    return compiled.entry("simulate")
 
 
 def simulate(
@@ -109,9 +109,10 @@ def simulate(
     """Simulate a robot under ``controller`` from (q0, qd0), sampled at ``t_eval``.
 
     Args:
-        model: a :class:`~rrt_pin.robot.Robot` or a Pinocchio model (revolute,
-            continuous, prismatic joints…).
-        controller: a :class:`~rrt_pin.control.Controller`, an object with
+        model: a :class:`~rrt_pin.robot.robot.Robot` (revolute, continuous, prismatic
+            joints…); a bare Pinocchio model is deprecated (pass
+            ``Robot.from_model(model)``).
+        controller: a :class:`~rrt_pin.simulate.control.Controller`, an object with
             ``efforts(t, q, qd)``, a function ``f(t, q, qd)`` (or ``f(q, qd)``),
             or None (no effort: passive motion).
         q0: initial joint coordinates (nv,) [rad or m] (angles for continuous
@@ -119,7 +120,7 @@ def simulate(
         qd0: initial velocities (nv,) [rad/s or m/s]; None (the default) for rest.
         t_eval: increasing output times [s] (required; e.g.
             ``rrt_pin.time_grid(15.0, 0.01)``); the run starts at ``t_eval[0]``.
-        method: a method of :data:`rrt_pin.methods.METHODS` that the backend
+        method: a method of :data:`rrt_pin.simulate.methods.METHODS` that the backend
             runs (default: the backend's, ``odepack`` on Pinocchio, ``DOP853``
             compiled; the result says which).
         rtol: relative tolerance of the adaptive methods, in (0, 1) (default
@@ -150,6 +151,8 @@ def simulate(
     """
     if t_eval is None:
         raise InputError("simulate needs t_eval, the output times [s]: e.g. time_grid(15.0, 0.01)")
+    bare_model("simulate", model)
+    params_given("simulate", params)
     robot = as_robot(model, _checked_params(params))
     _prepare(robot, backend, method)
     start = time.perf_counter()
@@ -162,7 +165,7 @@ def simulate(
         t, backend=backend, method=method, rtol=rtol, atol=atol, step=step, jacobian=jacobian
     )
     _same_plant(robot, params, options.backend)
-    # the same checks on both backends; the law's results are checked (rrt_pin.control)
+    # the same checks on both backends; the law's results are checked (rrt_pin.simulate.control)
     checked = (
         None if controller is None else as_controller(controller, robot.nv, robot.effort_names)
     )
@@ -189,7 +192,7 @@ def simulate(
 
 
 def _checked_params(params: Any, name: str = "params") -> Any:
-    """``params`` if None or a Params (a dict is refused: :func:`rrt_pin.params.check_params`)."""
+    """``params`` if None or a Params (a dict is refused: :func:`rrt_pin.robot.params.check_params`)."""
     if params is None:
         return None
 
@@ -200,7 +203,7 @@ def _same_plant(robot: Robot, params: Any, backend: str) -> None:
     """Refuse ``params`` that the Pinocchio backend would ignore.
 
     The Pinocchio backend simulates the model given; ``params`` may only name that
-    model's own arm (its plant fields, :data:`rrt_pin.params.PLANT_FIELDS`). A list of
+    model's own arm (its plant fields, :data:`rrt_pin.robot.params.PLANT_FIELDS`). A list of
     Params (one a variant) runs on the compiled backend only.
 
     Raises:
@@ -217,7 +220,9 @@ def _same_plant(robot: Robot, params: Any, backend: str) -> None:
 
     differs = None
     if robot.params is None:
-        if not bool(robot.model == _chapter_model(params)):
+        from rrt_pin.robot.model import chapter_model
+
+        if not bool(robot.model == chapter_model(params)):
             differs = "is not the chapter's arm built from them"
     else:
         diff = plant_difference(params, robot.params)
@@ -225,7 +230,7 @@ def _same_plant(robot: Robot, params: Any, backend: str) -> None:
     if differs:
         raise InputError(
             f"params= would be ignored: backend {backend!r} simulates the model given, which "
-            f"{differs}; pass rrt_pin.robots.chapter_arm(params) as the model instead"
+            f"{differs}; pass rrt_pin.robot.robots.chapter_arm(params) as the model instead"
         )
 
 
@@ -261,8 +266,6 @@ def _prepare(robot: Robot, backend: Any, method: Any = None, batch: bool = False
     methods.
     """
     if backend == "pinocchio":
-        from rrt_pin import methods
-
         family = methods.get(method).family if method in methods.METHODS else "odepack"
         if family == "odepack":
             from rrt_pin.simulate._odepack import load
@@ -275,15 +278,12 @@ def _prepare(robot: Robot, backend: Any, method: Any = None, batch: bool = False
 
         robot.model  # noqa: B018  (builds the generated arm's model once)
     elif backend == "compiled" and robot.params is not None:
-        if backends.get("compiled").available():
-            from rrt_pin.compiled import ensure_compiled, integrate, machine_code  # noqa: F401
-
+        compiled = backends.get("compiled")
+        if compiled.available():
+            compiled.entry("simulate")
             # A single run takes the module built ahead of time when there is one;
             # batches run on threads, which need the JIT's (GIL-free) functions.
-            if batch:
-                ensure_compiled()
-            else:
-                machine_code()
+            compiled.entry("load_batch" if batch else "load_single")()
 
 
 def _passive(robot: Robot) -> Any:
@@ -323,7 +323,7 @@ def simulate_batch(
     Pinocchio backend: one model for every variant (``pin.abaInParallel`` over a
     ``ModelPool``); variants differ in controllers (gains, targets, any law
     following the contract) and initial states. Laws whose
-    :meth:`~rrt_pin.control.Controller.feedback` share a gravity term are
+    :meth:`~rrt_pin.simulate.control.Controller.feedback` share a gravity term are
     evaluated as arrays; others variant by variant. ``odepack``'s max-norm
     error test holds every variant to the tolerance.
 
@@ -342,13 +342,13 @@ def simulate_batch(
         atol: absolute tolerance [rad, m, rad/s, m/s], in (0, 1) (default the method's).
         backend: ``pinocchio`` or ``compiled``.
         step: longest step of the fixed-step methods [s].
-        threads: threads of the batch, at most :func:`rrt_pin.cpus.max_threads`
+        threads: threads of the batch, at most :func:`rrt_pin.core.cpus.max_threads`
             (256); default: the CPUs free now, none with too little work, capped by
-            ``OMP_NUM_THREADS`` (:mod:`rrt_pin.cpus`); the numbers do not depend on it.
+            ``OMP_NUM_THREADS`` (:mod:`rrt_pin.core.cpus`); the numbers do not depend on it.
             Each thread reserves a stack (and, Pinocchio backend, holds a copy of the
             model's data): a count that does not fit in the memory left is cut to
             one that does, with a warning on the ``rrt_pin`` logger
-            (:mod:`rrt_pin.memory`). Pinocchio backend: OpenMP threads of
+            (:mod:`rrt_pin.core.memory`). Pinocchio backend: OpenMP threads of
             ``pin.abaInParallel``, the free CPUs looked up again every 50 ms of the run,
             at least 32 variants a thread; compiled backend: threads sharing the
             variants, each taking the next one when it has room.
@@ -360,7 +360,7 @@ def simulate_batch(
         keep: what is kept of each variant, one of :data:`~rrt_pin.simulate.results.KEEPS`:
             ``"trajectories"`` (default), ``"final"`` (the last output time only,
             shapes (B, 1, nv)) or ``"metrics"`` (the same, and ``result.metrics``:
-            the columns of :func:`rrt_pin.metrics.batch_metrics` against each
+            the columns of :func:`rrt_pin.simulate.metrics.batch_metrics` against each
             controller's target ``qf``; every controller must have one). The
             compiled backend then stores no trajectory (``"final"`` also skips
             the dense output of DOP853 and RK45); the Pinocchio backend computes
@@ -371,12 +371,14 @@ def simulate_batch(
 
     Raises:
         InputError: bad shapes, values, controllers or options; an unknown ``keep``;
-            ``threads`` not from 1 to :func:`rrt_pin.cpus.max_threads`.
+            ``threads`` not from 1 to :func:`rrt_pin.core.cpus.max_threads`.
         MemoryLimitError: not even one thread's copy of the model's data fits in
             the memory left (the need and the limit named).
         DivergenceError: a variant's state became non-finite or the integrator
             failed (the message names the coordinate and the variant).
     """
+    bare_model("simulate_batch", model)
+    params_given("simulate_batch", params)
     if isinstance(params, (list, tuple)):
         params = [_checked_params(p, f"params[{i}]") for i, p in enumerate(params)]
     else:
@@ -443,7 +445,7 @@ def simulate_batch(
 
 
 def _threads(threads: Any) -> int:
-    """``threads=`` as an int from 1 to :func:`rrt_pin.cpus.max_threads` (256)."""
+    """``threads=`` as an int from 1 to :func:`rrt_pin.core.cpus.max_threads` (256)."""
     return cpus.check_threads("threads", validate.positive_int("threads", threads))
 
 
@@ -452,7 +454,7 @@ def _pool_threads(robot: Robot, chosen: int | None) -> int | None:
 
     The pool holds a copy of the model's data a thread (one more while it is made):
     the asked count, or the default (None: as many copies as CPUs), is cut to what
-    fits (:mod:`rrt_pin.memory`).
+    fits (:mod:`rrt_pin.core.memory`).
 
     Raises:
         MemoryLimitError: not even one thread's copy fits.

@@ -1,13 +1,13 @@
 """The closed loop on Pinocchio: accelerations a(t, q, q̇) = ABA(q, q̇, τ(t, q, q̇)), one run or a batch.
 
-Gravity folding: when a controller's :meth:`~rrt_pin.control.Controller.feedback`
+Gravity folding: when a controller's :meth:`~rrt_pin.simulate.control.Controller.feedback`
 says its gravity term is exactly the model's generalized gravity G(q), then
 ABA(q, q̇, τ_PD + G(q)) = ABA₀(q, q̇, τ_PD) with ABA₀ on a copy of the model
 without gravity: one Pinocchio call per evaluation and no gravity terms. The
 efforts reported are always the controller's full output at the output times.
 
 Joint coordinates (angles for continuous joints) are mapped to Pinocchio's
-configuration by the robot (:meth:`rrt_pin.robot.Robot.configuration`), which
+configuration by the robot (:meth:`rrt_pin.robot.robot.Robot.configuration`), which
 is the identity when every joint has one configuration entry.
 """
 
@@ -19,12 +19,12 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from rrt_pin import cpus
-from rrt_pin.memory import check_data
+from rrt_pin.core import cpus
+from rrt_pin.core.memory import check_data
 
 if TYPE_CHECKING:
-    from rrt_pin.control import Controller
-    from rrt_pin.robot import Robot
+    from rrt_pin.robot.robot import Robot
+    from rrt_pin.simulate.control import Controller
 
 __all__ = ["BatchLoop", "ClosedLoop"]
 
@@ -166,7 +166,7 @@ class Threads:
 class BatchLoop:
     """Accelerations of B variants of one robot at once with ``pin.abaInParallel``.
 
-    Laws whose :meth:`~rrt_pin.control.Controller.feedback` share one gravity
+    Laws whose :meth:`~rrt_pin.simulate.control.Controller.feedback` share one gravity
     term are evaluated as arrays (gains and targets stacked; folded into the
     dynamics when that term is the model's G); other controllers are evaluated
     variant by variant through ``efforts(t, q, qd)``. ``threads`` None: as many

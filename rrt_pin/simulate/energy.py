@@ -5,8 +5,8 @@ Two closed loops are known to keep or lose a mechanical energy H:
 * passive motion (no controller): H = T + V, kinetic plus gravity's potential
   energy, is conserved;
 * PD plus an exact gravity compensation with gains ≥ 0 (a law whose
-  :meth:`~rrt_pin.control.Controller.feedback` is exactly the robot's G(q): the
-  chapter's eq. (31) on its own arm, :class:`~rrt_pin.control.PDGravityController`
+  :meth:`~rrt_pin.simulate.control.Controller.feedback` is exactly the robot's G(q): the
+  chapter's eq. (31) on its own arm, :class:`~rrt_pin.simulate.control.PDGravityController`
   on its model): H = T + ½·(q − qf)ᵀ·Kp·(q − qf) never grows (dH/dt = −q̇ᵀ·Kd·q̇ ≤ 0).
 
 An integrator that is unstable for the step it takes (a fixed step too long for
@@ -14,7 +14,7 @@ the scene, or very loose tolerances) pumps energy into such a run: the state
 stays finite for a while, and without this rule the run would come back as a
 success with an error estimate in the metres. The rule: a run of either kind in
 which H(t) − H(0) exceeds :data:`ENERGY_GROWTH` times the energy scale S raises
-:class:`~rrt_pin.errors.DivergenceError` naming the first output time checked at
+:class:`~rrt_pin.core.errors.DivergenceError` naming the first output time checked at
 which it does and the velocity carrying most kinetic energy there. S is the
 initial T (plus the initial spring energy ½·Δq0ᵀ·Kp·Δq0 of a PD law) plus
 m·|g|·ℓ, with m the robot's mass and ℓ its reach (the distances between successive
@@ -41,12 +41,13 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from rrt_pin.errors import DivergenceError
-from rrt_pin.identity import IdentityCache
-from rrt_pin.memory import check_data
+from rrt_pin.core import backends
+from rrt_pin.core.errors import DivergenceError
+from rrt_pin.core.identity import IdentityCache
+from rrt_pin.core.memory import check_data
 
 if TYPE_CHECKING:
-    from rrt_pin.robot import Robot
+    from rrt_pin.robot.robot import Robot
 
 __all__ = [
     "BATCH_CHECKED",
@@ -140,8 +141,7 @@ class _Rule:
         """
         if self.kp is None or q.shape[-1] != 3:
             return None
-        from rrt_pin.compiled.dynamics import mass_matrix
-
+        mass_matrix = backends.get("compiled").entry("mass_matrix")
         m = mass_matrix(np.ascontiguousarray(q), params)
         d = q - self.qf
         return 0.5 * np.einsum("ki,kij,kj->k", v, m, v) + 0.5 * (d * d) @ self.kp

@@ -28,8 +28,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from rrt_pin.errors import DivergenceError, InputError
-from rrt_pin.methods import ACCURACY
+from rrt_pin.core.errors import DivergenceError, InputError
+from rrt_pin.simulate.methods import ACCURACY
 from rrt_pin.simulate.results import ErrorEstimate
 
 if TYPE_CHECKING:
@@ -70,7 +70,7 @@ class EstimateWarning(AccuracyWarning):
 def requested_accuracy(rtol: float | None, atol: float | None) -> float:
     """The global accuracy a run asks for: max(ACCURACY, rtol, atol) [rad or m].
 
-    The defaults are chosen to keep :data:`rrt_pin.methods.ACCURACY` (1e-8) on the
+    The defaults are chosen to keep :data:`rrt_pin.simulate.methods.ACCURACY` (1e-8) on the
     accuracy catalogue; a run at looser tolerances asks for no better than them.
     """
     return max(ACCURACY, rtol or 0.0, atol or 0.0)

@@ -7,9 +7,10 @@ from typing import Any
 
 import numpy as np
 
-from rrt_pin import backends, methods, validate
-from rrt_pin.errors import InputError
-from rrt_pin.methods import Method
+from rrt_pin.core import backends, validate
+from rrt_pin.core.errors import InputError
+from rrt_pin.simulate import methods
+from rrt_pin.simulate.methods import Method
 
 __all__ = ["JACOBIANS", "MAX_FIXED_STEPS", "ODEPACK_MIN_FIRST_INTERVAL", "Options", "resolve"]
 
@@ -71,7 +72,7 @@ def resolve(
         InputError: an unknown backend or method, a method the backend does not
             run (in a batch), a tolerance or step that is not a finite number in
             range (a tolerance must lie in (0, 1)), or an rtol below the method's
-            floor (:attr:`~rrt_pin.methods.Method.min_rtol`, named).
+            floor (:attr:`~rrt_pin.simulate.methods.Method.min_rtol`, named).
     """
     key = (backend, method, rtol, atol, step, jacobian, batch, type(rtol), type(atol), type(step))
     try:
@@ -94,7 +95,7 @@ def fixed_steps(t: np.ndarray, step: float) -> float:
     """The steps a fixed-step run over the output times ``t`` takes with ``step`` [s].
 
     Each output interval is cut into ceil(interval / step) equal steps (as
-    :func:`rrt_pin.integrators.integrate_fixed_step` does); a float, as it may be huge.
+    :func:`rrt_pin.simulate.integrators.integrate_fixed_step` does); a float, as it may be huge.
     """
     with np.errstate(over="ignore"):
         per = np.ceil(np.diff(t) / step * (1.0 - 1e-12))

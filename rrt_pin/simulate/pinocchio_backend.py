@@ -8,10 +8,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from rrt_pin.errors import DivergenceError
-from rrt_pin.integrators import integrate_fixed_step
-from rrt_pin.methods import FIXED_STEP, ODEPACK, SYMPLECTIC
+from rrt_pin.core.errors import DivergenceError
 from rrt_pin.simulate.closed_loop import BatchLoop, ClosedLoop
+from rrt_pin.simulate.integrators import integrate_fixed_step
+from rrt_pin.simulate.methods import FIXED_STEP, ODEPACK, SYMPLECTIC
 from rrt_pin.simulate.results import BatchResult, SimulationResult
 from rrt_pin.simulate.scipy_runs import (
     Counted,
@@ -23,11 +23,11 @@ from rrt_pin.simulate.scipy_runs import (
     run_solve_ivp,
     too_much_work,
 )
-from rrt_pin.symplectic import leapfrog
+from rrt_pin.simulate.symplectic import leapfrog
 
 if TYPE_CHECKING:
-    from rrt_pin.control import Controller
-    from rrt_pin.robot import Robot
+    from rrt_pin.robot.robot import Robot
+    from rrt_pin.simulate.control import Controller
     from rrt_pin.simulate.options import Options
 
 __all__ = ["run_batch", "run_one"]

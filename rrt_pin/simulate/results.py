@@ -11,9 +11,9 @@ from typing import Any
 
 import numpy as np
 
-from rrt_pin.errors import InputError
-from rrt_pin.extras import MissingExtra
-from rrt_pin.robot import CHAPTER_COLUMNS
+from rrt_pin.core.errors import InputError
+from rrt_pin.core.extras import MissingExtra
+from rrt_pin.robot.robot import CHAPTER_COLUMNS
 
 __all__ = ["KEEPS", "BatchResult", "ErrorEstimate", "SimulationResult"]
 
@@ -32,7 +32,7 @@ class ErrorEstimate:
         q: per coordinate, max over the output times (and the variants of a
             batch) of the estimated |q − q_exact|, shape (nv,) [rad or m].
         accuracy: the accuracy the run asked for [rad or m]: the larger of
-            :data:`rrt_pin.methods.ACCURACY` (1e-8) and its rtol and atol.
+            :data:`rrt_pin.simulate.methods.ACCURACY` (1e-8) and its rtol and atol.
         how: the second run, e.g. ``"odepack at rtol 1e-13, atol 1e-15"``.
         n_evals: the second run's right-hand-side evaluations.
         wall_time: the second run's duration [s] (not in the result's ``wall_time``).
@@ -85,7 +85,7 @@ class _Run:
             evaluates all variants on the Pinocchio backend; the sum over the
             variants on the compiled one).
         wall_time: duration of the call [s].
-        method: the integration method (see :mod:`rrt_pin.methods`).
+        method: the integration method (see :mod:`rrt_pin.simulate.methods`).
         backend: ``"pinocchio"`` or ``"compiled"``.
         rtol: relative tolerance (adaptive methods), else None.
         atol: absolute tolerance [rad, m, rad/s, m/s] (adaptive methods), else None.
@@ -213,7 +213,7 @@ class BatchResult(_Run):
             time), ``"final"`` or ``"metrics"`` (the last output time only: ``t``
             holds that one time [s], q, qd and tau have shape (B, 1, nv)).
         metrics: with ``keep="metrics"``, the columns of
-            :func:`rrt_pin.metrics.batch_metrics` (final_error_<q> [rad or m],
+            :func:`rrt_pin.simulate.metrics.batch_metrics` (final_error_<q> [rad or m],
             settling_time_<q> [s], peak_effort_<τ> [N·m or N],
             peak_effort_time_<τ> [s], excursion_<q> [rad or m], control_energy
             [J]), each of shape (B,), from the samples at every output time;

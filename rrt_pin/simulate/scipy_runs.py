@@ -12,10 +12,10 @@ from typing import Any
 
 import numpy as np
 
-from rrt_pin import methods
-from rrt_pin.errors import DivergenceError
-from rrt_pin.integrators import blame
-from rrt_pin.text import argument
+from rrt_pin.core.errors import DivergenceError
+from rrt_pin.core.text import argument
+from rrt_pin.simulate import methods
+from rrt_pin.simulate.integrators import blame
 
 __all__ = [
     "Counted",

@@ -7,4 +7,7 @@
 * :mod:`~rrt_pin.sweeps.plot`: a metric over the varied values.
 
 Nothing here is imported by ``import rrt_pin``; ``rrt_pin.sweep`` loads it on first use.
+
+May import: rrt_pin.core, rrt_pin.io, rrt_pin.robot, rrt_pin.dynamics, rrt_pin.simulate,
+rrt_pin.compiled, rrt_pin.viewer.
 """

@@ -18,19 +18,20 @@ from typing import Any
 
 import numpy as np
 
-from rrt_pin import backends, text
-from rrt_pin.control import ChapterController, PDGravityController
-from rrt_pin.errors import DivergenceError, InputError, RrtPinError, SpecError
-from rrt_pin.grid import time_grid
-from rrt_pin.inverse import inverse_dynamics
-from rrt_pin.kernel import PARAM_ORDER
-from rrt_pin.metrics import batch_metrics, column_names, metric_columns
-from rrt_pin.params import Params
-from rrt_pin.robot import Robot
-from rrt_pin.robots import chapter_arm
-from rrt_pin.simulate import simulate, simulate_batch
+from rrt_pin.core import backends, text
+from rrt_pin.core.errors import DivergenceError, InputError, RrtPinError, SpecError
+from rrt_pin.core.grid import time_grid
+from rrt_pin.dynamics.inverse import inverse_dynamics
+from rrt_pin.dynamics.kernel import PARAM_ORDER
+from rrt_pin.dynamics.trajectory import rest_to_rest
+from rrt_pin.robot.params import Params
+from rrt_pin.robot.robot import Robot
+from rrt_pin.robot.robots import chapter_arm
+from rrt_pin.simulate import codes, simulate, simulate_batch
+from rrt_pin.simulate.control import ChapterController, PDGravityController
+from rrt_pin.simulate.metrics import batch_metrics, column_names, metric_columns
+from rrt_pin.simulate.options import resolve
 from rrt_pin.sweeps.spec import Spec, spec_from_dict
-from rrt_pin.trajectory import rest_to_rest
 
 __all__ = ["BLOCK", "Plan", "metric_names", "plan", "run_chunk"]
 
@@ -101,7 +102,6 @@ def _plan(digest: str, source_json: str) -> Plan:
     import json
 
     spec = spec_from_dict(json.loads(source_json))
-    from rrt_pin.simulate.options import resolve
 
     if spec.urdf is None:
         params, base = _arm_base(spec)
@@ -180,7 +180,7 @@ def arm_table(p: Plan, values: dict[str, np.ndarray], count: int) -> tuple[dict,
     """Every Params field of ``count`` variants, and which are invalid (with why).
 
     Rod inertias left at their defaults follow the varied masses and lengths, as in
-    :class:`~rrt_pin.params.Params`.
+    :class:`~rrt_pin.robot.params.Params`.
     """
     explicit = set(p.spec.base) | set(values)
     table = {n: np.broadcast_to(values.get(n, p.base[n]), (count,)).astype(float) for n in p.base}
@@ -221,7 +221,6 @@ SUB_BLOCK = 128
 
 
 def _arm_simulate(p: Plan, values: dict[str, np.ndarray], count: int, rows: list[int]) -> dict:
-    from rrt_pin.compiled import codes
 
     table, bad, why = arm_table(p, values, count)
     P = np.column_stack([table[n] for n in PARAM_ORDER])
@@ -234,7 +233,7 @@ def _arm_simulate(p: Plan, values: dict[str, np.ndarray], count: int, rows: list
     qf = np.column_stack([table[n] for n in ("q1f", "q2f", "q3f")])
     if p.backend != "compiled":
         return _arm_one_by_one(p, table, bad, why, qf, count, rows)
-    from rrt_pin.compiled.integrate import failure, integrate_arrays
+    from rrt_pin.compiled.lanes import failure, integrate_arrays
 
     P[bad], C[bad], Y0[bad] = P[~bad][:1] if (~bad).any() else P[bad], 0.0, 0.0
     kinds = np.full(count, codes.KIND_CHAPTER_FOLDED, dtype=np.int64)

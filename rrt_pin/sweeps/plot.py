@@ -8,11 +8,11 @@ from typing import Any
 
 import numpy as np
 
-from rrt_pin import text
-from rrt_pin.errors import InputError
-from rrt_pin.io import atomic_write_bytes
+from rrt_pin.core import text
+from rrt_pin.core.errors import InputError
+from rrt_pin.core.text import argument
+from rrt_pin.io.files import atomic_write_bytes
 from rrt_pin.sweeps.spec import TEXT_COLUMNS
-from rrt_pin.text import argument
 
 __all__ = ["check_metric", "plot_metric"]
 
@@ -66,8 +66,8 @@ def plot_metric(out: str | Path, metric: str, path: str | Path | None = None) ->
     Raises:
         InputError: no such metric column, or nothing varied.
     """
-    from rrt_pin.plot import _pyplot
     from rrt_pin.sweeps.store import Store
+    from rrt_pin.viewer.plot import _pyplot
 
     store = Store(out)
     manifest = store.read_manifest()

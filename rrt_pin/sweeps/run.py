@@ -28,13 +28,13 @@ from typing import Any
 
 import numpy as np
 
-from rrt_pin import cpus
-from rrt_pin.errors import ArgumentTypeError, ClusterError, InputError, RrtPinError, SpecError
-from rrt_pin.extras import MissingExtra
-from rrt_pin.metrics import column_units
-from rrt_pin.params import PARAM_DOCS, Params
+from rrt_pin.core import cpus
+from rrt_pin.core.errors import ArgumentTypeError, ClusterError, InputError, RrtPinError, SpecError
+from rrt_pin.core.extras import MissingExtra
+from rrt_pin.core.text import duration
+from rrt_pin.robot.params import PARAM_DOCS, Params
+from rrt_pin.simulate.metrics import column_units
 from rrt_pin.sweeps.spec import Spec, load_spec, spec_from_dict
-from rrt_pin.text import duration
 
 __all__ = ["SweepResult", "sweep"]
 

@@ -51,10 +51,10 @@ from typing import Any
 
 import numpy as np
 
-from rrt_pin import memory
-from rrt_pin._read import check_int64, load_toml
-from rrt_pin.errors import SpecError
-from rrt_pin.metrics import TEXT_COLUMNS, for_task
+from rrt_pin.core import memory
+from rrt_pin.core.errors import SpecError
+from rrt_pin.io._read import check_int64, load_toml
+from rrt_pin.simulate.metrics import TEXT_COLUMNS, for_task
 
 __all__ = [
     "MAX_SPEC_BYTES",
@@ -66,7 +66,7 @@ __all__ = [
     "spec_from_dict",
 ]
 
-#: Metrics by task: name -> what it is (from the registry, :data:`rrt_pin.metrics.METRICS`).
+#: Metrics by task: name -> what it is (from the registry, :data:`rrt_pin.simulate.metrics.METRICS`).
 METRICS: dict[str, dict[str, str]] = {task: for_task(task) for task in ("simulate", "inverse")}
 _SECTIONS = ("sweep", "base", "vary", "keep")
 _SWEEP_KEYS = ("task", "urdf", "tf", "dt", "count", "seed", "chunk", "method", "rtol", "atol")
@@ -538,7 +538,7 @@ def spec_from_dict(data: Mapping[str, Any], where: str = "spec") -> Spec:
 def load_spec(path: str | Path) -> Spec:
     """Read and validate a sweep spec (TOML, UTF-8, at most 1 MB).
 
-    Read as run files are (:func:`rrt_pin._read.load_toml`): a device, a folder or a
+    Read as run files are (:func:`rrt_pin.io._read.load_toml`): a device, a folder or a
     FIFO nobody writes to is refused without blocking, nesting and 64-bit integers
     are guarded.
 

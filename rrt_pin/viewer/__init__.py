@@ -9,6 +9,8 @@ only by :mod:`rrt_pin.viewer.meshcat_scene`, :mod:`rrt_pin.viewer.server` and
 * :mod:`rrt_pin.viewer.meshcat_scene`: the drawing as meshcat's scene commands and one Animation.
 * :mod:`rrt_pin.viewer.server`: meshcat's page served from a thread, 127.0.0.1 by default.
 * :mod:`rrt_pin.viewer.browser`: headless Chromium screenshots.
+
+May import: rrt_pin.core, rrt_pin.io, rrt_pin.robot, rrt_pin.dynamics, rrt_pin.simulate.
 """
 
 import warnings

@@ -5,7 +5,7 @@ from __future__ import annotations
 import warnings
 from typing import Any
 
-from rrt_pin.extras import MissingExtra
+from rrt_pin.core.extras import MissingExtra
 
 
 def import_meshcat() -> Any:

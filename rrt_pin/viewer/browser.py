@@ -45,9 +45,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from rrt_pin.errors import ViewerError
-from rrt_pin.extras import MissingExtra
-from rrt_pin.io import atomic_write_bytes
+from rrt_pin.core.errors import ViewerError
+from rrt_pin.core.extras import MissingExtra
+from rrt_pin.io.files import atomic_write_bytes
 
 __all__ = [
     "BROWSER_NAMES",

@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from rrt_pin.errors import InputError
+from rrt_pin.core.errors import InputError
 from rrt_pin.viewer.keyframes import Keyframes, frame_placements, keyframes
 
 if TYPE_CHECKING:
@@ -318,7 +318,7 @@ def build_drawing(
 
     Args:
         model: the Pinocchio model.
-        geometry_model: its visual geometry (``rrt_pin.model.build_geometry``).
+        geometry_model: its visual geometry (``rrt_pin.robot.model.build_geometry``).
         t: keyframe times [s], shape (N,), ``1/fps`` apart (see
             :func:`rrt_pin.viewer.keyframes.keyframe_times`).
         q: configurations at those times, shape (N, nq).

@@ -14,9 +14,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from rrt_pin import text
-from rrt_pin.errors import InputError
-from rrt_pin.text import argument
+from rrt_pin.core import text
+from rrt_pin.core.errors import InputError
+from rrt_pin.core.text import argument
 
 if TYPE_CHECKING:
     import pinocchio as pin

@@ -30,7 +30,7 @@ import socket
 import threading
 from typing import Any
 
-from rrt_pin.errors import ViewerError
+from rrt_pin.core.errors import ViewerError
 from rrt_pin.viewer._deps import import_meshcat
 
 __all__ = ["DEFAULT_PORT", "PORT_ATTEMPTS", "ViewerServer", "allowed_host", "url_host"]

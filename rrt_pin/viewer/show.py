@@ -23,14 +23,14 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from rrt_pin._quiet import native_message
-from rrt_pin.errors import InputError, UrdfError, ViewerError
-from rrt_pin.robot import CHAPTER_COLUMNS
-from rrt_pin.robots import chapter_arm
-from rrt_pin.text import argument
+from rrt_pin.core._quiet import native_message
+from rrt_pin.core.errors import InputError, UrdfError, ViewerError
+from rrt_pin.core.text import argument
+from rrt_pin.robot.robot import CHAPTER_COLUMNS
+from rrt_pin.robot.robots import chapter_arm
 
 if TYPE_CHECKING:
-    from rrt_pin.robot import Robot
+    from rrt_pin.robot.robot import Robot
     from rrt_pin.viewer.drawing import RobotDrawing
 
 __all__ = ["Prepared", "ViewerURL", "geometry", "prepare", "send_to_meshcat_server", "show"]
@@ -53,7 +53,7 @@ def package_dirs(source: Any) -> list[str]:
 
 def geometry(robot: Robot) -> Any:
     """The visual geometry; for a URDF whose meshes cannot be found, the rest of it (warned)."""
-    from rrt_pin.model import build_geometry
+    from rrt_pin.robot.model import build_geometry
 
     xml = robot.xml()
     if robot.source is None:
@@ -69,7 +69,7 @@ def mesh_problem(error: UrdfError) -> str:
     """One line for the warning of a URDF whose meshes do not load: the mesh file and why.
 
     Pinocchio's exception (the ``__cause__``) names C++ source files, functions
-    and lines; :func:`rrt_pin._quiet.native_message` keeps the mesh and the problem.
+    and lines; :func:`rrt_pin.core._quiet.native_message` keeps the mesh and the problem.
     """
     cause = error.__cause__
     text = str(cause) if cause is not None and str(cause).strip() else str(error)

@@ -3,9 +3,9 @@
 
 Sections:
 
-1. references: every problem of ``rrt_pin.accuracy.PROBLEMS`` at rtol 1e-13, atol 1e-15
+1. references: every problem of ``rrt_pin.simulate.accuracy.PROBLEMS`` at rtol 1e-13, atol 1e-15
    with the compiled DOP853 (the problems it runs) and, independently, scipy's DOP853
-   on ``pin.aba`` (``rrt_pin.reference.reference_run``); a second method checks
+   on ``pin.aba`` (``rrt_pin.simulate.reference.reference_run``); a second method checks
    them: Radau (implicit Runge–Kutta) on the chapter's run, odepack (LSODA, multistep)
    at rtol 1e-13 on the others. The table gives their disagreement.
 2. catalogue: per problem and backend, the default's error max |q − q_ref|, its
@@ -26,8 +26,8 @@ import statistics
 import time
 import warnings
 
-from rrt_pin.accuracy import ACCURACY, PROBLEMS, max_error, reference
 from rrt_pin.simulate import AccuracyWarning
+from rrt_pin.simulate.accuracy import ACCURACY, PROBLEMS, max_error, reference
 
 #: Candidate settings of the work-precision section: (backend, method, rtol); atol = rtol/100.
 CANDIDATES = (
@@ -55,7 +55,7 @@ def _time(f, repeat: int) -> float:
 
 def references(names: list[str]) -> dict:
     """Section 1: references and their cross-checks."""
-    from rrt_pin.reference import reference_run
+    from rrt_pin.simulate.reference import reference_run
 
     refs, rows = {}, []
     for name in names:

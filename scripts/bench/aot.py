@@ -66,10 +66,11 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=9)
     args = parser.parse_args()
-    from rrt_pin import compiled, kernel
-    from rrt_pin.params import Params
-    from rrt_pin.robots import chapter_arm
-    from rrt_pin.trajectory import rest_to_rest
+    from rrt_pin import compiled
+    from rrt_pin.dynamics import kernel
+    from rrt_pin.dynamics.trajectory import rest_to_rest
+    from rrt_pin.robot.params import Params
+    from rrt_pin.robot.robots import chapter_arm
 
     compiled.ensure_compiled()  # the JIT cache exists before timing its loads
     with tempfile.TemporaryDirectory() as d:

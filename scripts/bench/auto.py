@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """The costs ``--backend auto`` compares, measured here next to the registry's values.
 
-For each backend of :data:`rrt_pin.backends.BACKENDS` with costs: its start-up per
+For each backend of :data:`rrt_pin.core.backends.BACKENDS` with costs: its start-up per
 process [s] (numba's import and the cache load, in a fresh interpreter, minus the
 same interpreter without it), inverse dynamics of the chapter's arm [ns/sample],
 and the chapter's direct run with the backend's default method [ms per simulated
@@ -20,13 +20,14 @@ import time
 
 import numpy as np
 
-from rrt_pin import backends, compiled
-from rrt_pin.control import chapter_controller
-from rrt_pin.inverse import inverse_dynamics
-from rrt_pin.model import build_model
-from rrt_pin.params import Params
+from rrt_pin import compiled
+from rrt_pin.core import backends
+from rrt_pin.dynamics.inverse import inverse_dynamics
+from rrt_pin.dynamics.trajectory import rest_to_rest
+from rrt_pin.robot.params import Params
+from rrt_pin.robot.robots import chapter_arm
 from rrt_pin.simulate import simulate
-from rrt_pin.trajectory import rest_to_rest
+from rrt_pin.simulate.control import chapter_controller
 
 NAMES = ("pinocchio", "compiled")
 
@@ -43,7 +44,8 @@ def main() -> None:
     repeat = parser.parse_args().repeat
     compiled.ensure_compiled()
     p = Params()
-    model = build_model(p)
+    arm = chapter_arm(p)
+    arm.model  # noqa: B018  (its Pinocchio model built before any timing)
     law = chapter_controller(p)
     q0 = (p.q10, p.q20, p.q30)
     motion = rest_to_rest(q0, (p.q1f, p.q2f, p.q3f), p.Tp, np.linspace(0.0, p.Tp, 150_001))
@@ -57,13 +59,13 @@ def main() -> None:
         times.setdefault(("pinocchio", "startup"), []).append(0.0)
         for name in NAMES:
             start = time.perf_counter()
-            inverse_dynamics(model, motion.q, motion.qd, motion.qdd, backend=name, params=p)
+            inverse_dynamics(arm, motion.q, motion.qd, motion.qdd, backend=name)
             times.setdefault((name, "inverse"), []).append(
                 (time.perf_counter() - start) / motion.t.size
             )
             method = backends.get(name).default_method
             start = time.perf_counter()
-            simulate(model, law, q0, None, out, backend=name, method=method, params=p)
+            simulate(arm, law, q0, None, out, backend=name, method=method)
             times.setdefault((name, "simulate"), []).append((time.perf_counter() - start) / tf)
     print(f"{'backend':<10} {'cost':<28} {'measured':>10} {'registry':>10} {'ratio':>6}")
     fields = {

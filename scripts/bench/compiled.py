@@ -8,7 +8,7 @@ back to back, see :func:`interleaved`):
 2. direct: the chapter's run (0..15 s, 1,501 outputs) — baseline ``solve_ivp(DOP853,
    rtol=1e-10, atol=1e-12)`` on a Python right-hand side calling ``pin.aba`` — against
    ``simulate(..., backend="compiled")``; error = max |q − reference| with the
-   reference of ``rrt_pin.reference.chapter_reference`` (DOP853 at rtol 1e-13,
+   reference of ``rrt_pin.simulate.reference.chapter_reference`` (DOP853 at rtol 1e-13,
    cross-checked with Radau). Targets: error <= 1e-8, <= 0.5 ms, >= 40x;
 3. inverse: the chapter's 15,001 samples — a Python loop over ``pin.rnea`` against
    ``rrt_pin.compiled.inverse_dynamics``. Targets: <= 1 ms, >= 50x, same values to 1e-12;
@@ -53,6 +53,7 @@ from pathlib import Path
 
 import numpy as np
 
+from rrt_pin.robot.robots import chapter_arm
 from scripts.bench.common import interleaved, verdict
 
 TARGET_ERROR = 1e-8  # [rad, m]
@@ -91,11 +92,12 @@ def direct_rows(model, controller, p, t: np.ndarray) -> list[tuple[str, Run]]:
     from rrt_pin.simulate import simulate
 
     print(f"compiled: {compile_line()}")
+    arm = chapter_arm(p)
 
     def sim(method: str, **kw) -> Run:
         def run():
             r = simulate(
-                model, controller, p.q0, p.qd0, t, method=method, backend="compiled", params=p,
+                arm, controller, p.q0, p.qd0, t, method=method, backend="compiled",
                 **kw,
             )  # fmt: skip
             return r.q, r.n_evals
@@ -174,10 +176,10 @@ def baseline_direct(
 
 def section_direct(repeat: int) -> dict[str, bool]:
     from rrt_pin import compiled
-    from rrt_pin.control import chapter_controller
-    from rrt_pin.model import rrt_model
-    from rrt_pin.params import Params
-    from rrt_pin.reference import chapter_reference
+    from rrt_pin.robot.model import rrt_model
+    from rrt_pin.robot.params import Params
+    from rrt_pin.simulate.control import chapter_controller
+    from rrt_pin.simulate.reference import chapter_reference
 
     p = Params()
     model, ctrl = rrt_model(p), chapter_controller(p)
@@ -193,7 +195,8 @@ def section_direct(repeat: int) -> dict[str, bool]:
     )}  # fmt: skip
     rows.update(direct_rows(model, ctrl, p, t))
     lean = "compiled DOP853, estimate_error=False"
-    rows[lean] = lambda: _lean(model, ctrl, p, t)
+    arm = chapter_arm(p)
+    rows[lean] = lambda: _lean(arm, ctrl, p, t)
     rows["compiled.simulate_compiled (no simulate())"] = lambda: _raw(compiled, p, ctrl, t)
     t15 = np.linspace(0.0, 15.0, 15001)
     rows["compiled DOP853, 15,001 outputs"] = lambda: _raw(compiled, p, ctrl, t15)
@@ -224,10 +227,10 @@ def section_direct(repeat: int) -> dict[str, bool]:
     }
 
 
-def _lean(model, ctrl, p, t):
+def _lean(arm, ctrl, p, t):
     from rrt_pin.simulate import simulate
 
-    r = simulate(model, ctrl, p.q0, p.qd0, t, backend="compiled", params=p, estimate_error=False)
+    r = simulate(arm, ctrl, p.q0, p.qd0, t, backend="compiled", estimate_error=False)
     return r.q, r.n_evals
 
 
@@ -240,10 +243,10 @@ def section_inverse(repeat: int) -> dict[str, bool]:
     import pinocchio as pin
 
     from rrt_pin import compiled
-    from rrt_pin.grid import time_grid
-    from rrt_pin.model import rrt_model
-    from rrt_pin.params import Params
-    from rrt_pin.trajectory import rest_to_rest
+    from rrt_pin.core.grid import time_grid
+    from rrt_pin.dynamics.trajectory import rest_to_rest
+    from rrt_pin.robot.model import rrt_model
+    from rrt_pin.robot.params import Params
 
     p = Params()
     model = rrt_model(p)
@@ -268,8 +271,8 @@ def section_inverse(repeat: int) -> dict[str, bool]:
 
 def seed_variants(count: int, seed: int = 7):
     """``count`` chapter variants: gains x0.8..1.25, q0 +-0.1, masses x0.8..1.25 (own Params each)."""
-    from rrt_pin.control import ChapterController
-    from rrt_pin.params import Params
+    from rrt_pin.robot.params import Params
+    from rrt_pin.simulate.control import ChapterController
 
     rng = np.random.default_rng(seed)
     base = Params()
@@ -329,9 +332,9 @@ def vector_reference_funcs(seconds: float = 0.02) -> dict[int, Callable[[], obje
 
 def section_batch(count: int, repeat: int, lean_rtol: float, lean_atol: float) -> dict[str, bool]:
     from rrt_pin import compiled
-    from rrt_pin.metrics import GROUPS, batch_metrics
-    from rrt_pin.model import rrt_model
-    from rrt_pin.reference import reference_run
+    from rrt_pin.robot.model import rrt_model
+    from rrt_pin.simulate.metrics import GROUPS, batch_metrics
+    from rrt_pin.simulate.reference import reference_run
 
     plants, controllers, q0s, qd0s = seed_variants(count)
     t = np.linspace(0.0, 15.0, 1501)
@@ -357,7 +360,7 @@ def section_batch(count: int, repeat: int, lean_rtol: float, lean_atol: float) -
     vector_label = "pure vector arithmetic (the machine's reference)"
     for threads, f in vector_reference_funcs().items():
         funcs[(vector_label, threads)] = f
-    from rrt_pin import cpus
+    from rrt_pin.core import cpus
 
     busy_before, load_before = cpus.busy(), os.getloadavg()[0]
     cpu_start, wall_start = time.process_time(), time.perf_counter()
@@ -460,7 +463,8 @@ def section_batch(count: int, repeat: int, lean_rtol: float, lean_atol: float) -
 
 def section_busy(count: int, repeat: int, lean_rtol: float, lean_atol: float) -> dict[str, bool]:
     """Default threads against one thread while a CPU-bound process holds one core."""
-    from rrt_pin import compiled, cpus
+    from rrt_pin import compiled
+    from rrt_pin.core import cpus
 
     plants, controllers, q0s, qd0s = seed_variants(count)
     t = np.linspace(0.0, 15.0, 1501)
@@ -505,10 +509,10 @@ def section_physics() -> dict[str, bool]:
     import pinocchio as pin
 
     from rrt_pin import compiled
-    from rrt_pin.control import chapter_controller
-    from rrt_pin.model import rrt_model
-    from rrt_pin.params import Params
+    from rrt_pin.robot.model import rrt_model
+    from rrt_pin.robot.params import Params
     from rrt_pin.simulate import simulate
+    from rrt_pin.simulate.control import chapter_controller
 
     p = Params(I1z=0.3, I2z=0.2)  # every term of the kernel non-zero
     model = rrt_model(p)
@@ -547,13 +551,11 @@ def section_physics() -> dict[str, bool]:
         worst.values()
     ) <= TARGET_AGREEMENT}  # fmt: skip
     seed = Params()
-    ctrl, smodel = chapter_controller(seed), rrt_model(seed)
+    ctrl, arm = chapter_controller(seed), chapter_arm(seed)
     t = np.linspace(0.0, 15.0, 1501)
     for method, tol in (("DOP853", 1e-10), ("RK45", 1e-10), ("rk4", 1e-12), ("verlet", 1e-12)):
-        a = simulate(smodel, ctrl, seed.q0, seed.qd0, t, method=method)
-        b = simulate(
-            smodel, ctrl, seed.q0, seed.qd0, t, method=method, backend="compiled", params=seed
-        )
+        a = simulate(arm, ctrl, seed.q0, seed.qd0, t, method=method)
+        b = simulate(arm, ctrl, seed.q0, seed.qd0, t, method=method, backend="compiled")
         diff = np.abs(a.q - b.q).max()
         print(
             f"   {method:<7} compiled vs pinocchio backend: max |dq| {diff:.1e}, evaluations "

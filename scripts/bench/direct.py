@@ -4,7 +4,7 @@
 Baseline: ``scipy.integrate.solve_ivp(method="DOP853", rtol=1e-10, atol=1e-12)``
 on a Python right-hand side calling ``pin.aba`` with eq. (31)'s efforts.
 Accuracy: max |q error| over 0..15 s at the 1,501-point grid against the
-reference of ``rrt_pin.reference.chapter_reference()`` (DOP853 and Radau at rtol
+reference of ``rrt_pin.simulate.reference.chapter_reference()`` (DOP853 and Radau at rtol
 1e-13; their difference is printed).
 
 Part 1 times single runs (medians of --repeat runs, both sides in this run);
@@ -32,13 +32,14 @@ import numpy as np
 import pinocchio as pin
 from scipy.integrate import solve_ivp
 
-from rrt_pin.control import ChapterController, chapter_controller
-from rrt_pin.inverse import default_num_threads
-from rrt_pin.methods import METHODS
-from rrt_pin.model import rrt_model
-from rrt_pin.params import Params
-from rrt_pin.reference import chapter_reference, reference_run
+from rrt_pin.dynamics.inverse import default_num_threads
+from rrt_pin.robot.model import rrt_model
+from rrt_pin.robot.params import Params
+from rrt_pin.robot.robots import chapter_arm
 from rrt_pin.simulate import simulate, simulate_batch
+from rrt_pin.simulate.control import ChapterController, chapter_controller
+from rrt_pin.simulate.methods import METHODS
+from rrt_pin.simulate.reference import chapter_reference, reference_run
 from scripts.bench.compiled import batch_rows, direct_rows
 
 TARGET_ERROR = 1e-8  # max |q error| the defaults must reach [rad, m]
@@ -76,28 +77,30 @@ def baseline(model: pin.Model, controller, q0, qd0, t: np.ndarray) -> tuple[np.n
 
 def single_rows(model, controller, p: Params, t: np.ndarray, all_methods: bool) -> list[Row]:
     """The baseline, rrt_pin's defaults and (with --all) every method at its defaults."""
+    arm = chapter_arm(p)  # built once: the runs time simulate, not the Robot's construction
+    arm.model  # noqa: B018  (its Pinocchio model built before any timing)
     rows = [
         Row("baseline solve_ivp DOP853 1e-10", lambda: baseline(model, controller, p.q0, p.qd0, t)),
-        Row("rrt_pin simulate() defaults", lambda: _sim(model, controller, p, t)),
+        Row("rrt_pin simulate() defaults", lambda: _sim(arm, controller, p, t)),
     ]
     if all_methods:
         for method in METHODS[1:]:
             rows.append(
-                Row(f"  simulate {method}", lambda m=method: _sim(model, controller, p, t, m))
+                Row(f"  simulate {method}", lambda m=method: _sim(arm, controller, p, t, m))
             )
         for method in ("Radau", "BDF"):
             rows.append(
                 Row(
                     f"  simulate {method} finite-diff jac",
-                    lambda m=method: _sim(model, controller, p, t, m, "finite-difference"),
+                    lambda m=method: _sim(arm, controller, p, t, m, "finite-difference"),
                 )
             )
     return rows
 
 
-def _sim(model, controller, p, t, method=None, jacobian="analytic"):
+def _sim(arm, controller, p, t, method=None, jacobian="analytic"):
     kwargs = {"method": method} if method else {}
-    r = simulate(model, controller, p.q0, p.qd0, t, jacobian=jacobian, **kwargs)
+    r = simulate(arm, controller, p.q0, p.qd0, t, jacobian=jacobian, **kwargs)
     return r.q, r.n_evals
 
 
@@ -175,6 +178,7 @@ def main() -> int:
 
     p = Params()
     model = rrt_model(p)
+    arm = chapter_arm(p)
     controller = chapter_controller(p)
     start = time.perf_counter()
     ref = chapter_reference()
@@ -223,17 +227,17 @@ def main() -> int:
     batch_rows = [
         Row(
             "simulate_batch() defaults, states only",
-            lambda: _batch(model, controllers, q0s, qd0s, t, args.threads, False),
+            lambda: _batch(arm, controllers, q0s, qd0s, t, args.threads, False),
         ),
         Row(
             "simulate_batch() defaults + efforts",
-            lambda: _batch(model, controllers, q0s, qd0s, t, args.threads, True),
+            lambda: _batch(arm, controllers, q0s, qd0s, t, args.threads, True),
         ),
     ]
     batch_rows.append(
         Row(
             "simulate_batch() states, threads=1",
-            lambda: _batch(model, controllers, q0s, qd0s, t, 1, False),
+            lambda: _batch(arm, controllers, q0s, qd0s, t, 1, False),
         )
     )
     batch_rows += compiled_batch_rows(model, controllers, q0s, qd0s, t)
@@ -272,8 +276,8 @@ def main() -> int:
     return 0
 
 
-def _batch(model, controllers, q0s, qd0s, t, threads, efforts):
-    r = simulate_batch(model, controllers, q0s, qd0s, t, threads=threads, efforts=efforts)
+def _batch(arm, controllers, q0s, qd0s, t, threads, efforts):
+    r = simulate_batch(arm, controllers, q0s, qd0s, t, threads=threads, efforts=efforts)
     return r.q, r.n_evals
 
 

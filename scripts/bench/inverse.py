@@ -7,7 +7,7 @@ sides alike), the medians of --repeat runs of:
 * loop         a Python loop calling ``pin.rnea`` once per sample (the baseline);
 * batched      ``rrt_pin.inverse_dynamics`` (``pin.rneaInParallel``, default threads);
 * batched-1t   the same on one thread;
-* symbolic     the generated numpy kernel ``rrt_pin.kernel`` (if present);
+* symbolic     the generated numpy kernel ``rrt_pin.dynamics.kernel`` (if present);
 * compiled     the numba kernel ``rrt_pin.compiled`` (if available; its first,
                compiling call is reported apart).
 
@@ -36,11 +36,12 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from rrt_pin.grid import time_grid
-from rrt_pin.inverse import default_num_threads, inverse_dynamics
-from rrt_pin.model import rrt_model
-from rrt_pin.params import Params
-from rrt_pin.trajectory import rest_to_rest
+from rrt_pin.core.grid import time_grid
+from rrt_pin.dynamics.inverse import default_num_threads, inverse_dynamics
+from rrt_pin.dynamics.trajectory import rest_to_rest
+from rrt_pin.robot.model import rrt_model
+from rrt_pin.robot.params import Params
+from rrt_pin.robot.robots import chapter_arm
 from scripts.bench.compiled import inverse_verdict
 
 TARGET_SPEEDUP = 5.0
@@ -64,17 +65,17 @@ def rel_diff(a: np.ndarray, ref: np.ndarray) -> float:
 
 def sides(params: Params, model: pin.Model, traj) -> dict[str, Callable[[], np.ndarray]]:
     q, qd, qdd = traj.q, traj.qd, traj.qdd
+    arm = chapter_arm(params)
+    arm.model  # noqa: B018  (its Pinocchio model built before any timing)
     out: dict[str, Callable[[], np.ndarray]] = {
         "loop": lambda: rnea_loop(model, q, qd, qdd),
-        f"batched ({default_num_threads()}t)": lambda: inverse_dynamics(model, q, qd, qdd),
-        "batched-1t": lambda: inverse_dynamics(model, q, qd, qdd, num_threads=1),
+        f"batched ({default_num_threads()}t)": lambda: inverse_dynamics(arm, q, qd, qdd),
+        "batched-1t": lambda: inverse_dynamics(arm, q, qd, qdd, num_threads=1),
     }
     try:
-        import rrt_pin.kernel  # noqa: F401
+        import rrt_pin.dynamics.kernel  # noqa: F401
 
-        out["symbolic"] = lambda: inverse_dynamics(
-            None, q, qd, qdd, backend="symbolic", params=params
-        )
+        out["symbolic"] = lambda: inverse_dynamics(arm, q, qd, qdd, backend="symbolic")
     except ImportError as e:
         print(f"symbolic kernel: not present ({e})")
     try:
@@ -85,13 +86,11 @@ def sides(params: Params, model: pin.Model, traj) -> dict[str, Callable[[], np.n
         ):
             raise ImportError("rrt_pin.compiled.inverse_dynamics unavailable")
         start = time.perf_counter()
-        inverse_dynamics(None, q, qd, qdd, backend="compiled", params=params)
+        inverse_dynamics(arm, q, qd, qdd, backend="compiled")
         print(
             f"compiled kernel: first call (JIT compile or cache load) {time.perf_counter() - start:.3f} s"
         )
-        out["compiled"] = lambda: inverse_dynamics(
-            None, q, qd, qdd, backend="compiled", params=params
-        )
+        out["compiled"] = lambda: inverse_dynamics(arm, q, qd, qdd, backend="compiled")
     except ImportError as e:
         print(f"compiled kernel: not available ({e})")
     return out

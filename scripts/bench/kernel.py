@@ -21,7 +21,7 @@ kernel: its floating-point operations a sample (the generator's count of
 of the machine's fused-multiply-add limit, measured here by a numba loop of
 independent FMAs over an L1-resident array (2 flops an FMA, one core). Last,
 each backend's worst relative error against the 30-digit reference
-(``rrt_pin.bench.mpmath_inverse_reference``) at every --stride-th sample.
+(``rrt_pin.cli.bench_measure.mpmath_inverse_reference``) at every --stride-th sample.
 
     .venv/bin/python -m scripts.bench.kernel [--repeat 15] [--big 1000000] [--stride 50] [--check]
 
@@ -38,6 +38,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from rrt_pin.robot.robots import chapter_arm
 from scripts.bench.common import interleaved
 
 TARGET_NS = 12.0
@@ -63,22 +64,25 @@ def main() -> int:
     ap.add_argument("--check", action="store_true", help="exit 1 when a target is missed")
     args = ap.parse_args()
 
-    from rrt_pin import compiled, kernel
-    from rrt_pin.bench import mpmath_inverse_reference
+    from rrt_pin import compiled
+    from rrt_pin.cli.bench_measure import mpmath_inverse_reference
     from rrt_pin.compiled import _jit_dynamics as jd
     from rrt_pin.compiled.dynamics import param_array
-    from rrt_pin.grid import time_grid
-    from rrt_pin.inverse import default_num_threads, inverse_dynamics
-    from rrt_pin.model import rrt_model
-    from rrt_pin.params import Params
-    from rrt_pin.trajectory import rest_to_rest
+    from rrt_pin.core.grid import time_grid
+    from rrt_pin.dynamics import kernel
+    from rrt_pin.dynamics.inverse import default_num_threads, inverse_dynamics
+    from rrt_pin.dynamics.trajectory import rest_to_rest
+    from rrt_pin.robot.model import rrt_model
+    from rrt_pin.robot.params import Params
 
     compiled.ensure_compiled()
     p = Params()
     model = rrt_model(p)
+    arm = chapter_arm(p)
+    arm.model  # noqa: B018  (its Pinocchio model built before any timing)
     traj = rest_to_rest(p.q0, p.qf, p.Tp, time_grid(p.Tp, 1e-3))
     pa = param_array(p)
-    from rrt_pin.flops import kernel_flops
+    from rrt_pin.cli.flops import kernel_flops
 
     counts = kernel_flops()  # the closed loop: forward_terms, vsincos, eq. (31), solve
     forward_flops = counts["compiled closed loop (per state)"]
@@ -89,13 +93,13 @@ def main() -> int:
         "forward kernel": forward_flops,
     }
     from rrt_pin.compiled.integrate import _controller_arrays
-    from rrt_pin.control import chapter_controller
+    from rrt_pin.simulate.control import chapter_controller
 
     kind, cvec = _controller_arrays(chapter_controller(p), p, pa)
-    from rrt_pin.flops import closed_loop_kernel
+    from rrt_pin.cli.flops import closed_loop_kernel
 
     forward = closed_loop_kernel()
-    from rrt_pin.flops import fma_rate
+    from rrt_pin.cli.flops import fma_rate
 
     rate = fma_rate()
     peak = 2.0 * rate  # flops/s, every operation an FMA
@@ -125,12 +129,12 @@ def main() -> int:
             "rnea loop": lambda q=q, qd=qd, qdd=qdd, small=small: rnea_loop(
                 model, q[:small], qd[:small], qdd[:small]
             ),
-            "rnea batched": lambda q=q, qd=qd, qdd=qdd: inverse_dynamics(model, q, qd, qdd),
+            "rnea batched": lambda q=q, qd=qd, qdd=qdd: inverse_dynamics(arm, q, qd, qdd),
             "symbolic": lambda q=q, qd=qd, qdd=qdd: inverse_dynamics(
-                None, q, qd, qdd, backend="symbolic", params=p
+                arm, q, qd, qdd, backend="symbolic"
             ),
             "compiled": lambda q=q, qd=qd, qdd=qdd: inverse_dynamics(
-                None, q, qd, qdd, backend="compiled", params=p
+                arm, q, qd, qdd, backend="compiled"
             ),
             "compiled kernel": lambda q=q, qd=qd, qdd=qdd, out=out: jd.inverse_batch(
                 q, qd, qdd, pa, out
@@ -165,9 +169,9 @@ def main() -> int:
     print(f"\nagreement with the 30-digit reference at {len(q)} samples of the chapter's run")
     print(f"{'side':<16} {'T01x':>9} {'T12y':>9} {'F23z':>9}  (max |τ − ref| / max |ref|)")
     results = {
-        "pinocchio": inverse_dynamics(model, q, qd, qdd),
-        "symbolic": inverse_dynamics(None, q, qd, qdd, backend="symbolic", params=p),
-        "compiled": inverse_dynamics(None, q, qd, qdd, backend="compiled", params=p),
+        "pinocchio": inverse_dynamics(arm, q, qd, qdd),
+        "symbolic": inverse_dynamics(arm, q, qd, qdd, backend="symbolic"),
+        "compiled": inverse_dynamics(arm, q, qd, qdd, backend="compiled"),
     }
     for k, tau in results.items():
         rel = np.abs(tau - ref).max(axis=0) / np.abs(ref).max(axis=0)

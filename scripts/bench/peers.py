@@ -11,13 +11,13 @@ this run only.
    (per joint, against the joint's largest effort) from rrt-pin's Pinocchio efforts.
 2. direct dynamics, the chapter's run (eq. 31, 0..15 s, 1,501 outputs): every side at
    its cheapest setting that reaches max |q − q_ref| <= 1e-8 against
-   ``rrt_pin.reference.chapter_reference`` ("matched accuracy": tolerances tightened
+   ``rrt_pin.simulate.reference.chapter_reference`` ("matched accuracy": tolerances tightened
    tenfold, fixed steps halved, until the run reaches it; that search is not timed).
 3. batch: --batch chapter variants (gains, q0, masses) per second on one core:
    ``simulate_batch(..., backend="compiled")`` against ``mujoco.rollout`` with one thread.
 
 MuJoCo refuses the rods' zero axial moments (I1z = I2z = 0): its model is the URDF of
-``rrt_pin.urdf.urdf_xml(min_inertia=1e-6)``, a slightly different arm (the difference is
+``rrt_pin.robot.urdf.urdf_xml(min_inertia=1e-6)``, a slightly different arm (the difference is
 printed, and the same model with the moments set back to 0 after compilation shows that
 it is the whole difference). Drake takes the chapter's URDF as it is.
 
@@ -51,7 +51,7 @@ Run = Callable[[], tuple[np.ndarray, int]]
 
 def require_peers() -> None:
     """Exit 2 with one line naming the extra when a peer (or numba) is not installed."""
-    from rrt_pin.extras import install_hint
+    from rrt_pin.core.extras import install_hint
 
     wanted = (
         ("mujoco", "mujoco", "bench"),
@@ -134,7 +134,7 @@ def mujoco_model(
     """
     import mujoco
 
-    from rrt_pin.urdf import JOINT_NAMES, urdf_xml
+    from rrt_pin.robot.urdf import JOINT_NAMES, urdf_xml
 
     spec = mujoco.MjSpec.from_string(urdf_xml(p, min_inertia=MIN_INERTIA))
     if law == "model":
@@ -249,7 +249,7 @@ def drake_plant(p, builder=None):
     from pydrake.multibody.parsing import Parser
     from pydrake.multibody.plant import MultibodyPlant
 
-    from rrt_pin.urdf import urdf_xml
+    from rrt_pin.robot.urdf import urdf_xml
 
     plant = MultibodyPlant(0.0)  # continuous: the Simulator's integrator runs it
     if builder is not None:
@@ -338,9 +338,9 @@ def section_inverse(repeat: int) -> tuple[list[Row], list[str]]:
     import pinocchio as pin
     from pydrake.multibody.tree import MultibodyForces
 
-    from rrt_pin.inverse import inverse_dynamics
-    from rrt_pin.robots import chapter_arm
-    from rrt_pin.trajectory import rest_to_rest
+    from rrt_pin.dynamics.inverse import inverse_dynamics
+    from rrt_pin.dynamics.trajectory import rest_to_rest
+    from rrt_pin.robot.robots import chapter_arm
 
     robot = chapter_arm()
     p, d = robot.params, robot.defaults
@@ -577,9 +577,9 @@ def direct_sides(p, robot, law, t, quick: bool) -> list[Side]:
 def section_direct(repeat: int, quick: bool) -> tuple[list[Row], list[str], dict]:
 
     from rrt_pin import compiled
-    from rrt_pin.control import chapter_controller
-    from rrt_pin.reference import chapter_reference
-    from rrt_pin.robots import chapter_arm
+    from rrt_pin.robot.robots import chapter_arm
+    from rrt_pin.simulate.control import chapter_controller
+    from rrt_pin.simulate.reference import chapter_reference
 
     compiled.ensure_compiled()
     robot = chapter_arm()
@@ -654,10 +654,10 @@ def section_direct(repeat: int, quick: bool) -> tuple[list[Row], list[str], dict
 # --------------------------------------------------------------------------------------------
 def section_batch(count: int, repeat: int, chosen: dict, scipy_seconds: float):
 
-    from rrt_pin.model import rrt_model
-    from rrt_pin.reference import reference_run
-    from rrt_pin.robots import chapter_arm
+    from rrt_pin.robot.model import rrt_model
+    from rrt_pin.robot.robots import chapter_arm
     from rrt_pin.simulate import simulate_batch
+    from rrt_pin.simulate.reference import reference_run
 
     robot = chapter_arm()
     plants, controllers, q0s, qd0s = seed_variants(count)

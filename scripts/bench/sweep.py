@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 import psutil
 
-from rrt_pin.params import Params
+from rrt_pin.robot.params import Params
 from rrt_pin.sweeps.compute import run_chunk
 from rrt_pin.sweeps.run import sweep
 from rrt_pin.sweeps.spec import spec_from_dict
@@ -100,9 +100,9 @@ def per_core_rate(n: int = 16384, chunk: int = 4096) -> float:
 def compiled_batch_rate(n: int = 4096) -> float:
     """The in-process compiled batch (``simulate_batch(backend="compiled")``) on the same
     variants, dense outputs at the 1,501 times, best of 3 [variants/s]."""
-    from rrt_pin.control import chapter_controller
-    from rrt_pin.grid import time_grid
+    from rrt_pin.core.grid import time_grid
     from rrt_pin.simulate import simulate_batch
+    from rrt_pin.simulate.control import chapter_controller
 
     spec = spec_from_dict(bench_spec(n))
     values = spec.values(0, n)
@@ -110,7 +110,7 @@ def compiled_batch_rate(n: int = 4096) -> float:
     laws = [chapter_controller(p) for p in plants]
     q0s = np.array([p.q0 for p in plants])
     t = time_grid(15.0, 0.01)
-    from rrt_pin.robots import chapter_arm
+    from rrt_pin.robot.robots import chapter_arm
 
     arm = chapter_arm(plants[0])
     simulate_batch(arm, laws[:8], q0s[:8], None, t, backend="compiled", params=plants[:8])
@@ -165,10 +165,10 @@ def processes_sweep(n: int, workers: int, folder: Path) -> float:
 def accuracy(out: Path, spec: dict) -> float:
     import pyarrow.parquet as pq
 
-    from rrt_pin.control import regulator
-    from rrt_pin.grid import time_grid
-    from rrt_pin.robots import chapter_arm
+    from rrt_pin.core.grid import time_grid
+    from rrt_pin.robot.robots import chapter_arm
     from rrt_pin.simulate import simulate
+    from rrt_pin.simulate.control import regulator
 
     table = pq.read_table(out / "chunks" / "chunk-000000.parquet")
     names = list(spec["vary"])

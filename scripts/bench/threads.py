@@ -38,9 +38,9 @@ import time
 import numpy as np
 import pinocchio as pin
 
-from rrt_pin.inverse import inverse_dynamics
-from rrt_pin.robots import chapter_arm, get
-from rrt_pin.trajectory import rest_to_rest
+from rrt_pin.dynamics.inverse import inverse_dynamics
+from rrt_pin.dynamics.trajectory import rest_to_rest
+from rrt_pin.robot.robots import chapter_arm, get
 
 BURNER = "import time\nend = time.time() + 600\nwhile time.time() < end: pass\n"
 
@@ -119,8 +119,8 @@ def _sizes(sizes: list[int], repeat: int) -> None:
 
 def _batch_sides(variants: int) -> dict:
     """``simulate_batch`` (Pinocchio backend) of ``variants`` chapter variants: 1 thread, default."""
-    from rrt_pin.control import ChapterController, chapter_controller
     from rrt_pin.simulate import simulate_batch
+    from rrt_pin.simulate.control import ChapterController, chapter_controller
 
     arm = chapter_arm()
     law = chapter_controller(arm.params)

@@ -1,0 +1,432 @@
+"""``rrt-pin simulate``: direct dynamics under the chapter's feedback law, eq. (31).
+
+Builds only what the outputs need: no geometry model, no meshcat or sympy, and
+matplotlib only for ``--plot``. Importing this module stays cheap (no numpy).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import sys
+from typing import IO, TYPE_CHECKING
+
+from rrt_pin.cli.commands import _chapter
+from rrt_pin.cli.commands._common import (
+    add_output_arguments,
+    add_param_arguments,
+    add_robot_arguments,
+    params_from_args,
+    positive_float,
+    positive_seconds,
+    report_run,
+    resolve_backend,
+    robot_from_args,
+    run_metadata,
+    write_run_outputs,
+)
+from rrt_pin.cli.commands._progress import Progress
+from rrt_pin.core import backends
+from rrt_pin.core.errors import InputError
+from rrt_pin.io.files import check_outputs, check_space
+from rrt_pin.simulate import methods
+
+if TYPE_CHECKING:
+    from rrt_pin.robot.robot import Robot
+    from rrt_pin.simulate import ErrorEstimate, SimulationResult
+
+HELP = "direct dynamics under the chapter's feedback law, eq. (31) (SI units)"
+
+#: The most output samples a simulation may have: its states stay in memory
+#: (10⁷ samples of the chapter's arm: 0.8 GB).
+MAX_OUTPUT_SAMPLES = 10**7
+
+
+def _method_lines() -> str:
+    lines = []
+    for m in methods.METHODS.values():
+        on = (
+            ""
+            if m.runs_on("pinocchio") and m.runs_on("compiled")
+            else (" (compiled only)" if not m.runs_on("pinocchio") else " (pinocchio only)")
+        )
+        how = "adaptive: --rtol, --atol" if m.adaptive else "fixed step: --step"
+        lines.append(f"  {m.name:<17} {m.summary}; {how}{on}")
+    return "\n".join(lines)
+
+
+_EPILOG = f"""\
+CSV columns (SI units), one row per sample, both ends of the grid included:
+  t [s], q1 q2 [rad] q3 [m], qd1 qd2 [rad/s] qd3 [m/s], T01x T12y [N·m] F23z [N]
+(the efforts the controller applied at each sample).
+With --urdf the law is PD plus gravity compensation, tau = -kd*qd - kp*(q - qf) + G(q),
+and the columns are t, q_<joint>, qd_<joint>, tau_<joint> (joint names from the URDF;
+rad, rad/s, N·m for revolute joints, m, m/s, N for prismatic ones). Gravity is
+(0, 0, -g) in the URDF's world frame.
+Methods (default: odepack on --backend pinocchio, DOP853 on compiled). Adaptive
+methods default to rtol {methods.DEFAULT_RTOL:g}, atol {methods.DEFAULT_ATOL:g}; odepack to rtol {methods.ODEPACK_RTOL:g}, atol {methods.ODEPACK_ATOL:g}.
+The defaults keep max |q - q_exact| <= {methods.ACCURACY:g} rad or m on every scene of the
+accuracy catalogue (docs/benchmarks.md):
+{_method_lines()}
+A summary always goes to stdout (to stderr when --csv - or --json - sends data
+there): each joint's final distance to qf, its 2 % settling time (after which
+|q - qf| stays within 2 % of |q0 - qf|), and each effort's peak |value| and when;
+--json PATH writes it with the run's metadata. The states stay in memory (at most
+10^7 output samples); the table is written 65,536 rows at a time.
+
+Every run estimates the global error of q(t) from a second run of the same method
+at tolerances ten times tighter (half the step for fixed-step methods; it costs
+about as much as the first run): the summary reports it, and a run whose estimate exceeds
+the accuracy asked for, max({methods.ACCURACY:g}, rtol, atol) [rad or m], says so on stderr.
+--no-error-estimate skips the second run."""
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Options of ``rrt-pin simulate``."""
+    parser.formatter_class = argparse.RawDescriptionHelpFormatter
+    parser.description = f"{HELP}\n\n{_chapter.EQ31}"
+    parser.epilog = _EPILOG
+    parser.add_argument(
+        "--tf", type=positive_float, default=15.0, metavar="S", help="final time [s] (default 15)"
+    )
+    parser.add_argument(
+        "--dt",
+        type=positive_float,
+        default=0.01,
+        metavar="S",
+        help="output interval [s]: one CSV row per dt (default 0.01)",
+    )
+    parser.add_argument(
+        "--step",
+        type=positive_float,
+        default=None,
+        metavar="S",
+        help="integration step of the fixed-step methods [s] (default: --dt); adaptive "
+        "methods choose their own steps from --rtol and --atol",
+    )
+    parser.add_argument(
+        "--method",
+        default=None,
+        metavar="NAME",
+        help=f"integration method: {', '.join(methods.METHODS)} (default odepack; "
+        "--backend compiled: DOP853; see below)",
+    )
+    parser.add_argument(
+        "--rtol",
+        type=positive_float,
+        default=None,
+        metavar="X",
+        help="relative tolerance of the adaptive methods (default "
+        f"{methods.DEFAULT_RTOL:g}; odepack {methods.ODEPACK_RTOL:g}); given alone it sets "
+        "--atol to rtol/100 too (the defaults' ratio), so that it tightens the whole run; "
+        f"below {methods.RTOL_FLOOR:.3g} (100 float64 epsilons) it is refused",
+    )
+    parser.add_argument(
+        "--atol",
+        type=positive_float,
+        default=None,
+        metavar="X",
+        help="absolute tolerance of the adaptive methods [rad, m, rad/s, m/s] "
+        f"(default {methods.DEFAULT_ATOL:g}; odepack {methods.ODEPACK_ATOL:g})",
+    )
+    parser.add_argument(
+        "--no-error-estimate",
+        dest="error_estimate",
+        action="store_false",
+        help="skip the second run that estimates the global error of q(t) [rad or m] "
+        "(typically half of the call's time)",
+    )
+    add_output_arguments(
+        parser,
+        "write a plot of q(t) (targets dashed) and the efforts (matplotlib); the "
+        "format follows the suffix: .png, .svg or .pdf",
+    )
+    parser.add_argument(
+        "--backend",
+        choices=(*backends.names("simulate"), "auto"),
+        default="pinocchio",
+        help="; ".join(
+            f"{b.name}: {b.summary}" for b in backends.BACKENDS.values() if b.runs("simulate")
+        )
+        + " (compiled: built once, loaded per process, both reported on stderr; its run "
+        "times against pinocchio's are in docs/benchmarks.md); auto: compiled only when its "
+        "code is already built, it runs the method asked for (auto never changes the "
+        "method or tolerances) and the job is long enough for it to be at least twice as "
+        "fast, start-up included, else pinocchio; -v says why (default: pinocchio)",
+    )
+    add_robot_arguments(parser, "simulate")
+    add_param_arguments(parser)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Simulate, then write the table, plot and JSON, and print the summary."""
+    from rrt_pin.io.tables import check_format, estimate_bytes
+
+    params = params_from_args(args)
+    fmt = check_format(args.csv, "--csv")
+    outputs = [(args.csv, "--csv"), (args.plot, "--plot"), (args.json, "--json")]
+    check_outputs(outputs)  # before any work: folders exist, no two name the same file
+    from rrt_pin.core.grid import grid_size, time_grid
+
+    # Cheap checks first: loading the compiled backend costs about a second.
+    tf, dt = positive_seconds("--tf", args.tf), positive_seconds("--dt", args.dt)
+    grid = grid_size(tf, dt, what="--tf/--dt")
+    if grid.size > MAX_OUTPUT_SAMPLES:
+        raise InputError(
+            f"--tf/--dt: tf={tf:g} s at dt={dt:g} s makes {grid.size:,} output samples, over "
+            f"the {MAX_OUTPUT_SAMPLES:,} a simulation keeps in memory; use a larger dt"
+        )
+    if args.method is not None:
+        methods.get(args.method)
+    robot = robot_from_args(args, params, "simulate")
+    columns = 1 + 3 * robot.nv
+    check_space(args.csv, estimate_bytes(fmt, grid.size, columns), "--csv")
+    args.backend = resolve_backend(
+        args.backend, robot, "simulate", args.method, work=float(args.tf)
+    )
+    method = args.method or backends.get(args.backend).default_method
+    fixed = not methods.get(method).adaptive
+    if args.step is not None and not fixed:
+        raise InputError(
+            f"--step={args.step!r} sets the step of the fixed-step methods; {method} is "
+            "adaptive (its steps follow --rtol and --atol)"
+        )
+
+    import warnings
+
+    from rrt_pin.simulate import AccuracyWarning, simulate
+    from rrt_pin.simulate.control import regulator
+
+    d = robot.defaults
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", AccuracyWarning)  # said below, in one line
+        result = simulate(
+            robot,
+            regulator(robot),
+            d.q0,
+            d.qd0,
+            time_grid(tf, dt),
+            method=method,
+            rtol=args.rtol,
+            atol=args.atol,
+            backend=args.backend,
+            step=(args.step or args.dt) if fixed else None,
+            estimate_error=getattr(args, "error_estimate", True),
+        )
+    from rrt_pin.core.text import duration
+
+    est = result.estimate
+    logging.getLogger("rrt_pin").info(
+        "simulate: backend %s, method %s (%s), %d evaluations in %s%s",
+        result.backend, result.method,
+        f"rtol {result.rtol:g}, atol {result.atol:g}" if result.rtol else f"step {result.step:g} s",
+        result.n_evals, duration(result.wall_time),
+        f"; error estimate: {est.how}, {duration(est.wall_time)}" if est is not None else "",
+    )  # fmt: skip
+    if result.estimate is not None and result.estimate.exceeded:
+        print(
+            f"rrt-pin simulate: warning: {_accuracy_warning(result, result.estimate)}",
+            file=sys.stderr,
+        )
+    units = {name: robot.units.get(name, "") for name in result.header}
+    facts = summary(robot, result)
+    meta = run_metadata(
+        args, robot, params, command="simulate", backend=result.backend,
+        method=result.method, rtol=result.rtol, atol=result.atol, step=result.step,
+        tf=tf, dt=dt, samples=int(result.t.size), columns=list(result.header), units=units,
+        regulator=robot.regulator,
+        kp=[float(x) for x in d.kp] if d.kp is not None else None,
+        kd=[float(x) for x in d.kd] if d.kd is not None else None,
+        qd0=[float(x) for x in d.qd0] if d.qd0 is not None else None,
+        error_estimate=facts["error_estimate"],
+    )  # fmt: skip
+    progress = Progress(result.t.size, f"writing {args.csv}", force=args.progress)
+
+    def table(fh: IO[bytes]) -> None:
+        write_result(fh, fmt, result, units, meta, progress)
+
+    def summary_json() -> str:
+        doc = {"metadata": meta, "summary": facts}
+        return json.dumps(doc, indent=2, allow_nan=False, ensure_ascii=False) + "\n"
+
+    try:
+        write_run_outputs(
+            args.csv,
+            table,
+            args.plot,
+            lambda: _picture(robot, result, args.plot),
+            args.json,
+            summary_json,
+        )
+    finally:
+        progress.close()
+    report_run(args, f"method {result.method}, backend {result.backend}", summary_text(facts))
+    return 0
+
+
+def _accuracy_warning(result: SimulationResult, est: ErrorEstimate) -> str:
+    k = int(est.q.argmax())
+    how = (
+        f"--rtol {result.rtol:g} --atol {result.atol:g}: tighten them"
+        if result.rtol is not None
+        else f"step {result.step:g} s: shorten --dt"
+    )
+    return (
+        f"estimated global error of q(t) {est.max:.2g} ({result.q_names[k]}) exceeds the "
+        f"accuracy asked for, {est.accuracy:.2g} [rad or m] (method {result.method}, {how})"
+    )
+
+
+def _estimate_facts(robot: Robot, result: SimulationResult) -> dict | None:
+    """The error estimate for the summary and --json (None when not computed)."""
+    est = result.estimate
+    if est is None:
+        return None
+    return {
+        "max": float(est.max),
+        "per_coordinate": [
+            {"name": name, "value": float(e), "unit": unit}
+            for name, e, unit in zip(result.q_names, est.q, robot.coordinate_units, strict=True)
+        ],
+        "accuracy": float(est.accuracy),
+        "exceeded": bool(est.exceeded),
+        "how": est.how,
+        "wall_time": float(est.wall_time),
+    }
+
+
+def _estimate_line(facts: dict) -> str:
+    est = facts.get("error_estimate")
+    if est is None:
+        why = facts.get("error_estimate_failure")
+        return "estimated global error of q(t): not computed" + (f": {why}" if why else "")
+    from rrt_pin.core.text import duration
+
+    per = ", ".join(f"{e['name']} {e['value']:.2g} {e['unit']}" for e in est["per_coordinate"])
+    verdict = "exceeds" if est["exceeded"] else "within"
+    return (
+        f"estimated global error of q(t), max over t: {per} ({verdict} the accuracy asked "
+        f"for, {est['accuracy']:.2g} rad or m; second run: {est['how']}, "
+        f"{duration(est['wall_time'])})"
+    )
+
+
+def write_result(
+    fh: IO[bytes],
+    fmt: str,
+    result: SimulationResult,
+    units: dict[str, str],
+    metadata: dict,
+    progress: Progress | None = None,
+) -> None:
+    """Write a result's table (t, q…, qd…, tau…) to ``fh``, a block of rows at a time."""
+    import numpy as np
+
+    from rrt_pin.io.tables import BLOCK_ROWS, TableWriter
+
+    n = result.t.size
+    with TableWriter(fh, fmt, result.header, units, metadata) as sink:
+        for start in range(0, n, BLOCK_ROWS):
+            stop = min(start + BLOCK_ROWS, n)
+            sink.write(
+                np.column_stack(
+                    (
+                        result.t[start:stop],
+                        result.q[start:stop],
+                        result.qd[start:stop],
+                        result.tau[start:stop],
+                    )
+                )
+            )
+            if progress is not None:
+                progress.update(stop - start)
+
+
+def summary(robot: Robot, result: SimulationResult) -> dict:
+    """The run's summary as data: final distances to qf, settling times, peak efforts.
+
+    A pure function of the result; :func:`summary_text` prints it and ``--json``
+    writes it.
+    """
+    import numpy as np
+
+    from rrt_pin.simulate.metrics import SETTLING_BAND, settling_times
+
+    t, q, tau = result.t, result.q, result.tau
+    qf = robot.defaults.qf
+    settled = settling_times(t, q, robot.defaults.q0, qf)
+    joints = [
+        {
+            "name": name,
+            "unit": robot.coordinate_units[k],
+            "q_tf": float(q[-1, k]),
+            "qf": float(qf[k]),
+            "distance": float(abs(q[-1, k] - qf[k])),
+            "settled_at": None if settled[k] is None else float(settled[k]),
+        }
+        for k, name in enumerate(result.q_names)
+    ]
+    peaks = []
+    for k, name in enumerate(result.tau_names):
+        i = int(np.argmax(np.abs(tau[:, k])))
+        peaks.append(
+            {"name": name, "unit": robot.effort_units[k], "peak": float(abs(tau[i, k])),
+             "t": float(t[i])}
+        )  # fmt: skip
+    return {
+        "command": "simulate",
+        "robot": robot.name,
+        "regulator": robot.regulator,
+        "samples": int(t.size),
+        "t0": float(t[0]),
+        "tf": float(t[-1]),
+        "method": result.method,
+        "backend": result.backend,
+        "rtol": result.rtol,
+        "atol": result.atol,
+        "step": result.step,
+        "evaluations": int(result.n_evals),
+        "wall_time": float(result.wall_time),
+        "error_estimate": _estimate_facts(robot, result),
+        "error_estimate_failure": result.estimate_failure,
+        "settling_band": SETTLING_BAND,
+        "joints": joints,
+        "peaks": peaks,
+    }
+
+
+def summary_text(facts: dict) -> str:
+    """The summary for people: final distance to qf, 2 % settling time, peak efforts."""
+    from rrt_pin.core.text import duration
+
+    tol = (
+        f"rtol {facts['rtol']:g}, atol {facts['atol']:g}"
+        if facts["rtol"]
+        else f"step {facts['step']:g} s"
+    )
+    lines = [
+        f"simulated the {facts['robot']} under {facts['regulator']}: {facts['samples']} samples, "
+        f"t = {facts['t0']:g} .. {facts['tf']:g} s, method {facts['method']} ({tol}), "
+        f"backend {facts['backend']}, {facts['evaluations']} evaluations, "
+        f"{duration(facts['wall_time'])}",
+        _estimate_line(facts),
+        f"{'joint':<24} {'q(tf)':>14} {'qf':>14} {'|q(tf) - qf|':>16}  {'settled (2 %) at t':>18}",
+    ]
+    for j in facts["joints"]:
+        when = f"{j['settled_at']:.6g} s" if j["settled_at"] is not None else "not settled"
+        lines.append(
+            f"{j['name']:<24} {j['q_tf']:>14.10g} {j['qf']:>14.10g} "
+            f"{j['distance']:>12.3e} {j['unit']:<3}  {when:>18}"
+        )
+    lines.append(f"{'effort':<24} {'peak |effort|':>16}  {'at t [s]':>10}")
+    for p in facts["peaks"]:
+        lines.append(f"{p['name']:<24} {p['peak']:>12.6g} {p['unit']:<3}  {p['t']:>10.6g}")
+    return "\n".join(lines) + "\n"
+
+
+def _picture(robot: Robot, result: SimulationResult, path: str) -> bytes:
+    from rrt_pin.viewer.plot import plot_format, simulate_figure
+
+    return simulate_figure(robot, result.t, result.q, result.tau, targets=robot.defaults.qf,
+                           fmt=plot_format(path))  # fmt: skip

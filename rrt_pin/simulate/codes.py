@@ -1,0 +1,89 @@
+"""Integer codes shared by the compiled loop and its Python wrappers (no numba here).
+
+Numba freezes module-level integers into the machine code, so both sides read
+these names from this one module: :mod:`rrt_pin.compiled._jit_dynamics` and
+:mod:`rrt_pin.compiled._jit_integrators` compare against them, and
+:mod:`rrt_pin.compiled.integrate` and :mod:`rrt_pin.simulate.methods` hand them over.
+Changing a value here changes the fingerprint of the machine-code cache
+(:data:`rrt_pin.compiled._cache.JIT_MODULES`).
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "KIND_CHAPTER",
+    "KIND_CHAPTER_FOLDED",
+    "KIND_NONE",
+    "KEEP_FINAL",
+    "KEEP_METRICS",
+    "KEEP_TRAJECTORIES",
+    "KIND_PD_PLANT_GRAVITY",
+    "METHOD_DOP853",
+    "METRIC_ENERGY",
+    "METRIC_EXCURSION",
+    "METRIC_FINAL",
+    "METRIC_PEAK",
+    "METRIC_PEAK_TIME",
+    "METRIC_SETTLE",
+    "METRIC_WIDTH",
+    "METHOD_RK4",
+    "METHOD_RK45",
+    "METHOD_SYMPLECTIC_EULER",
+    "METHOD_VERLET",
+    "NC",
+    "NP",
+    "SINCOS_FLOPS",
+    "STATUS_EFFORT_NONFINITE",
+    "STATUS_MAX_STEPS",
+    "STATUS_NO_CONVERGENCE",
+    "STATUS_NONFINITE",
+    "STATUS_OK",
+    "STATUS_SINGULAR_MASS",
+    "STATUS_STEP_UNDERFLOW",
+]
+
+# Integration methods: adaptive ones below 10, fixed-step ones from 10 on.
+METHOD_RK45 = 0
+METHOD_DOP853 = 1
+METHOD_SYMPLECTIC_EULER = 10
+METHOD_RK4 = 11
+METHOD_VERLET = 12
+#: Codes from this one on are fixed-step methods.
+FIXED_STEP_FROM = 10
+
+# Controller kinds of the compiled closed loop.
+KIND_NONE = 0  # no effort: passive motion
+KIND_CHAPTER = 1  # eq. (31) with its own parameters (another arm than the plant's)
+KIND_PD_PLANT_GRAVITY = 2  # PD plus the plant's own G(q)
+KIND_CHAPTER_FOLDED = 3  # eq. (31) with the plant's g, m2, m3, L2: its gravity is the plant's G(q)
+
+# Status codes of a run.
+STATUS_OK = 0
+STATUS_NONFINITE = 1  # a non-finite state or derivative; coordinate = its index 0..5
+STATUS_STEP_UNDERFLOW = 2  # the step size fell below 10 ulp of t
+STATUS_SINGULAR_MASS = 3  # M(q) not positive definite; coordinate = pivot 0..2
+STATUS_MAX_STEPS = 4  # step budget exhausted; coordinate = component limiting the step
+STATUS_NO_CONVERGENCE = 5  # Verlet's implicit half kick diverged; coordinate = its index 0..5
+STATUS_EFFORT_NONFINITE = 6  # an effort at an output time is not finite; coordinate = 3·row + k
+
+# What a batch keeps of each variant.
+KEEP_TRAJECTORIES = 0  # the states and efforts at every output time
+KEEP_FINAL = 1  # the state and efforts at the last output time only (no dense output)
+KEEP_METRICS = 2  # the final ones and the metrics row below, from samples not kept
+
+# A row of metrics (rrt_pin.compiled._jit_metrics), per coordinate k = 0, 1, 2 at start + k.
+METRIC_FINAL = 0  # |q(tf) - qf| [rad, rad, m]
+METRIC_SETTLE = 3  # settling time [s], NaN when not settled
+METRIC_PEAK = 6  # peak |tau| [N·m, N·m, N]
+METRIC_PEAK_TIME = 9  # its time [s]
+METRIC_EXCURSION = 12  # max |q(t) - q(t0)| [rad, rad, m]
+METRIC_ENERGY = 15  # control energy, integral of sum |tau·qd| dt [J] (one value)
+METRIC_WIDTH = 16
+
+#: Number of physical parameters (``rrt_pin.dynamics.kernel.PARAM_ORDER``) and of controller parameters.
+NP = 15
+NC = 9 + NP
+
+#: Floating-point operations of ``_jit_dynamics.vsincos`` (reduction 6, two polynomials 20,
+#: assembly 7): the compiled kernels' flop counts (:mod:`rrt_pin.cli.flops`) include it.
+SINCOS_FLOPS = 33

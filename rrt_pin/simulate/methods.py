@@ -1,0 +1,214 @@
+"""The registry of integration methods: one line per method, everything else derives from it.
+
+The CLI's ``--method`` choices and help, the benchmark's plan, which backend
+runs what, batch support and default tolerances all read :data:`METHODS`.
+
+Adding an integrator is one function plus one line here:
+
+* a fixed-step method: write ``step(stepper, q, v, h, t) -> (q, v)`` in
+  :mod:`rrt_pin.simulate.integrators` (see :func:`rrt_pin.simulate.integrators.rk4`) and add
+  ``Method("name", FIXED_STEP, runner="rrt_pin.simulate.integrators:name", ...)``;
+* a method of ``scipy.integrate.solve_ivp``: add
+  ``Method("RK23", SCIPY, adaptive=True, ...)`` (the name is scipy's);
+* a compiled method also needs its ``code`` (:mod:`rrt_pin.simulate.codes`)
+  and its branch in :mod:`rrt_pin.compiled._jit_integrators`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from rrt_pin.core.errors import InputError
+from rrt_pin.simulate import codes
+
+__all__ = [
+    "ACCURACY",
+    "DEFAULT_ATOL",
+    "DEFAULT_RTOL",
+    "METHODS",
+    "RTOL_FLOOR",
+    "Method",
+    "get",
+    "names",
+]
+
+#: Families of methods.
+ODEPACK = "odepack"
+SCIPY = "scipy"
+FIXED_STEP = "fixed-step"
+SYMPLECTIC = "symplectic"
+
+#: The global accuracy the defaults keep: max |q − q_exact| over the output times
+#: [rad or m], on every problem of the accuracy catalogue (:data:`rrt_pin.simulate.accuracy.PROBLEMS`),
+#: with the default method of either backend, one run or a batch. A run whose
+#: estimated error (``result.error_estimate``) exceeds the larger of this and its
+#: tolerances says so.
+ACCURACY = 1e-8
+#: Default relative tolerance of the adaptive methods (``odepack``: :data:`ODEPACK_RTOL`).
+DEFAULT_RTOL = 1e-10
+#: Default absolute tolerance of the adaptive methods [rad, m, rad/s, m/s].
+DEFAULT_ATOL = 1e-12
+#: ``odepack``'s defaults, 100 times tighter: its global error is not proportional to
+#: the tolerance, and at 1e-10 it misses :data:`ACCURACY` on lightly damped scenes
+#: (4.5e-8 on the catalogue's ``slider-150s``); DOP853's stays within 5·rtol.
+ODEPACK_RTOL = 1e-12
+#: ``odepack``'s default absolute tolerance [rad, m, rad/s, m/s].
+ODEPACK_ATOL = 1e-14
+#: The smallest relative tolerance float64 lets an adaptive method honour: 100 machine
+#: epsilons (scipy's solve_ivp clips below it; ODEPACK refuses to start below ~1e-14;
+#: the compiled integrators share scipy's error control).
+RTOL_FLOOR = 100 * 2.220446049250313e-16
+
+
+@dataclass(frozen=True)
+class Method:
+    """One integration method.
+
+    Attributes:
+        name: the name users type (``--method NAME``, ``method=NAME``).
+        family: ``odepack``, ``scipy`` (``solve_ivp``), ``fixed-step`` or ``symplectic``.
+        summary: one line for help texts.
+        adaptive: error-controlled (``rtol``/``atol`` apply); else fixed steps (``step``).
+        implicit: takes a Jacobian (``jacobian="analytic"`` gives it one).
+        backends: backends that run it (see :mod:`rrt_pin.core.backends`).
+        batch: backends whose ``simulate_batch`` runs it.
+        code: its code in the compiled loop (:mod:`rrt_pin.simulate.codes`), or None.
+        runner: ``module:function`` of a fixed-step method's step, or None.
+        rtol: default relative tolerance (adaptive methods), else None.
+        atol: default absolute tolerance [rad, m, rad/s, m/s] (adaptive methods), else None.
+        order: order of a fixed-step method (its error shrinks as stepᵒʳᵈᵉʳ; the
+            error estimate halves the step and applies Richardson's formula), else None.
+        min_rtol: the smallest relative tolerance it can honour (adaptive methods,
+            :data:`RTOL_FLOOR` unless given), else None. A tighter one is refused.
+    """
+
+    name: str
+    family: str
+    summary: str
+    adaptive: bool = False
+    implicit: bool = False
+    backends: tuple[str, ...] = ("pinocchio",)
+    batch: tuple[str, ...] = ()
+    code: int | None = None
+    runner: str | None = None
+    rtol: float | None = None
+    atol: float | None = None
+    order: int | None = None
+    min_rtol: float | None = None
+
+    def __post_init__(self) -> None:
+        if self.adaptive and self.rtol is None:
+            object.__setattr__(self, "rtol", DEFAULT_RTOL)
+            object.__setattr__(self, "atol", DEFAULT_ATOL)
+        if self.adaptive and self.min_rtol is None:
+            object.__setattr__(self, "min_rtol", RTOL_FLOOR)
+
+    def runs_on(self, backend: str, batch: bool = False) -> bool:
+        """Whether ``backend`` runs this method (in a batch when ``batch``)."""
+        return backend in (self.batch if batch else self.backends)
+
+
+_BOTH = ("pinocchio", "compiled")
+
+#: Every integration method, by name, in the order help texts list them.
+METHODS: dict[str, Method] = {
+    m.name: m
+    for m in (
+        Method(
+            "odepack",
+            ODEPACK,
+            "ODEPACK's LSODA (Adams up to order 12, BDF when stiff) through scipy's odeint",
+            adaptive=True,
+            batch=("pinocchio",),
+            rtol=ODEPACK_RTOL,
+            atol=ODEPACK_ATOL,
+        ),
+        Method(
+            "RK45",
+            SCIPY,
+            "Dormand–Prince 5(4), explicit (scipy's solve_ivp; step for step on compiled)",
+            adaptive=True,
+            backends=_BOTH,
+            batch=_BOTH,
+            code=codes.METHOD_RK45,
+        ),
+        Method(
+            "DOP853",
+            SCIPY,
+            "Dormand–Prince 8(5,3), explicit (scipy's solve_ivp; step for step on compiled)",
+            adaptive=True,
+            backends=_BOTH,
+            batch=_BOTH,
+            code=codes.METHOD_DOP853,
+        ),
+        Method("LSODA", SCIPY, "scipy's LSODA, analytic Jacobian", adaptive=True, implicit=True),
+        Method("Radau", SCIPY, "implicit Runge–Kutta of order 5", adaptive=True, implicit=True),
+        Method("BDF", SCIPY, "backward differentiation, orders 1–5", adaptive=True, implicit=True),
+        Method(
+            "symplectic_euler",
+            FIXED_STEP,
+            "semi-implicit Euler, 1st order, one evaluation a step",
+            backends=_BOTH,
+            batch=_BOTH,
+            code=codes.METHOD_SYMPLECTIC_EULER,
+            runner="rrt_pin.simulate.integrators:symplectic_euler",
+            order=1,
+        ),
+        Method(
+            "rk4",
+            FIXED_STEP,
+            "classical Runge–Kutta, 4th order, four evaluations a step",
+            backends=_BOTH,
+            batch=_BOTH,
+            code=codes.METHOD_RK4,
+            runner="rrt_pin.simulate.integrators:rk4",
+            order=4,
+        ),
+        Method(
+            "verlet",
+            FIXED_STEP,
+            "velocity Verlet in (q, q̇), 2nd order, time-symmetric",
+            backends=_BOTH,
+            batch=_BOTH,
+            code=codes.METHOD_VERLET,
+            runner="rrt_pin.simulate.integrators:verlet",
+            order=2,
+        ),
+        Method(
+            "leapfrog",
+            SYMPLECTIC,
+            "Störmer–Verlet in canonical variables, symplectic for M(q)",
+            order=2,
+        ),
+    )
+}
+
+
+def get(name: object, backend: str | None = None, batch: bool = False) -> Method:
+    """The method called ``name``, checked to run on ``backend`` (in a batch when ``batch``).
+
+    Raises:
+        InputError: unknown name, or a method the backend does not run (naming
+            the valid ones).
+    """
+    method = METHODS.get(name) if isinstance(name, str) else None
+    if method is None:
+        raise InputError(f"method={name!r} is not one of {', '.join(METHODS)}")
+    if backend is not None and not method.runs_on(backend, batch):
+        valid = names(backend, batch)
+        where = f"backend {backend!r}" + (" in a batch" if batch else "")
+        raise InputError(f"method={name!r} does not run on {where}; valid: {', '.join(valid)}")
+    return method
+
+
+def names(
+    backend: str | None = None, batch: bool = False, adaptive: bool | None = None
+) -> tuple[str, ...]:
+    """Names of the methods (of one backend, batch-capable, adaptive or fixed-step)."""
+    return tuple(
+        m.name
+        for m in METHODS.values()
+        if (backend is None or m.runs_on(backend, batch))
+        and (backend is not None or not batch or m.batch)
+        and (adaptive is None or m.adaptive == adaptive)
+    )
