@@ -14,7 +14,6 @@ One table, :data:`MOVED`; the finder is installed by ``import rrt_pin``.
 from __future__ import annotations
 
 import importlib
-import importlib.abc
 import importlib.machinery
 import sys
 import types
@@ -99,7 +98,9 @@ def _target(old: str) -> str | None:
     return None
 
 
-class _Alias(importlib.abc.Loader):
+class _Alias:
+    """The loader of an old path (no ``importlib.abc`` base: that would import importlib.resources)."""
+
     def create_module(self, spec: importlib.machinery.ModuleSpec) -> None:
         return None
 
@@ -120,7 +121,7 @@ class _Alias(importlib.abc.Loader):
         module.__getattr__ = lambda name: getattr(target, renames.get(name, name))  # type: ignore[method-assign]
 
 
-class _Finder(importlib.abc.MetaPathFinder):
+class _Finder:
     def find_spec(self, name: str, path: Any = None, target: Any = None) -> Any:
         if _target(name) is None:
             return None
