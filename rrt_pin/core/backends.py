@@ -19,6 +19,8 @@ __all__ = ["BACKENDS", "Backend", "estimated_seconds", "get", "names"]
 
 #: The packages :meth:`Backend.available` has found.
 _FOUND: set[str] = set()
+#: The entries :meth:`Backend.entry` has imported, by (backend, job): a run asks at every call.
+_ENTRIES: dict[tuple[str, str], Any] = {}
 
 
 @dataclass(frozen=True)
@@ -86,9 +88,13 @@ class Backend:
         Raises:
             KeyError: the backend has no such job (a programming error).
         """
-        module, _, name = dict(self.entries)[job].partition(":")
-        found = importlib.import_module(module)
-        return getattr(found, name) if name else found
+        key = (self.name, job)
+        found = _ENTRIES.get(key)
+        if found is None:
+            module, _, name = dict(self.entries)[job].partition(":")
+            found = importlib.import_module(module)
+            found = _ENTRIES[key] = getattr(found, name) if name else found
+        return found
 
     def runs(self, task: str) -> bool:
         """Whether it computes ``task`` (``inverse`` or ``simulate``)."""
