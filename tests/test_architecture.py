@@ -679,3 +679,19 @@ def test_the_length_rule_can_fail(tmp_path):
     (tmp_path / "long.py").write_text("x = 1\n" * (MAX_LINES + 1))
     (tmp_path / "short.py").write_text("x = 1\n" * MAX_LINES)
     assert _too_long(tmp_path, set()) == [f"long.py: {MAX_LINES + 1} lines"]
+
+
+def test_a_backends_missing_package_is_said_in_one_place():
+    """``Backend.require`` raises every backend's MissingExtra (one wording, one hint)."""
+    said = [
+        f"{path.relative_to(PACKAGE)}:{n}"
+        for path in sorted(PACKAGE.rglob("*.py"))
+        for n, line in enumerate(path.read_text(encoding="utf-8").splitlines(), 1)
+        for b in backends.BACKENDS.values()
+        if f'MissingExtra("{b.requires}"' in line
+    ]
+    assert not said, said
+    with pytest.raises(ImportError, match=r"no_such_module_here not found .*\[fast\]"):
+        backends.Backend(
+            "x", "", (), (), None, requires="no_such_module_here", extra="fast"
+        ).require()

@@ -2,9 +2,11 @@
 
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
+import rrt_pin
 from rrt_pin.cli.app import main
 from rrt_pin.robot.params import Params
 from rrt_pin.robot.urdf import urdf_xml
@@ -154,6 +156,30 @@ def test_auto_backend_picks_compiled_only_when_built_and_faster(
     # ahead-of-time module (which the run loads on first use)
     jit = expected == "compiled" and not aot
     assert loads == ([1] if jit else [])
+
+
+def test_auto_is_one_policy_that_the_cli_follows(monkeypatch):
+    """``backends.choose`` decides; the CLI only loads what it chose and says why."""
+    import re
+
+    from rrt_pin.cli.commands._common import resolve_backend
+    from rrt_pin.core import backends
+    from rrt_pin.robot.robots import chapter_arm
+
+    arm = chapter_arm()
+    monkeypatch.setattr(backends, "choose", lambda *a, **k: backends.Choice("symbolic", "test"))
+    assert resolve_backend("auto", arm, "inverse", work=1) == "symbolic"
+    monkeypatch.undo()
+    choice = backends.choose(arm, "inverse", None, 0.0)
+    assert choice.name in ("pinocchio", "compiled") and choice.reason
+    # no other module decides "auto": it is compared with a name in one place only
+    package = Path(rrt_pin.__file__).parent
+    deciding = [
+        str(path.relative_to(package))
+        for path in package.rglob("*.py")
+        if re.search(r"""==\s*["']auto["']""", path.read_text(encoding="utf-8"))
+    ]
+    assert deciding == ["cli/commands/_common.py"], deciding
 
 
 def test_auto_says_what_it_chose_with_v(tmp_path):

@@ -339,6 +339,10 @@ def test_bad_scene_option(tmp_path, capsys):
 
 def test_compiled_backend_is_wired(capsys, monkeypatch):
     # Unavailable: one line, exit 2. Available: its efforts go to the output.
+    import rrt_pin.compiled  # noqa: F401  (the attribute exists, then the import is blocked)
+    from rrt_pin.core import backends
+
+    monkeypatch.setattr(backends, "_ENTRIES", {})  # the backend's entries looked up afresh
     monkeypatch.setitem(sys.modules, "rrt_pin.compiled", None)  # makes the import fail
     monkeypatch.delattr(rrt_pin, "compiled", raising=False)
     code, out, err = run(["inverse", "--backend", "compiled", "--dt", "0.5"], capsys)

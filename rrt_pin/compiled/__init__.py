@@ -44,6 +44,7 @@ __all__ = [
     "CompileReport",
     "aot_built",
     "available",
+    "build_state",
     "compile_report",
     "coriolis",
     "ensure_compiled",
@@ -149,6 +150,16 @@ def is_compiled() -> bool:
     return is_cached()
 
 
+def build_state() -> tuple[bool, bool, bool]:
+    """(loaded in this process, built ahead of time, ready without compiling): cheap.
+
+    What :func:`rrt_pin.core.backends.choose` needs to cost a start-up; no numba import.
+    """
+    aot = aot_built()
+    loaded = is_loaded()
+    return loaded, aot, loaded or aot or is_compiled()
+
+
 def ensure_compiled() -> CompileReport:
     """Import numba and compile (or load from the cache) every function, once per process.
 
@@ -165,9 +176,9 @@ def ensure_compiled() -> CompileReport:
     try:
         import numba  # noqa: F401
     except ImportError as e:
-        from rrt_pin.core.extras import MissingExtra
+        from rrt_pin.core import backends
 
-        raise MissingExtra("numba", "fast", "backend 'compiled'") from e
+        backends.get("compiled").require(e)
     imported = time.perf_counter()
     jit = importlib.import_module(_JIT)
     done = time.perf_counter()

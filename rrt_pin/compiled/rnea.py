@@ -42,9 +42,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from rrt_pin.core import cpus
+from rrt_pin.core import backends, cpus
 from rrt_pin.core.errors import InputError
-from rrt_pin.core.extras import MissingExtra
 from rrt_pin.core.identity import IdentityCache
 from rrt_pin.dynamics import rnea_source
 
@@ -263,7 +262,8 @@ def _compile(source: str, digest: str, gen: rnea_source.GeneratedRnea) -> Kernel
     try:
         import numba
     except ImportError as e:
-        raise MissingExtra("numba", "fast", "backend 'compiled'") from e
+        backends.get("compiled").require(e)
+        raise  # not reached: require raises
     start = time.perf_counter()
     signature = _signature(numba)
     name = f"rrt_pin_rnea_{digest[:24]}"

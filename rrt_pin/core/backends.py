@@ -13,8 +13,9 @@ from dataclasses import dataclass
 from typing import Any
 
 from rrt_pin.core.errors import InputError
+from rrt_pin.core.extras import MissingExtra
 
-__all__ = ["BACKENDS", "Backend", "estimated_seconds", "get", "names"]
+__all__ = ["BACKENDS", "Backend", "Choice", "choose", "estimated_seconds", "get", "names"]
 
 
 #: The packages :meth:`Backend.available` has found.
@@ -96,6 +97,18 @@ class Backend:
             found = _ENTRIES[key] = getattr(found, name) if name else found
         return found
 
+    def require(self, cause: BaseException | None = None) -> None:
+        """Raise :class:`~rrt_pin.core.extras.MissingExtra` unless its package is installed.
+
+        The one place that says a backend's extra is missing (the hint names the pip
+        extra and the command that installs it here). ``cause``: the ImportError met
+        while loading it (raised then even if the package looked installed).
+        """
+        if cause is None and self.available():
+            return
+        error = MissingExtra(self.requires, self.extra or "", f"backend {self.name!r}")
+        raise error from cause
+
     def runs(self, task: str) -> bool:
         """Whether it computes ``task`` (``inverse`` or ``simulate``)."""
         return task in self.tasks
@@ -150,6 +163,7 @@ BACKENDS: dict[str, Backend] = {
                 ("load_single", "rrt_pin.compiled:machine_code"),
                 ("mass_matrix", "rrt_pin.compiled.dynamics:mass_matrix"),
                 ("metrics", "rrt_pin.compiled._jit_metrics:run"),
+                ("state", "rrt_pin.compiled:build_state"),  # (loaded, ahead of time, built)
             ),
         ),
     )
@@ -191,3 +205,66 @@ def estimated_seconds(
 def names(task: str | None = None) -> tuple[str, ...]:
     """Names of the backends (that compute ``task``)."""
     return tuple(b.name for b in BACKENDS.values() if task is None or b.runs(task))
+
+
+@dataclass(frozen=True)
+class Choice:
+    """What ``auto`` chose, and why (for ``-v``).
+
+    Attributes:
+        name: the backend.
+        reason: why, in words.
+        estimates: the estimated seconds of the whole job per backend considered
+            (start-up included), None where a cost is not known.
+    """
+
+    name: str
+    reason: str
+    estimates: tuple[tuple[str, float | None], ...] = ()
+
+
+def choose(robot: Any, task: str, method: str | None = None, work: float = 0.0) -> Choice:
+    """The one ``auto`` policy: the backend a job of ``work`` should run on.
+
+    ``compiled`` is chosen only for a robot whose closed-form kernels it has (the
+    chapter's arm: their costs are known; other robots' generated kernels are left
+    to an explicit ``compiled``), for a method it runs (``auto`` never changes the
+    method or the tolerances), when its machine code is already built (in this
+    process, ahead of time or in the disk cache: looked at without importing numba),
+    and when the whole job, start-up included, is estimated at most half of
+    ``pinocchio``'s (:func:`estimated_seconds`; ``work``: samples for ``inverse``,
+    simulated seconds for ``simulate``). Otherwise ``pinocchio``, the engine of record.
+
+    Args:
+        robot: a :class:`~rrt_pin.robot.robot.Robot`.
+        task: ``inverse`` or ``simulate``.
+        method: the integration method asked for (None: the backend's default).
+        work: the job's size (see above).
+    """
+    engine, fast = BACKENDS["pinocchio"], BACKENDS["compiled"]
+    wanted = method or (engine.default_method if task == "simulate" else None)
+    runs = wanted is None or _method_runs(wanted, fast.name)
+    started = aot = built = False
+    if robot.supports(fast.name) and runs and fast.available():
+        started, aot, built = fast.entry("state")()
+    if not built:
+        if robot.supports(fast.name) and runs:
+            why = "compiled code not built"
+        elif robot.supports(fast.name, task):
+            why = "auto leaves this robot's generated inverse dynamics to backend 'compiled'"
+        else:
+            why = "compiled cannot run this robot or method"
+        return Choice(engine.name, why)
+    mine = estimated_seconds(fast, task, work, started, aot)
+    theirs = estimated_seconds(engine, task, work, True)
+    saves = mine is not None and theirs is not None and 2.0 * mine <= theirs
+    estimates = ((fast.name, mine), (engine.name, theirs))
+    if saves:
+        return Choice(fast.name, "faster by the estimate", estimates)
+    return Choice(engine.name, "compiled would not be faster", estimates)
+
+
+def _method_runs(method: str, backend: str) -> bool:
+    """Whether ``method`` runs on ``backend`` (the methods' registry, one layer up, by name)."""
+    methods = importlib.import_module("rrt_pin.simulate.methods")
+    return bool(methods.get(method).runs_on(backend))

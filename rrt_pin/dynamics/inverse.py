@@ -23,7 +23,6 @@ import numpy as np
 
 from rrt_pin.core import backends, cpus, memory, validate
 from rrt_pin.core.errors import ArgumentTypeError, InputError
-from rrt_pin.core.extras import MissingExtra
 from rrt_pin.core.identity import IdentityCache
 from rrt_pin.dynamics import kernel
 from rrt_pin.robot.params import check_params, plant_difference
@@ -231,8 +230,7 @@ def inverse_dynamics(
     )
     _same_count(q, qd, qdd)
     if compiled:
-        if not b.available():
-            raise MissingExtra("numba", "fast", "backend 'compiled'")
+        b.require()
         tau = np.asarray(b.entry("inverse")(q, qd, qdd, params), dtype=float)
     else:
         tau = np.asarray(kernel.inverse_dynamics(q, qd, qdd, params), dtype=float)
@@ -255,8 +253,7 @@ def _generated(
     nq = robot.nv if robot is not None else pin_model.nq
     # The kernel flags non-finite inputs and efforts itself (then they are named as below).
     (q, qd, qdd), single = _samples_unchecked(q, qd, qdd, nq, pin_model.nv)
-    if not b.available():
-        raise MissingExtra("numba", "fast", "backend 'compiled'")
+    b.require()
     if num_threads is not None and num_threads > 1:  # a default never exceeds the free CPUs
         num_threads = memory.threads_that_fit(
             num_threads,

@@ -10,7 +10,6 @@ import numpy as np
 
 from rrt_pin.core import backends, cpus, memory, validate
 from rrt_pin.core.errors import InputError
-from rrt_pin.core.extras import MissingExtra
 from rrt_pin.core.identity import IdentityCache
 from rrt_pin.robot.params import Params, check_params, plant_difference
 from rrt_pin.robot.robot import Robot, bare_model, params_given
@@ -85,8 +84,7 @@ def _params_for(robot: Robot, params: Any, controllers: Sequence[Any]) -> Params
 def _compiled() -> Any:
 
     compiled = backends.get("compiled")
-    if not compiled.available():
-        raise MissingExtra("numba", "fast", "backend 'compiled'")
+    compiled.require()
     return compiled.entry("simulate")
 
 

@@ -434,15 +434,9 @@ def resolve_backend(
 ) -> str:
     """The backend a run uses, loading the compiled one first so its cost is reported apart.
 
-    ``auto`` picks ``compiled`` only for the chapter's arm (its closed-form
-    kernels, whose costs are known; other robots' generated inverse dynamics are
-    never chosen by ``auto``), it runs the method asked for (``auto`` never
-    changes the method or the tolerances), its machine code is already built (in this process or in the
-    disk cache, checked without importing numba), and the estimated time of the
-    whole job, start-up included, is at most half of ``pinocchio``'s
-    (:func:`rrt_pin.core.backends.estimated_seconds`: ``work`` is the number of
-    samples for ``inverse``, the simulated seconds for ``simulate``); otherwise
-    ``pinocchio``. ``-v`` says which and why. A backend the robot does not
+    ``auto`` is :func:`rrt_pin.core.backends.choose`, the one policy (``work``: the
+    number of samples for ``inverse``, the simulated seconds for ``simulate``);
+    ``-v`` says which and why. A backend the robot does not
     support is refused (a robot with a joint the generated RNEA does not handle:
     the message names it). With ``compiled``, importing numba and loading (or
     compiling) the code happens here (for another robot than the chapter's arm:
@@ -458,51 +452,20 @@ def resolve_backend(
 
     from rrt_pin.core import backends
     from rrt_pin.core.errors import InputError
-    from rrt_pin.simulate import methods
 
     if requested == "auto":
-        default = backends.get("pinocchio").default_method if task == "simulate" else None
-        wanted = method or default
-        runs = wanted is None or methods.get(wanted).runs_on("compiled")
-        built = started = aot = False
-        if robot.supports("compiled") and runs:
-            try:
-                from rrt_pin import compiled
-
-                # Dynamics and single runs built ahead of time load in ~20 ms, no numba.
-                aot = compiled.aot_built()
-                started = compiled.is_loaded()
-                built = started or aot or compiled.is_compiled()
-            except ImportError:
-                built = False
-        fast, engine = backends.get("compiled"), backends.get("pinocchio")
-        saves = False
-        if built:
-            mine = backends.estimated_seconds(fast, task, work, started, aot)
-            theirs = backends.estimated_seconds(engine, task, work, True)
-            saves = mine is not None and theirs is not None and 2.0 * mine <= theirs
+        choice = backends.choose(robot, task, method, work)
+        if choice.estimates:
             from rrt_pin.core.text import duration
 
-            logging.getLogger("rrt_pin").info(
-                "--backend auto: compiled would take ~%s (start-up %s), pinocchio ~%s",
-                "?" if mine is None else duration(mine),
-                "paid"
-                if started
-                else f"{duration(fast.aot_startup)}, built ahead of time"
-                if aot
-                else duration(fast.startup),
-                "?" if theirs is None else duration(theirs),
+            costs = ", ".join(
+                f"{name} ~{'?' if sec is None else duration(sec)}" for name, sec in choice.estimates
             )
-        requested = "compiled" if saves else "pinocchio"
+            logging.getLogger("rrt_pin").info("--backend auto: %s", costs)
         logging.getLogger("rrt_pin").info(
-            "--backend auto chose %s (%s)", requested,
-            "faster by the estimate" if saves else
-            "compiled code not built" if robot.supports("compiled") and runs and not built else
-            "compiled would not be faster" if built else
-            "auto leaves this robot's generated inverse dynamics to --backend compiled"
-            if robot.supports("compiled", task) else
-            "compiled cannot run this robot or method",
-        )  # fmt: skip
+            "--backend auto chose %s (%s)", choice.name, choice.reason
+        )
+        requested = choice.name
     if requested == "compiled" and task == "inverse" and not robot.supports(requested, task):
         from rrt_pin.dynamics.rnea_source import unsupported_joint
 
@@ -518,8 +481,7 @@ def resolve_backend(
     if requested == "compiled":
         from rrt_pin.core.extras import MissingExtra
 
-        if not backends.get("compiled").available():
-            raise MissingExtra("numba", "fast", "backend 'compiled'")
+        backends.get("compiled").require()
         if not robot.supports("compiled"):  # inverse dynamics only: the generated kernel
             return _load_generated(robot)
         try:
