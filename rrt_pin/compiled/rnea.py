@@ -258,15 +258,26 @@ def _signature(numba: Any) -> Any:
     return f8(read, read, read, f8[:, ::1])
 
 
-def _compile(source: str, digest: str, gen: rnea_source.GeneratedRnea) -> Kernel:
+def _compile(
+    source: str,
+    digest: str,
+    gen: Any,
+    kind: str = "rnea",
+    signature: Callable[[Any], Any] = _signature,
+) -> Kernel:
+    """Compile (or load) the ``kernel`` of a generated module (``gen``: its sizes and flops).
+
+    ``kind`` prefixes the module's file (``<kind>_<digest[:24]>.py``); ``signature``
+    makes numba's signature of ``kernel`` from the numba module.
+    """
     try:
         import numba
     except ImportError as e:
         backends.get("compiled").require(e)
         raise  # not reached: require raises
     start = time.perf_counter()
-    signature = _signature(numba)
-    name = f"rrt_pin_rnea_{digest[:24]}"
+    sig = signature(numba)
+    name = f"rrt_pin_{kind}_{digest[:24]}"
     where = generated_dir()
     path = where / f"{name.removeprefix('rrt_pin_')}.py" if where is not None else None
     dispatcher, origin = None, "memory"
@@ -278,7 +289,7 @@ def _compile(source: str, digest: str, gen: rnea_source.GeneratedRnea) -> Kernel
             dispatcher = numba.njit(cache=True, nogil=True, error_model="numpy")(fn)
             files = _numba_files(dispatcher)
             _discard_unverified(path, files)
-            dispatcher.compile(signature.args)
+            dispatcher.compile(sig.args)
             dispatcher.disable_compile()
             origin = "loaded" if sum(dispatcher.stats.cache_hits.values()) else "compiled"
             if origin == "compiled":
@@ -292,10 +303,11 @@ def _compile(source: str, digest: str, gen: rnea_source.GeneratedRnea) -> Kernel
         namespace: dict[str, Any] = {}
         exec(compile(source, f"<{name}>", "exec"), namespace)  # noqa: S102 - our own source
         fn = namespace["kernel"]
-        dispatcher = numba.njit(signature, cache=False, nogil=True, error_model="numpy")(fn)
+        dispatcher = numba.njit(sig, cache=False, nogil=True, error_model="numpy")(fn)
         path, origin = None, "memory"
     seconds = time.perf_counter() - start
-    _logger.info("generated RNEA %s: %s in %.2f s", digest[:12], origin, seconds)
+    what = "RNEA" if kind == "rnea" else kind
+    _logger.info("generated %s %s: %s in %.2f s", what, digest[:12], origin, seconds)
     return Kernel(
         digest=digest,
         kernel=dispatcher,
