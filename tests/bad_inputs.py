@@ -55,6 +55,7 @@ def make_files(tmp: Path) -> None:
     (tmp / "sweep_ok.toml").write_text(sweep + "[vary]\nm3 = [30, 40]\n")
     (tmp / "sweep_unknown.toml").write_text(sweep + "[vary]\nmass = [1, 2]\n")
     (tmp / "sweep_empty.toml").write_text(sweep + "[vary]\nm3 = []\n")
+    (tmp / "sweep_robot.toml").write_text(sweep + 'robot = "ur6"\n[vary]\nkp_1 = [1, 2]\n')
     (tmp / "sweep_count.toml").write_text(
         sweep.replace("dt = 0.1", "dt = 0.1\ncount = -5") + "[vary]\nm3 = { uniform = [1, 2] }\n"
     )
@@ -451,6 +452,11 @@ CASES = (
         "sweep: unknown symbol",
         ("sweep", "{tmp}/sweep_unknown.toml", "--out", "{tmp}/sweep"),
         "[vary] mass: unknown name",
+    ),
+    Case(
+        "sweep: a robot name the registry does not know",
+        ("sweep", "{tmp}/sweep_robot.toml", "--out", "{tmp}/sweep"),
+        "robot='ur6' is not one of rrt, ",
     ),
     Case(
         "sweep: empty range",

@@ -158,6 +158,17 @@ def test_sections_of_the_wrong_type_are_one_line(tmp_path, toml, words):
     assert words in _one_line(info)
 
 
+def test_a_robot_is_named_from_the_registry():
+    spec = spec_from_dict({"sweep": {"tf": 1.0, "dt": 0.1, "robot": "ur5"}})
+    assert spec.robot == "ur5" and not spec.chapter_arm and spec.urdf_file().endswith(".urdf")
+    assert spec_from_dict({"sweep": {"tf": 1.0, "dt": 0.1, "robot": "rrt"}}).chapter_arm
+    assert spec_from_dict({"sweep": {"tf": 1.0, "dt": 0.1}}).chapter_arm
+    with pytest.raises(SpecError, match=r"robot='nope' is not one of rrt, "):
+        spec_from_dict({"sweep": {"tf": 1.0, "dt": 0.1, "robot": "nope"}})
+    with pytest.raises(SpecError, match="names a robot and a urdf: give one"):
+        spec_from_dict({"sweep": {"tf": 1.0, "dt": 0.1, "robot": "ur5", "urdf": "a.urdf"}})
+
+
 def test_a_urdf_base_list_is_only_for_per_joint_values():
     spec = {"sweep": {"tf": 1.0, "dt": 0.1, "urdf": "arm.urdf"}, "base": {"g": [1.0, 2.0]}}
     with pytest.raises(SpecError) as info:

@@ -244,6 +244,26 @@ def test_a_urdf_sweep_runs_on_pinocchio_batches(tmp_path):
     assert abs(ra["final_error_q_wrist_3_joint"][35] - errors[5]) <= 1e-8
 
 
+def test_a_robot_by_name_is_its_urdf(tmp_path):
+    """``robot = "ur5"`` in [sweep] runs the robot of rrt_pin.robots: the same rows as its URDF."""
+    from tests.support import robot_urdf
+
+    sweep_keys = {"tf": 0.5, "dt": 0.05, "chunk": 64}
+    rest = {
+        "base": {"q0": 0.0, "qf": [0.3, -0.4, 0.5, 0.0, 0.2, 0.1], "kp": 100.0, "kd": 20.0},
+        "vary": {"kd_2": [10.0, 30.0]},
+        "keep": {"metrics": ["final_error", "peak_effort"]},
+    }
+    named = {"sweep": {"robot": "ur5", **sweep_keys}, **rest}
+    by_file = {"sweep": {"urdf": str(robot_urdf("ur5")), **sweep_keys}, **rest}
+    sweep(named, tmp_path / "named", workers=1, progress=False)
+    sweep(by_file, tmp_path / "file", workers=1, progress=False)
+    a, b = _rows(tmp_path / "named"), _rows(tmp_path / "file")
+    assert "peak_effort_tau_wrist_3_joint" in a and len(a["kd_2"]) == 2
+    for name in a:
+        np.testing.assert_array_equal(a[name], b[name], err_msg=name)
+
+
 def test_an_inverse_sweep(tmp_path):
     spec = {
         "sweep": {"task": "inverse", "tf": 15.0, "dt": 0.01},

@@ -103,13 +103,13 @@ def _plan(digest: str, source_json: str) -> Plan:
 
     spec = spec_from_dict(json.loads(source_json))
 
-    if spec.urdf is None:
+    if spec.chapter_arm:
         params, base = _arm_base(spec)
         robot = chapter_arm(params)
         names = tuple(base)
         backend = "compiled" if backends.get("compiled").available() else "pinocchio"
     else:
-        robot = Robot.from_urdf(spec.urdf, g=float(spec.base.get("g", 9.81)))
+        robot = Robot.from_urdf(spec.urdf_file(), g=float(spec.base.get("g", 9.81)))
         n = robot.nv
         names = tuple(f"{p}_{k}" for p in _PREFIXES for k in range(1, n + 1))
         base = {name: math.nan for name in names}
@@ -137,7 +137,7 @@ def _plan(digest: str, source_json: str) -> Plan:
     ]  # fmt: skip
     if missing:
         raise SpecError(f"[base] needs {missing[0].rsplit('_', 1)[0]} for {robot.name}")
-    if spec.task == "inverse" and spec.urdf is None:
+    if spec.task == "inverse" and spec.chapter_arm:
         backend = "compiled" if backends.get("compiled").available() else "symbolic"
     t = time_grid(spec.tf, spec.dt)
     method = rtol = atol = step = None
@@ -400,7 +400,7 @@ def _inverse(p: Plan, values: dict[str, np.ndarray], count: int, rows: list[int]
     q = np.full((count, p.t.size, n), np.nan)
     qd, tau = q.copy(), q.copy()
     failures: list = [None] * count
-    if p.spec.urdf is None:
+    if p.spec.chapter_arm:
         table, bad, why = arm_table(p, values, count)
         for i in np.flatnonzero(~bad):
             params = Params(**{k: float(table[k][i]) for k in p.base})
@@ -458,7 +458,7 @@ def run_chunk(
     rows = [i - start for i in spec.trajectories if start <= i < stop]
     if spec.task == "inverse":
         result = _inverse(p, values, count, rows)
-    elif spec.urdf is None:
+    elif spec.chapter_arm:
         result = _arm_simulate(p, values, count, rows)
     else:
         result = _urdf_simulate(p, values, start, count, rows)

@@ -142,7 +142,7 @@ def _check_extremes(spec: Spec) -> None:
     from rrt_pin.sweeps.compute import plan
 
     p = plan(spec)
-    if spec.urdf is not None:
+    if not spec.chapter_arm:
         for a in spec.axes:
             low = float(np.min(_ends(spec, a)))
             if a.name.startswith(("kp", "kd")) and low < 0:
@@ -191,7 +191,7 @@ def _units(spec: Spec) -> dict[str, str]:
     robot = plan(spec).robot
     out = {"variant": ""}
     out.update(column_units(spec.metrics, robot.q_names, robot.effort_names, robot.units))
-    if spec.urdf is None:
+    if spec.chapter_arm:
         for name, doc in PARAM_DOCS.items():
             out[name] = doc.rsplit("[", 1)[-1].split("]")[0] if "[" in doc else ""
     else:
@@ -455,7 +455,7 @@ def sweep(
     start_time = time.perf_counter()
     spec = _spec(spec)
     p = plan(spec)
-    if spec.urdf is not None and spec.chunk % BLOCK:
+    if not spec.chapter_arm and spec.chunk % BLOCK:
         from dataclasses import replace
 
         spec = replace(spec, chunk=BLOCK * math.ceil(spec.chunk / BLOCK))

@@ -4,7 +4,8 @@ A spec is a TOML file (or the same dict in Python)::
 
     [sweep]
     task = "simulate"      # or "inverse"
-    # urdf = "arm.urdf"    # another robot (default: the chapter's RRT arm)
+    # robot = "ur5"       # another robot by name (rrt_pin.robots), or
+    # urdf = "arm.urdf"    # by its URDF (default: the chapter's RRT arm)
     tf = 15.0              # [s]
     dt = 0.01              # interval of the samples the metrics are computed from [s]
     count = 1000           # random samples (with random axes)
@@ -52,8 +53,9 @@ from typing import Any
 import numpy as np
 
 from rrt_pin.core import memory
-from rrt_pin.core.errors import SpecError
+from rrt_pin.core.errors import InputError, SpecError
 from rrt_pin.io._read import check_int64, load_toml
+from rrt_pin.robot import robots
 from rrt_pin.simulate.metrics import TEXT_COLUMNS, for_task
 
 __all__ = [
@@ -69,7 +71,19 @@ __all__ = [
 #: Metrics by task: name -> what it is (from the registry, :data:`rrt_pin.simulate.metrics.METRICS`).
 METRICS: dict[str, dict[str, str]] = {task: for_task(task) for task in ("simulate", "inverse")}
 _SECTIONS = ("sweep", "base", "vary", "keep")
-_SWEEP_KEYS = ("task", "urdf", "tf", "dt", "count", "seed", "chunk", "method", "rtol", "atol")
+_SWEEP_KEYS = (
+    "task",
+    "robot",
+    "urdf",
+    "tf",
+    "dt",
+    "count",
+    "seed",
+    "chunk",
+    "method",
+    "rtol",
+    "atol",
+)
 _GRID = ("linspace", "logspace")
 _RANDOM = ("uniform", "normal", "lhs")
 #: Variants per chunk unless the spec says (a second or so of one core's work).
@@ -168,7 +182,9 @@ class Spec:
 
     Attributes:
         task: ``simulate`` or ``inverse``.
-        urdf: the robot's URDF, or None for the chapter's arm.
+        robot: the robot's name in :mod:`rrt_pin.robot.robots` (None or ``rrt``: the
+            chapter's arm, unless ``urdf`` is given).
+        urdf: the robot's URDF, or None.
         tf: end time [s].
         dt: sample interval of the metrics [s].
         count: random samples per grid point (1 without random axes).
@@ -183,6 +199,7 @@ class Spec:
     """
 
     task: str = "simulate"
+    robot: str | None = None
     urdf: str | None = None
     tf: float = 15.0
     dt: float = 0.01
@@ -224,6 +241,24 @@ class Spec:
         """(start, stop) of every chunk, in order."""
         n = self.variants
         return [(s, min(s + self.chunk, n)) for s in range(0, n, self.chunk)]
+
+    @property
+    def chapter_arm(self) -> bool:
+        """Whether the sweep's robot is the chapter's arm (its Params are what vary)."""
+        return self.urdf is None and self.robot in (None, "rrt")
+
+    def urdf_file(self) -> str:
+        """The URDF of a robot other than the chapter's arm (given, or found by its name).
+
+        Raises:
+            SpecError: the robot's URDF cannot be found (example-robot-data missing).
+        """
+        if self.urdf is not None:
+            return self.urdf
+        try:
+            return str(robots.urdf_path(str(self.robot)))
+        except InputError as e:
+            raise SpecError(f"[sweep] robot: {e}") from e
 
     def digest(self) -> str:
         """A hash of what the sweep computes (the chunk size excluded: it changes no result).
@@ -435,6 +470,12 @@ def spec_from_dict(data: Mapping[str, Any], where: str = "spec") -> Spec:
     urdf = sweep.get("urdf")
     if urdf is not None and (not isinstance(urdf, str) or not urdf):
         raise SpecError(f"{where}: urdf={_show(urdf)} must be a path")
+    robot = sweep.get("robot")
+    if robot is not None and (not isinstance(robot, str) or robot not in robots.names()):
+        raise SpecError(f"{where}: robot={_show(robot)} is not one of {', '.join(robots.names())}")
+    if robot is not None and urdf is not None:
+        raise SpecError(f"{where}: [sweep] names a robot and a urdf: give one")
+    arm = urdf is None and robot in (None, "rrt")
     method = sweep.get("method")
     if method is not None and (not isinstance(method, str) or not method):
         raise SpecError(f"{where}: method={_show(method)} must be a method's name")
@@ -502,8 +543,8 @@ def spec_from_dict(data: Mapping[str, Any], where: str = "spec") -> Spec:
     base = {}
     for name, value in base_in.items():
         if isinstance(value, list):
-            if urdf is None or name not in _URDF_PREFIXES:
-                lists = f"a URDF's {', '.join(_URDF_PREFIXES)}" if urdf else "a URDF sweep"
+            if arm or name not in _URDF_PREFIXES:
+                lists = f"a URDF's {', '.join(_URDF_PREFIXES)}" if not arm else "a URDF sweep"
                 raise SpecError(
                     f"{where}: [base] {name} = {_show(value)} must be a number "
                     f"(lists of values per joint are for {lists})"
@@ -518,6 +559,7 @@ def spec_from_dict(data: Mapping[str, Any], where: str = "spec") -> Spec:
                 raise SpecError(f"{where}: {key}={value:.6g} must lie in (0, 1)")
     return Spec(
         task=task,
+        robot=robot,
         urdf=urdf,
         tf=tf,
         dt=dt,
