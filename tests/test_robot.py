@@ -113,3 +113,19 @@ def test_joints_command(capsys):
     assert "shoulder_pan_joint" in out and "tau_wrist_3_joint" in out
     assert main(["joints", "--robot", "nope"]) == 2
     assert "robot 'nope' is unknown" in capsys.readouterr().err
+
+
+def test_a_robot_by_name_without_its_package_names_the_robots_extra(monkeypatch, capsys):
+    from rrt_pin.cli.app import main
+    from rrt_pin.core.extras import MissingExtra
+    from rrt_pin.robot import robots
+
+    monkeypatch.setattr(robots, "example_robot_data_dir", lambda: None)
+    with pytest.raises(
+        MissingExtra, match=r"example-robot-data not found \(needed for robot 'ur5'\)"
+    ):
+        robots.urdf_path("ur5")
+    assert main(["joints", "--robot", "ur5"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "[robots]" in err and "Traceback" not in err
+    assert robots.urdf_path("rrt") is None  # the chapter's arm needs no package

@@ -28,6 +28,7 @@ EXTRAS: dict[str, str] = {
     "fast": "the compiled backend (numba)",
     "sweep": "sweeps (dask.distributed, pyarrow, tqdm, pandas)",
     "parquet": "Parquet outputs and data frames (pyarrow, pandas)",
+    "robots": "robots by name: --robot ur5, panda … (example-robot-data's URDFs)",
 }
 
 

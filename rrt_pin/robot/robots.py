@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING, Any
 
 from rrt_pin.core import text
 from rrt_pin.core.errors import InputError, ParameterError
+from rrt_pin.core.extras import MissingExtra
 from rrt_pin.core.text import argument
 from rrt_pin.robot.params import Params, param_names
 from rrt_pin.robot.robot import CHAPTER_COLUMNS, Joint, Robot, RobotDefaults
@@ -132,7 +133,8 @@ def urdf_path(name: str) -> Path | None:
     """The URDF file of the robot called ``name``; None for the chapter's arm (generated).
 
     Raises:
-        InputError: an unknown name, or example-robot-data missing.
+        InputError: an unknown name.
+        MissingExtra: example-robot-data is not installed (the ``robots`` extra).
     """
     if name not in ROBOTS:
         raise InputError(f"robot {name!r} is unknown; known: {', '.join(ROBOTS)}")
@@ -140,10 +142,7 @@ def urdf_path(name: str) -> Path | None:
         return None
     base = example_robot_data_dir()
     if base is None:
-        raise InputError(
-            f"robot {name!r} comes from example-robot-data, which is not installed "
-            "(pip install example-robot-data)"
-        )
+        raise MissingExtra("example-robot-data", "robots", f"robot {name!r}")
     return base / EXAMPLE_ROBOT_DATA[name]
 
 
