@@ -13,7 +13,6 @@ import pytest
 
 pytest.importorskip("meshcat")
 
-from rrt_pin.robot.robot import Robot
 from rrt_pin.viewer.page import LegendEntry, page_html  # noqa: E402
 
 
@@ -29,13 +28,13 @@ def test_page_html_has_title_legend_and_readout_escaped():
 
 def test_show_serves_a_result_and_closes():
     from rrt_pin import show
-    from rrt_pin.robot.model import build_model
     from rrt_pin.robot.params import Params
+    from rrt_pin.robot.robots import chapter_arm
     from rrt_pin.simulate import simulate
     from rrt_pin.simulate.control import chapter_controller
 
     p = Params()
-    run = simulate(Robot.from_model(build_model(p)), chapter_controller(p), p.q0, p.qd0, np.linspace(0, 2, 21),
+    run = simulate(chapter_arm(p), chapter_controller(p), p.q0, p.qd0, np.linspace(0, 2, 21),
                    estimate_error=False)  # fmt: skip
     url = show(run, port=0)
     try:
@@ -47,6 +46,29 @@ def test_show_serves_a_result_and_closes():
         url.close()
     with pytest.raises(OSError):
         urllib.request.urlopen(url, timeout=2)
+
+
+def test_a_result_remembers_its_robot_for_show_and_is_pickled_without_it():
+    import pickle
+
+    from rrt_pin import show
+    from rrt_pin.robot.robots import get
+    from rrt_pin.simulate import simulate
+    from rrt_pin.simulate.control import pd_gravity_controller
+
+    ur5 = get("ur5")
+    qf = np.full(6, 0.2)
+    run = simulate(ur5, pd_gravity_controller(ur5, 100.0, 20.0, qf), np.zeros(6), None,
+                   np.linspace(0, 0.5, 6), estimate_error=False)  # fmt: skip
+    assert run.robot is ur5 and run.q.shape == (6, 6)
+    url = show(run, port=0)  # no robot=: the result's own
+    try:
+        body = urllib.request.urlopen(url, timeout=10).read().decode()
+        assert "motion</title>" in body and "RRT arm" not in body
+    finally:
+        url.close()
+    back = pickle.loads(pickle.dumps(run))
+    assert back.robot is None and np.array_equal(back.q, run.q) and back.q_names == run.q_names
 
 
 def test_show_needs_a_robot_for_other_results():

@@ -247,13 +247,14 @@ def _with_estimate(result: Any, options: Options, run: Any) -> Any:
 
 
 def _with_units(result: Any, robot: Robot) -> Any:
-    """The result, knowing its robot's coordinate units (for ``to_frame``)."""
+    """The result, knowing its robot and its coordinate units (for ``to_frame``, ``show``)."""
     import dataclasses
 
     units = tuple(robot.coordinate_units)
-    if tuple(result.coordinate_units) == units:
-        return result
-    return dataclasses.replace(result, coordinate_units=units)
+    if tuple(result.coordinate_units) != units:
+        result = dataclasses.replace(result, coordinate_units=units)
+    object.__setattr__(result, "robot", robot)  # a result just made, shared with no one
+    return result
 
 
 def _prepare(robot: Robot, backend: Any, method: Any = None, batch: bool = False) -> None:

@@ -6,14 +6,14 @@ times [s], coordinates [rad or m], velocities [rad/s or m/s], efforts [N·m or N
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
 
 from rrt_pin.core.errors import InputError
 from rrt_pin.core.extras import MissingExtra
-from rrt_pin.robot.robot import CHAPTER_COLUMNS
+from rrt_pin.robot.robot import CHAPTER_COLUMNS, Robot
 
 __all__ = ["KEEPS", "BatchResult", "ErrorEstimate", "SimulationResult"]
 
@@ -103,6 +103,9 @@ class _Run:
             comparison run failed, with its error; or the tolerance cannot be
             tightened), else None. A failed comparison run also warns
             (:class:`~rrt_pin.simulate.estimate.EstimateWarning`).
+        robot: the :class:`~rrt_pin.robot.robot.Robot` that moved (``show(result)``
+            draws it), or None for a result made by hand; not pickled (a robot holds
+            its model's factory).
     """
 
     t: np.ndarray
@@ -124,6 +127,7 @@ class _Run:
     coordinate_units: tuple[str, ...] = ("rad", "rad", "m")
     estimate: ErrorEstimate | None = None
     estimate_failure: str | None = None
+    robot: Robot | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
         for name in ("t", "q", "qd", "tau"):
@@ -137,6 +141,9 @@ class _Run:
             arr = np.asarray(value, dtype=float)
             arr.setflags(write=False)
             object.__setattr__(self, name, arr)
+
+    def __getstate__(self) -> dict[str, Any]:
+        return {**self.__dict__, "robot": None}
 
     @property
     def error_estimate(self) -> float | None:
@@ -264,4 +271,5 @@ class BatchResult(_Run):
             coordinate_units=self.coordinate_units,
             estimate=None if self.estimate is None else self.estimate.variant(i),
             estimate_failure=self.estimate_failure,
+            robot=self.robot,
         )

@@ -172,8 +172,9 @@ def show(
         result: a :class:`~rrt_pin.simulate.SimulationResult`, a batch's
             ``variant(i)``, or anything with ``t`` [s] (N,) and ``q`` (N, nv)
             [rad or m] (joint coordinates; angles for continuous joints).
-        robot: the robot it moves; None for the chapter's arm (a result of
-            three coordinates named q1, q2, q3).
+        robot: the robot it moves; None for the result's own (a result of
+            :func:`rrt_pin.simulate` remembers its robot), else the chapter's arm (a
+            result of three coordinates named q1, q2, q3).
         fps: keyframes per second of the animation [1/s].
         host: interface to listen on (127.0.0.1: this machine only).
         port: TCP port; None takes 7000 or the next free one.
@@ -196,6 +197,8 @@ def show(
         raise InputError(f"show() needs a result with t and q, not {type(result).__name__}")
     t = np.asarray(t, dtype=float)
     q = np.asarray(q, dtype=float)
+    if robot is None:
+        robot = getattr(result, "robot", None)
     if robot is None:
         names = tuple(getattr(result, "q_names", CHAPTER_COLUMNS[0]))
         if names != CHAPTER_COLUMNS[0]:
