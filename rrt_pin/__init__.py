@@ -41,6 +41,8 @@ _LAZY = {
     "rest_to_rest": "rrt_pin.dynamics.trajectory",
     "RestToRest": "rrt_pin.dynamics.trajectory",
     "Trajectory": "rrt_pin.dynamics.trajectory",
+    "read_motion": "rrt_pin.dynamics.sampled",
+    "sampled_motion": "rrt_pin.dynamics.sampled",
     "time_grid": "rrt_pin.core.grid",
     "inverse_dynamics": "rrt_pin.dynamics.inverse",
     "joint_wrenches": "rrt_pin.dynamics.wrenches",

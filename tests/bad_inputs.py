@@ -33,6 +33,12 @@ def make_files(tmp: Path) -> None:
     (tmp / "nan.csv").write_text("t,q1,q2,q3\n0,0.1,0.2,0.3\n1,nan,0.2,0.3\n")
     (tmp / "inf.csv").write_text("t,q1,q2,q3\n0,0.1,0.2,0.3\n1,0.1,inf,0.3\n")
     (tmp / "missing.csv").write_text("t,q1,q2\n0,0.1,0.2\n1,0.1,0.2\n")
+    rows = "".join(f"{k / 10},{k * 9},0,0\n" for k in range(8))  # q1 in degrees
+    (tmp / "degrees.csv").write_text("t,q1,q2,q3\n" + rows)
+    (tmp / "sparse.csv").write_text("t,q1,q2,q3\n" + "".join(f"{k},0,0,0\n" for k in range(5)))
+    (tmp / "half_qd.csv").write_text(
+        "t,q1,q2,q3,qd1\n" + "".join(f"{k},0,0,0,0\n" for k in range(8))
+    )
     (tmp / "bad.toml").write_text("[params\nm1 = 1\n")
     (tmp / "opt_wrenches.toml").write_text('[options]\nwrenches = "false"\n')
     (tmp / "opt_size.toml").write_text("[options]\nscreenshot-size = [100000, 100000]\n")
@@ -255,6 +261,36 @@ CASES = (
         "CSV without a q column",
         ("view", "--trajectory", "{tmp}/missing.csv", "--serve-for", "0"),
         "q3",
+    ),
+    Case(
+        "inverse --trajectory: a joint's column missing",
+        ("inverse", "--trajectory", "{tmp}/missing.csv", "--csv", OUT),
+        "missing.csv' lacks column 'q3'; it needs t and q1,q2,q3; it has t,q1,q2",
+    ),
+    Case(
+        "inverse --trajectory: degrees for radians",
+        ("inverse", "--trajectory", "{tmp}/degrees.csv", "--csv", OUT),
+        "q1 reaches 63, more than two turns (12.57 rad) for a revolute joint: given in degrees?",
+    ),
+    Case(
+        "inverse --trajectory: too few samples to differentiate",
+        ("inverse", "--trajectory", "{tmp}/sparse.csv", "--csv", OUT),
+        "5 samples are too few to differentiate (qd and qdd not given)",
+    ),
+    Case(
+        "inverse --trajectory: some velocity columns only",
+        ("inverse", "--trajectory", "{tmp}/half_qd.csv", "--csv", OUT),
+        "half_qd.csv' has some qd columns but lacks 'qd2'",
+    ),
+    Case(
+        "inverse --trajectory: times that go back",
+        ("inverse", "--trajectory", "{tmp}/backwards.csv", "--csv", OUT),
+        "backwards.csv' line 4, column 't': times must increase strictly, but 1 s follows 2 s",
+    ),
+    Case(
+        "inverse --trajectory with --tf",
+        ("inverse", "--trajectory", "{tmp}/nan.csv", "--tf", "3", "--csv", OUT),
+        "--tf does not apply with --trajectory: the file gives the times",
     ),
     Case("unknown --set name", ("simulate", "--set", "mass=1", "--csv", OUT), "unknown parameter"),
     Case("--set without =", ("urdf", "--set", "m1", "-o", "{tmp}/out.urdf"), "NAME=VALUE"),

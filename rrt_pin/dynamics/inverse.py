@@ -25,6 +25,7 @@ from rrt_pin.core import backends, cpus, memory, validate
 from rrt_pin.core.errors import ArgumentTypeError, InputError
 from rrt_pin.core.identity import IdentityCache
 from rrt_pin.dynamics import kernel
+from rrt_pin.dynamics.sampled import motion_from_frame
 from rrt_pin.robot.params import check_params, plant_difference
 from rrt_pin.robot.robot import CHAPTER_COLUMNS, Robot, bare_model, params_given
 
@@ -136,15 +137,22 @@ def batch_arrays(
 
 def inverse_dynamics(
     model: Any,
-    q: np.ndarray,
-    qd: np.ndarray,
-    qdd: np.ndarray,
+    q: Any,
+    qd: np.ndarray | None = None,
+    qdd: np.ndarray | None = None,
     *,
     backend: str = "pinocchio",
     params: Params | None = None,
     num_threads: int | None = None,
 ) -> np.ndarray:
     """Joint efforts τ = M(q)·q̈ + C(q, q̇)·q̇ + G(q) for each sample.
+
+    ``inverse_dynamics(robot, motion)``: a motion instead of the three arrays — a
+    :class:`~rrt_pin.dynamics.sampled.SampledMotion` (:func:`rrt_pin.read_motion`
+    of a user's file), a :class:`~rrt_pin.dynamics.trajectory.Trajectory`, or a data
+    frame with columns ``t`` and the robot's ``q`` names (and, if known, its ``qd``
+    and ``qdd`` names: the others are differentiated, see
+    :mod:`rrt_pin.dynamics.sampled`).
 
     Args:
         model: a :class:`~rrt_pin.robot.robot.Robot` (any fixed-base robot; its
@@ -157,8 +165,8 @@ def inverse_dynamics(
         q: joint coordinates, shape (N, nv) [rad or m] (angles for continuous
             joints; with a Pinocchio model, its (N, nq) configurations); (nv,)
             for one sample.
-        qd: velocities, shape (N, nv) [rad/s or m/s].
-        qdd: accelerations, shape (N, nv) [rad/s² or m/s²].
+        qd: velocities, shape (N, nv) [rad/s or m/s] (None with a motion as ``q``).
+        qdd: accelerations, shape (N, nv) [rad/s² or m/s²] (None with a motion).
         backend: a backend of :mod:`rrt_pin.core.backends` that computes ``inverse``.
         params: the chapter arm's parameters (``symbolic``/``compiled`` with a model);
             deprecated: pass ``chapter_arm(params)`` as the robot.
@@ -181,6 +189,8 @@ def inverse_dynamics(
         MemoryLimitError: not even one copy of the model's data fits in the
             memory left (the need and the limit named).
     """
+    if qd is None or qdd is None:
+        q, qd, qdd = _motion(model, q, qd, qdd)
     b = backends.get(backend, "inverse")
     bare_model("inverse_dynamics", model)
     params_given("inverse_dynamics", params)
@@ -236,6 +246,23 @@ def inverse_dynamics(
         tau = np.asarray(kernel.inverse_dynamics(q, qd, qdd, params), dtype=float)
         _check_finite(tau, CHAPTER_COLUMNS[3])
     return tau[0] if single else tau
+
+
+def _motion(model: Any, q: Any, qd: Any, qdd: Any) -> tuple[Any, Any, Any]:
+    """The three arrays of a motion given as ``q`` (qd and qdd None)."""
+    if qd is not None or qdd is not None:
+        raise InputError("inverse_dynamics() needs qd and qdd with q, or a motion as q alone")
+    if isinstance(q, np.ndarray) or not (hasattr(q, "qdd") or hasattr(q, "columns")):
+        raise InputError(
+            "inverse_dynamics() needs q, qd and qdd, or a motion (a SampledMotion, a "
+            f"Trajectory or a data frame) as q; got {type(q).__name__} alone"
+        )
+    if hasattr(q, "qdd"):
+        return q.q, q.qd, q.qdd
+    if not isinstance(model, Robot):
+        raise InputError("inverse_dynamics() of a data frame needs a Robot (its column names)")
+    motion = motion_from_frame(q, model)
+    return motion.q, motion.qd, motion.qdd
 
 
 def _generated(

@@ -14,9 +14,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from rrt_pin.core import text
 from rrt_pin.core.errors import InputError
 from rrt_pin.core.text import argument
+from rrt_pin.dynamics.sampled import coordinate_columns
 from rrt_pin.dynamics.trajectory import rest_to_rest
 from rrt_pin.io.csvio import read_csv_table
 from rrt_pin.simulate import simulate
@@ -59,22 +59,7 @@ def csv_columns(robot: Robot, header: list[str], path: str = "CSV") -> list[str]
     Raises:
         InputError: a column is missing (naming it and what the file has).
     """
-    names = list(robot.q_names)
-    choices = [names]
-    bare = [n.removeprefix("q_") for n in names]
-    if bare != names:
-        choices.append(bare)
-    numbered = [f"q{k + 1}" for k in range(robot.nv)]
-    if numbered != names:
-        choices.append(numbered)
-    for cols in choices:
-        if all(c in header for c in cols):
-            return cols
-    missing = next(c for c in names if c not in header)
-    raise InputError(
-        f"CSV {path!r} lacks column {missing!r}; it needs t and {text.names(names, sep=',')}; "
-        f"it has {','.join(header)}"
-    )
+    return coordinate_columns(robot, header, f"CSV {path!r}")
 
 
 def read_trajectory_csv(path: str, robot: Robot) -> tuple[np.ndarray, np.ndarray]:

@@ -1,4 +1,4 @@
-"""``rrt-pin inverse``: joint efforts along the chapter's rest-to-rest motion (eq. 30).
+"""``rrt-pin inverse``: joint efforts along eq. (30), or along a user's motion from a file.
 
 Builds only what the outputs need: no geometry model, no meshcat or sympy,
 matplotlib only for ``--plot``, and not even Pinocchio for the RRT arm with
@@ -88,7 +88,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--set Tp=... is given",
     )
     parser.add_argument(
-        "--dt", type=finite_float, default=0.001, metavar="S", help="time step [s] (default 0.001)"
+        "--dt", type=finite_float, default=None, metavar="S", help="time step [s] (default 0.001)"
+    )
+    parser.add_argument(
+        "--trajectory",
+        default=None,
+        metavar="FILE",
+        help="follow the motion in FILE (.csv, or .parquet with the parquet extra) at its own "
+        "times instead of eq. (30): columns t [s] and the robot's coordinates as "
+        "`rrt-pin joints` names them [rad or m], optionally its velocities and "
+        "accelerations (qd…, qdd… names); those not given come from the quintic spline "
+        "through the samples, with an estimate of their error in the summary (at least 6 "
+        "samples; radians, not degrees); not with --tf/--dt",
     )
     add_output_arguments(
         parser,
@@ -126,29 +137,40 @@ def run(args: argparse.Namespace) -> int:
     fmt = check_format(args.csv, "--csv")
     outputs = [(args.csv, "--csv"), (args.plot, "--plot"), (args.json, "--json")]
     check_outputs(outputs)  # before any work: folders exist, no two name the same file
-    robot = robot_from_args(args, params, "inverse")
+    if args.trajectory is not None:
+        for flag, value in (("--tf", args.tf), ("--dt", args.dt)):
+            if value is not None:
+                raise InputError(
+                    f"{flag} does not apply with --trajectory: the file gives the times"
+                )
+        robot = robot_from_args(args, params, "view")  # the file gives the motion: no q0, qf
+        motion: Motion = FileMotion(robot, args.trajectory)
+        tf, dt = float(motion.t[-1]), None
+    else:
+        robot = robot_from_args(args, params, "inverse")
+        from rrt_pin.core.grid import grid_size
 
-    from rrt_pin.core.grid import grid_size
-
-    d = robot.defaults
-    tf = positive_seconds("--tf", d.Tp if args.tf is None and d.Tp is not None else
-                          (args.tf if args.tf is not None else params.Tp))  # fmt: skip
-    dt = positive_seconds("--dt", args.dt)
-    if dt > tf:
-        raise InputError(f"--dt={dt!r} is larger than --tf={tf!r} [s]")
-    grid = grid_size(tf, dt, what="--tf/--dt" if args.tf is not None else "Tp (the --tf)/--dt")
-    job = InverseJob(robot, grid, d.Tp if d.Tp is not None else tf, args.wrenches)
+        d = robot.defaults
+        tf = positive_seconds("--tf", d.Tp if args.tf is None and d.Tp is not None else
+                              (args.tf if args.tf is not None else params.Tp))  # fmt: skip
+        dt = positive_seconds("--dt", args.dt if args.dt is not None else 0.001)
+        if dt > tf:
+            raise InputError(f"--dt={dt!r} is larger than --tf={tf!r} [s]")
+        grid = grid_size(tf, dt, what="--tf/--dt" if args.tf is not None else "Tp (the --tf)/--dt")
+        motion = RestToRestMotion(robot, grid, d.Tp if d.Tp is not None else tf)
+    job = InverseJob(robot, motion, args.wrenches)
     job.keep_plot = bool(args.plot)
-    check_space(args.csv, estimate_bytes(fmt, grid.size, len(job.header)), "--csv")
-    args.backend = resolve_backend(args.backend, robot, "inverse", work=grid.size)
+    check_space(args.csv, estimate_bytes(fmt, motion.size, len(job.header)), "--csv")
+    args.backend = resolve_backend(args.backend, robot, "inverse", work=motion.size)
     job.backend = args.backend
     meta = run_metadata(
         args, robot, params, command="inverse", backend=args.backend, tf=tf, dt=dt,
-        samples=grid.size, columns=job.header, units=job.units,
+        samples=motion.size, columns=job.header, units=job.units,
     )  # fmt: skip
+    meta.update(motion.metadata())
 
     what = f"writing {args.csv}" if args.csv else "computing"
-    progress = Progress(grid.size, what, force=args.progress)
+    progress = Progress(motion.size, what, force=args.progress)
 
     def table(fh: IO[bytes]) -> None:
         with TableWriter(fh, fmt, job.header, job.units, meta) as sink:
@@ -157,7 +179,7 @@ def run(args: argparse.Namespace) -> int:
     if not args.csv:
         job.run(None, progress)
     logging.getLogger("rrt_pin").info(
-        "inverse: backend %s, %s samples of %d columns%s", args.backend, f"{grid.size:,}",
+        "inverse: backend %s, %s samples of %d columns%s", args.backend, f"{motion.size:,}",
         len(job.header), f", streamed to {args.csv}" if args.csv else "",
     )  # fmt: skip
     facts: dict = {}
@@ -182,18 +204,99 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
+class Motion:
+    """What an inverse run follows: ``size`` samples, handed out a block at a time."""
+
+    size: int
+    label: str
+
+    def samples(self, start: int, stop: int) -> tuple[np.ndarray, ...]:
+        """Samples ``start`` … ``stop - 1``: t [s], q, qd, qdd (SI units)."""
+        raise NotImplementedError
+
+    def metadata(self) -> dict:
+        """What the outputs record about the motion (beyond the run's metadata)."""
+        return {}
+
+    def facts(self) -> dict:
+        """The summary's words about the motion: times and, for a file, its derivatives."""
+        raise NotImplementedError
+
+
+class RestToRestMotion(Motion):
+    """Eq. (30) from the robot's q0 to qf in ``duration`` [s], sampled on ``grid``."""
+
+    def __init__(self, robot: Robot, grid: Grid, duration: float) -> None:
+        self.robot, self.grid, self.duration = robot, grid, duration
+        self.size = grid.size
+        self.label = robot.motion
+
+    def samples(self, start: int, stop: int) -> tuple[np.ndarray, ...]:
+        """Eq. (30) at samples ``start`` … ``stop - 1`` of the grid."""
+        from rrt_pin.core.grid import grid_slice
+        from rrt_pin.dynamics.trajectory import rest_to_rest
+
+        d = self.robot.defaults
+        t = grid_slice(self.grid, start, stop)
+        traj = rest_to_rest(d.q0, d.qf, self.duration, t)
+        return t, traj.q, traj.qd, traj.qdd
+
+    def facts(self) -> dict:
+        """The grid: t0, tf, dt [s]."""
+        g = self.grid
+        return {"t0": g.t0, "tf": g.tf, "dt": g.dt}
+
+
+class FileMotion(Motion):
+    """A user's motion from a CSV or Parquet file, at its own times."""
+
+    def __init__(self, robot: Robot, path: str) -> None:
+        import os
+
+        from rrt_pin.dynamics.sampled import read_motion
+
+        self.motion = read_motion(path, robot)
+        self.t = self.motion.t
+        self.size = self.t.size
+        self.label = f"the motion in {os.path.basename(path)}"
+
+    def samples(self, start: int, stop: int) -> tuple[np.ndarray, ...]:
+        """The file's samples ``start`` … ``stop - 1``."""
+        m = self.motion
+        return m.t[start:stop], m.q[start:stop], m.qd[start:stop], m.qdd[start:stop]
+
+    def metadata(self) -> dict:
+        """The file and how the derivatives not given were made."""
+        m = self.motion
+        return {
+            "trajectory": m.source,
+            "derivatives": {
+                "derived": list(m.derived), "method": m.method,
+                "error_qd": m.error_qd, "error_qdd": m.error_qdd,
+            },
+        }  # fmt: skip
+
+    def facts(self) -> dict:
+        """The file's first and last times [s] and its derivatives' origin and estimate."""
+        m = self.motion
+        return {
+            "t0": float(m.t[0]), "tf": float(m.t[-1]), "dt": None,
+            "derivatives": m.describe(), "error_qd": m.error_qd, "error_qdd": m.error_qdd,
+        }  # fmt: skip
+
+
 class InverseJob:
-    """The efforts along eq. (30), computed and handed on a block of rows at a time.
+    """The efforts along a motion, computed and handed on a block of rows at a time.
 
     Holds, besides the block being computed, only what the summary and the plot
     need: each column's peak so far and a thinned copy of the efforts for the plot
     (at most :data:`PLOT_POINTS` samples).
     """
 
-    def __init__(self, robot: Robot, grid: Grid, duration: float, wrenches: bool) -> None:
+    def __init__(self, robot: Robot, motion: Motion, wrenches: bool) -> None:
         import numpy as np
 
-        self.robot, self.grid, self.duration = robot, grid, duration
+        self.robot, self.motion = robot, motion
         self.backend = "pinocchio"
         self.wrenches = wrenches
         self.header = [
@@ -201,28 +304,22 @@ class InverseJob:
         ]  # fmt: skip
         self.units = dict(robot.units)
         if wrenches:
-            names, _ = self._wrench_table(self.grid_times(0, 1))
+            names, _ = self._wrench_table(*motion.samples(0, 1)[1:])
             self.header += names
             self.units.update({n: "N" if n[0] in "Ff" else "N·m" for n in names})
         n = len(robot.effort_names) + (2 * len(robot.load_labels()) if wrenches else 0)
         self.peak = np.full(n, -1.0)  # peak |value| of each effort and load magnitude
         self.peak_t = np.zeros(n)
-        self.stride = max(1, -(-grid.size // PLOT_POINTS))
+        self.stride = max(1, -(-motion.size // PLOT_POINTS))
         self._plot: list[tuple[np.ndarray, np.ndarray]] = []
         self.keep_plot = True  # whether to keep the thinned efforts for a plot
 
-    def grid_times(self, start: int, stop: int) -> np.ndarray:
-        """Samples ``start`` … ``stop - 1`` of the grid [s]."""
-        from rrt_pin.core.grid import grid_slice
-
-        return grid_slice(self.grid, start, stop)
-
-    def _wrench_table(self, t: np.ndarray) -> tuple[tuple[str, ...], np.ndarray]:
-        from rrt_pin.dynamics.trajectory import rest_to_rest
+    def _wrench_table(
+        self, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray
+    ) -> tuple[tuple[str, ...], np.ndarray]:
         from rrt_pin.dynamics.wrenches import joint_wrenches, robot_wrench_table
 
-        traj = rest_to_rest(self.robot.defaults.q0, self.robot.defaults.qf, self.duration, t)
-        w = joint_wrenches(self.robot, traj.q, traj.qd, traj.qdd)
+        w = joint_wrenches(self.robot, q, qd, qdd)
         self._last_wrenches = w
         return robot_wrench_table(self.robot, w)
 
@@ -231,16 +328,13 @@ class InverseJob:
         import numpy as np
 
         from rrt_pin.dynamics.inverse import inverse_dynamics
-        from rrt_pin.dynamics.trajectory import rest_to_rest
 
-        d = self.robot.defaults
-        t = self.grid_times(start, stop)
-        traj = rest_to_rest(d.q0, d.qf, self.duration, t)
-        tau = inverse_dynamics(self.robot, traj.q, traj.qd, traj.qdd, backend=self.backend)
-        columns = [t[:, None], traj.q, traj.qd, traj.qdd, tau]
+        t, q, qd, qdd = self.motion.samples(start, stop)
+        tau = inverse_dynamics(self.robot, q, qd, qdd, backend=self.backend)
+        columns = [t[:, None], q, qd, qdd, tau]
         watched = [tau]
         if self.wrenches:
-            _, table = self._wrench_table(t)
+            _, table = self._wrench_table(q, qd, qdd)
             columns.append(table)
             w = self._last_wrenches
             for j in range(w.force.shape[1]):
@@ -253,7 +347,7 @@ class InverseJob:
         self.peak[better], self.peak_t[better] = best[better], t[i[better]]
         if self.keep_plot:
             index = np.arange(start, stop)
-            keep = (index % self.stride == 0) | (index == self.grid.size - 1)
+            keep = (index % self.stride == 0) | (index == self.motion.size - 1)
             self._plot.append((t[keep], tau[keep]))
         return np.hstack(columns)
 
@@ -263,8 +357,8 @@ class InverseJob:
 
         self.peak[:] = -1.0
         self._plot.clear()
-        for start in range(0, self.grid.size, BLOCK_ROWS):
-            stop = min(start + BLOCK_ROWS, self.grid.size)
+        for start in range(0, self.motion.size, BLOCK_ROWS):
+            stop = min(start + BLOCK_ROWS, self.motion.size)
             rows = self.block(start, stop)
             if sink is not None:
                 sink.write(rows)
@@ -287,7 +381,6 @@ def summary(robot: Robot, job: InverseJob) -> dict:
     A pure function of what the job gathered; :func:`summary_text` prints it and
     ``--json`` writes it.
     """
-    g = job.grid
     names = list(robot.effort_names)
     units = list(robot.effort_units)
     if job.wrenches:
@@ -302,11 +395,9 @@ def summary(robot: Robot, job: InverseJob) -> dict:
     return {
         "command": "inverse",
         "robot": robot.name,
-        "motion": robot.motion,
-        "samples": g.size,
-        "t0": g.t0,
-        "tf": g.tf,
-        "dt": g.dt,
+        "motion": job.motion.label,
+        "samples": job.motion.size,
+        **job.motion.facts(),
         "backend": job.backend,
         "peaks": peaks,
     }
@@ -314,12 +405,15 @@ def summary(robot: Robot, job: InverseJob) -> dict:
 
 def summary_text(facts: dict) -> str:
     """The summary for people: each effort's peak |value| and when (and each load's)."""
+    step = "the file's times" if facts["dt"] is None else f"dt = {facts['dt']:g} s"
     lines = [
         f"inverse dynamics of the {facts['robot']} along {facts['motion']}: "
         f"{facts['samples']} samples, t = {facts['t0']:g} .. {facts['tf']:g} s, "
-        f"dt = {facts['dt']:g} s, backend {facts['backend']}",
-        f"{'effort':<24} {'peak |effort|':>16}  {'at t [s]':>10}",
+        f"{step}, backend {facts['backend']}",
     ]
+    if "derivatives" in facts:
+        lines.append(f"derivatives: {facts['derivatives']}")
+    lines.append(f"{'effort':<24} {'peak |effort|':>16}  {'at t [s]':>10}")
     header_done = False
     for p in facts["peaks"]:
         if p["kind"] == "load" and not header_done:
