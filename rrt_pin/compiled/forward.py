@@ -48,13 +48,15 @@ __all__ = [
     "module_source",
 ]
 
-#: The forward-dynamics algorithm :meth:`ForwardKernels.forward_dynamics` runs, the faster
-#: one on UR5 and Panda (``scripts/bench/forward.py`` measures both).
+#: The forward-dynamics algorithm :meth:`ForwardKernels.forward_dynamics` runs: CRBA + LDLᵀ,
+#: the faster on UR5 and Panda (``scripts/bench/forward.py`` measures both). ABA stays
+#: available (``variant="aba"``): its rounding error does not grow with the condition number
+#: of M, so it follows ``pin.aba`` closer on robots with light wrists (kinova).
 DEFAULT_VARIANT = "crba"
 #: What compiling takes, roughly, per generated operation [s] (numba and LLVM on one core),
 #: and per kernel: for the announcement's estimate only.
-_COMPILE_S_PER_FLOP = 1.5e-3
-_COMPILE_S_PER_KERNEL = 0.3
+_COMPILE_S_PER_FLOP = 1.1e-3
+_COMPILE_S_PER_KERNEL = 0.2
 _INPUTS = {"q": ("q", "rad or m"), "v": ("qd", "rad/s or m/s"), "tau": ("tau", "N·m or N")}
 _WHAT = {
     "mass_matrix": "mass matrix",

@@ -246,7 +246,7 @@ def _discard_unverified(path: Path, files: Callable[[], list[Path]]) -> None:
     for f in [*present, _record_path(path)]:
         f.unlink(missing_ok=True)
     _logger.info(
-        "generated RNEA %s: numba's cached files did not match their record; compiling again",
+        "generated kernel %s: numba's cached files did not match their record; compiling again",
         path.stem,
     )
 
