@@ -18,7 +18,13 @@ Next to each kernel: its floating-point operations a state (the generator's coun
 sines and cosines apart) and ns a flop; then each side's worst difference from
 ``pin.aba`` (per joint, relative to that joint's peak |q̈|) and the ratios.
 
+With ``--accuracy N``, instead: for every robot ``rrt_pin.robot.robots`` names, each
+kernel's worst difference from Pinocchio over N random states (``pin.crba`` symmetrised,
+``pin.rnea`` with q̈ = 0, ``pin.computeGeneralizedGravity``, ``pin.aba``), per state
+relative to that state's largest |value|.
+
     .venv/bin/python -m scripts.bench.forward [--samples 10000] [--repeat 15] [--inner 3]
+    .venv/bin/python -m scripts.bench.forward --accuracy 10000
 """
 
 from __future__ import annotations
@@ -108,14 +114,53 @@ def bench(name: str, n: int, repeat: int, inner: int) -> dict[str, float]:
     return ns
 
 
+def per_state(a: np.ndarray, ref: np.ndarray) -> float:
+    """max over states of max|a − ref| / max|ref| (each state's own scale)."""
+    n = ref.shape[0]
+    err = np.abs(a - ref).reshape(n, -1).max(axis=1)
+    return float((err / np.abs(ref).reshape(n, -1).max(axis=1)).max())
+
+
+def accuracy(n: int) -> None:
+    """Each robot's kernels against Pinocchio on n random states."""
+    print(f"worst per-state relative difference from Pinocchio, {n} random states")
+    print(f"{'robot':<28} {'M':>8} {'b':>8} {'G':>8} {'aba':>8} {'crba':>8}")
+    for name in robots.names():
+        robot = robots.get(name)
+        model, data = robot.model, robot.model.createData()
+        fk = forward_kernel_for(model, name)
+        x, qd, tau = states(robot, n, seed=42)
+        zero = np.zeros(robot.nv)
+        ref: dict[str, list] = {"M": [], "b": [], "G": [], "a": []}
+        for q, v, u in zip(robot.configuration(x), qd, tau, strict=True):
+            m = np.triu(pin.crba(model, data, q))
+            ref["M"].append(m + np.triu(m, 1).T)
+            ref["b"].append(pin.rnea(model, data, q, v, zero).copy())
+            ref["G"].append(pin.computeGeneralizedGravity(model, data, q).copy())
+            ref["a"].append(pin.aba(model, data, q, v, u).copy())
+        want = {k: np.array(v) for k, v in ref.items()}
+        errs = [
+            per_state(fk.mass_matrix(x), want["M"]),
+            per_state(fk.bias(x, qd), want["b"]),
+            per_state(fk.gravity(x), want["G"]),
+            per_state(fk.forward_dynamics(x, qd, tau, variant="aba"), want["a"]),
+            per_state(fk.forward_dynamics(x, qd, tau, variant="crba"), want["a"]),
+        ]
+        print(f"{name:<28} " + " ".join(f"{e:>8.1e}" for e in errs))
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--samples", type=int, default=10_000, help="states a call")
     ap.add_argument("--repeat", type=int, default=15, help="timed rounds (median)")
     ap.add_argument("--inner", type=int, default=3, help="timed calls a side a round")
     ap.add_argument("--robots", default=",".join(ROBOTS), help="comma-separated robot names")
+    ap.add_argument("--accuracy", type=int, default=0, help="check N states of every robot")
     args = ap.parse_args()
     print(f"pinocchio {pin.__version__}, numpy {np.__version__}")
+    if args.accuracy:
+        accuracy(args.accuracy)
+        return 0
     for name in args.robots.split(","):
         bench(name, args.samples, args.repeat, args.inner)
     return 0
