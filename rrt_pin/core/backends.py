@@ -20,8 +20,9 @@ __all__ = ["BACKENDS", "Backend", "Choice", "choose", "estimated_seconds", "get"
 
 #: The packages :meth:`Backend.available` has found.
 _FOUND: set[str] = set()
-#: The entries :meth:`Backend.entry` has imported, by (backend, job): a run asks at every call.
-_ENTRIES: dict[tuple[str, str], Any] = {}
+#: The modules :meth:`Backend.entry` has imported and the names in them, by (backend,
+#: job): a run asks at every call.
+_ENTRIES: dict[tuple[str, str], tuple[Any, str]] = {}
 
 
 @dataclass(frozen=True)
@@ -93,9 +94,9 @@ class Backend:
         found = _ENTRIES.get(key)
         if found is None:
             module, _, name = dict(self.entries)[job].partition(":")
-            found = importlib.import_module(module)
-            found = _ENTRIES[key] = getattr(found, name) if name else found
-        return found
+            found = _ENTRIES[key] = (importlib.import_module(module), name)
+        module, name = found
+        return getattr(module, name) if name else module  # looked up at each call
 
     def require(self, cause: BaseException | None = None) -> None:
         """Raise :class:`~rrt_pin.core.extras.MissingExtra` unless its package is installed.
