@@ -288,6 +288,11 @@ CASES = (
         "backwards.csv' line 4, column 't': times must increase strictly, but 1 s follows 2 s",
     ),
     Case(
+        "simulate --passive with a gain",
+        ("simulate", "--passive", "--kd", "3", "--csv", OUT),
+        "--kd does not apply with --passive: no controller acts",
+    ),
+    Case(
         "inverse --trajectory with --tf",
         ("inverse", "--trajectory", "{tmp}/nan.csv", "--tf", "3", "--csv", OUT),
         "--tf does not apply with --trajectory: the file gives the times",

@@ -215,3 +215,34 @@ def test_csv_and_plot_naming_one_file_are_refused(tmp_path, capsys):
     code = main(["simulate", "--csv", str(out), "--plot", str(out)])
     assert code == 2 and "--csv and --plot name the same file" in capsys.readouterr().err
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("robot_flags", [[], ["--robot", "ur5"]])
+def test_passive_is_no_controller_at_all(tmp_path, capsys, robot_flags):
+    """--passive: zero efforts and no gravity compensation (--kp 0 --kd 0 still has G(q))."""
+    import json
+
+    from rrt_pin.robot.robots import get
+
+    target, meta = tmp_path / "p.csv", tmp_path / "p.json"
+    code, out, err = run(["simulate", "--passive", "--tf", "1", "--csv", str(target),
+                          "--json", str(meta), *robot_flags], capsys)  # fmt: skip
+    assert code == 0, err
+    assert "under no controller (passive" in out
+    robot = get("ur5") if robot_flags else chapter_arm()
+    q0 = robot.defaults.q0 if robot.defaults.q0 is not None else np.zeros(robot.nv)
+    expected = simulate(robot, None, q0, None, time_grid(1.0, 0.01))
+    _, data = read_csv(target)
+    np.testing.assert_array_equal(data, expected.table())
+    assert not data[:, 1 + 2 * robot.nv :].any()  # no effort at all
+    doc = json.loads(meta.read_text())
+    assert (
+        doc["metadata"]["regulator"].startswith("no controller") and doc["metadata"]["kp"] is None
+    )
+    # a PD law with zero gains still compensates gravity: another motion
+    rest = ["--q0", ",".join(["0"] * 6), "--qf", ",".join(["0"] * 6)] if robot_flags else []
+    code, _, err = run(["simulate", "--tf", "1", "--kp", "0", "--kd", "0", "--csv",
+                        str(tmp_path / "zero.csv"), *robot_flags, *rest], capsys)  # fmt: skip
+    assert code == 0, err
+    _, zero_gains = read_csv(tmp_path / "zero.csv")
+    assert np.abs(zero_gains[:, 1 : 1 + robot.nv] - data[:, 1 : 1 + robot.nv]).max() > 1e-3

@@ -36,6 +36,9 @@ if TYPE_CHECKING:
     from rrt_pin.robot.robot import Robot
     from rrt_pin.simulate import ErrorEstimate, SimulationResult
 
+#: The law's name in summaries and metadata of a ``--passive`` run.
+PASSIVE = "no controller (passive: zero efforts, no gravity compensation)"
+
 HELP = "direct dynamics under the chapter's feedback law, eq. (31) (SI units)"
 
 #: The most output samples a simulation may have: its states stay in memory
@@ -131,6 +134,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         f"(default {methods.DEFAULT_ATOL:g}; odepack {methods.ODEPACK_ATOL:g})",
     )
     parser.add_argument(
+        "--passive",
+        action="store_true",
+        help="no controller: zero efforts, no gravity compensation (the robot moves under "
+        "gravity from q0; --kp, --kd, --qf do not apply)",
+    )
+    parser.add_argument(
         "--no-error-estimate",
         dest="error_estimate",
         action="store_false",
@@ -179,7 +188,13 @@ def run(args: argparse.Namespace) -> int:
         )
     if args.method is not None:
         methods.get(args.method)
-    robot = robot_from_args(args, params, "simulate")
+    if getattr(args, "passive", False):
+        for flag in ("kp", "kd", "qf"):
+            if getattr(args, flag, None) is not None:
+                raise InputError(f"--{flag} does not apply with --passive: no controller acts")
+        robot = robot_from_args(args, params, "view")  # no gains, no target needed
+    else:
+        robot = robot_from_args(args, params, "simulate")
     columns = 1 + 3 * robot.nv
     check_space(args.csv, estimate_bytes(fmt, grid.size, columns), "--csv")
     args.backend = resolve_backend(
@@ -195,16 +210,22 @@ def run(args: argparse.Namespace) -> int:
 
     import warnings
 
+    import numpy as np
+
     from rrt_pin.simulate import AccuracyWarning, simulate
     from rrt_pin.simulate.control import regulator
 
     d = robot.defaults
+    passive = getattr(args, "passive", False)
+    law = None if passive else regulator(robot)
+    law_name = PASSIVE if passive else robot.regulator
+    q0 = d.q0 if d.q0 is not None else np.zeros(robot.nv)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", AccuracyWarning)  # said below, in one line
         result = simulate(
             robot,
-            regulator(robot),
-            d.q0,
+            law,
+            q0,
             d.qd0,
             time_grid(tf, dt),
             method=method,
@@ -230,14 +251,14 @@ def run(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
     units = {name: robot.units.get(name, "") for name in result.header}
-    facts = summary(robot, result)
+    facts = summary(robot, result, law_name)
     meta = run_metadata(
         args, robot, params, command="simulate", backend=result.backend,
         method=result.method, rtol=result.rtol, atol=result.atol, step=result.step,
         tf=tf, dt=dt, samples=int(result.t.size), columns=list(result.header), units=units,
-        regulator=robot.regulator,
-        kp=[float(x) for x in d.kp] if d.kp is not None else None,
-        kd=[float(x) for x in d.kd] if d.kd is not None else None,
+        regulator=law_name,
+        kp=[float(x) for x in d.kp] if d.kp is not None and not passive else None,
+        kd=[float(x) for x in d.kd] if d.kd is not None and not passive else None,
         qd0=[float(x) for x in d.qd0] if d.qd0 is not None else None,
         error_estimate=facts["error_estimate"],
     )  # fmt: skip
@@ -343,8 +364,11 @@ def write_result(
                 progress.update(stop - start)
 
 
-def summary(robot: Robot, result: SimulationResult) -> dict:
+def summary(robot: Robot, result: SimulationResult, regulator: str | None = None) -> dict:
     """The run's summary as data: final distances to qf, settling times, peak efforts.
+
+    ``regulator``: the law's name (default the robot's regulator). Without a target
+    (a passive run of a robot that has none) the distances and settling times are None.
 
     A pure function of the result; :func:`summary_text` prints it and ``--json``
     writes it.
@@ -355,14 +379,15 @@ def summary(robot: Robot, result: SimulationResult) -> dict:
 
     t, q, tau = result.t, result.q, result.tau
     qf = robot.defaults.qf
-    settled = settling_times(t, q, robot.defaults.q0, qf)
+    q0 = robot.defaults.q0 if robot.defaults.q0 is not None else q[0]
+    settled = settling_times(t, q, q0, qf) if qf is not None else [None] * q.shape[1]
     joints = [
         {
             "name": name,
             "unit": robot.coordinate_units[k],
             "q_tf": float(q[-1, k]),
-            "qf": float(qf[k]),
-            "distance": float(abs(q[-1, k] - qf[k])),
+            "qf": None if qf is None else float(qf[k]),
+            "distance": None if qf is None else float(abs(q[-1, k] - qf[k])),
             "settled_at": None if settled[k] is None else float(settled[k]),
         }
         for k, name in enumerate(result.q_names)
@@ -377,7 +402,7 @@ def summary(robot: Robot, result: SimulationResult) -> dict:
     return {
         "command": "simulate",
         "robot": robot.name,
-        "regulator": robot.regulator,
+        "regulator": regulator or robot.regulator,
         "samples": int(t.size),
         "t0": float(t[0]),
         "tf": float(t[-1]),
@@ -415,6 +440,9 @@ def summary_text(facts: dict) -> str:
     ]
     for j in facts["joints"]:
         when = f"{j['settled_at']:.6g} s" if j["settled_at"] is not None else "not settled"
+        if j["qf"] is None:
+            lines.append(f"{j['name']:<24} {j['q_tf']:>14.10g} {'-':>14} {'-':>12} {j['unit']:<3}")
+            continue
         lines.append(
             f"{j['name']:<24} {j['q_tf']:>14.10g} {j['qf']:>14.10g} "
             f"{j['distance']:>12.3e} {j['unit']:<3}  {when:>18}"
