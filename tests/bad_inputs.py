@@ -288,6 +288,31 @@ CASES = (
         "backwards.csv' line 4, column 't': times must increase strictly, but 1 s follows 2 s",
     ),
     Case(
+        "simulate: two laws at once",
+        ("simulate", "--passive", "--track", "{tmp}/nan.csv", "--csv", OUT),
+        "--passive and --track both choose the law: give one",
+    ),
+    Case(
+        "simulate --controller: a module that is not there",
+        ("simulate", "--controller", "no_such_law_module:law", "--csv", OUT),
+        "--controller 'no_such_law_module:law': module 'no_such_law_module' not found",
+    ),
+    Case(
+        "simulate --controller without a function name",
+        ("simulate", "--controller", "mylaw", "--csv", OUT),
+        "--controller 'mylaw' must be MODULE:FUNCTION",
+    ),
+    Case(
+        "simulate --efforts: an effort column missing",
+        ("simulate", "--efforts", "{tmp}/missing.csv", "--csv", OUT),
+        "missing.csv' lacks column 'T01x'; it needs t and T01x,T12y,F23z",
+    ),
+    Case(
+        "simulate --track with a target",
+        ("simulate", "--track", "{tmp}/nan.csv", "--qf", "1,1,1", "--csv", OUT),
+        "--qf does not apply with --track: --track sets the law",
+    ),
+    Case(
         "simulate --passive with a gain",
         ("simulate", "--passive", "--kd", "3", "--csv", OUT),
         "--kd does not apply with --passive: no controller acts",

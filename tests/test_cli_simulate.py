@@ -246,3 +246,74 @@ def test_passive_is_no_controller_at_all(tmp_path, capsys, robot_flags):
     assert code == 0, err
     _, zero_gains = read_csv(tmp_path / "zero.csv")
     assert np.abs(zero_gains[:, 1 : 1 + robot.nv] - data[:, 1 : 1 + robot.nv]).max() > 1e-3
+
+
+def _eq30_csv(tmp_path, capsys, dt="0.01"):
+    path = tmp_path / "eq30.csv"
+    assert main(["inverse", "--dt", dt, "--csv", str(path)]) == 0
+    capsys.readouterr()
+    return path
+
+
+def test_track_follows_a_motion_from_a_file(tmp_path, capsys):
+    """--track: computed torque along the file's motion, the same run as the library's."""
+    from rrt_pin.dynamics.sampled import read_motion
+    from rrt_pin.dynamics.trajectory import Trajectory
+    from rrt_pin.simulate.control import tracking_controller
+
+    motion_file = _eq30_csv(tmp_path, capsys)
+    out = tmp_path / "tracked.csv"
+    code, text, err = run(["simulate", "--track", str(motion_file), "--tf", "3", "--csv",
+                           str(out)], capsys)  # fmt: skip
+    assert code == 0, err
+    assert "computed-torque tracking of eq30.csv" in text
+    arm = chapter_arm()
+    m = read_motion(motion_file, arm)
+    law = tracking_controller(arm, Trajectory(m.t, m.q, m.qd, m.qdd), kp=100.0, kd=20.0)
+    expected = simulate(arm, law, m.q[0], m.qd[0], time_grid(3.0, 0.01))
+    _, data = read_csv(out)
+    np.testing.assert_array_equal(data, expected.table())
+    # starting on the motion, an exact model keeps it (to the reference's interpolation)
+    assert np.abs(data[:, 1:4] - m.q[:301]).max() < 1e-5
+
+
+def test_efforts_are_played_open_loop(tmp_path, capsys):
+    """--efforts: eq. (30)'s own efforts, played back, move the arm along eq. (30)."""
+    from rrt_pin.dynamics.sampled import read_efforts, read_motion
+    from rrt_pin.simulate.control import OpenLoop
+
+    efforts_file = _eq30_csv(tmp_path, capsys, dt="0.001")
+    out = tmp_path / "open.csv"
+    code, text, err = run(["simulate", "--efforts", str(efforts_file), "--tf", "1", "--csv",
+                           str(out)], capsys)  # fmt: skip
+    assert code == 0, err
+    assert "(open loop)" in text
+    arm = chapter_arm()
+    t, tau = read_efforts(efforts_file, arm)
+    expected = simulate(arm, OpenLoop(t, tau), arm.defaults.q0, None, time_grid(1.0, 0.01))
+    _, data = read_csv(out)
+    np.testing.assert_array_equal(data, expected.table())
+    planned = read_motion(efforts_file, arm).q[::10][:101]
+    assert np.abs(data[:, 1:4] - planned).max() < 1e-5  # open loop, 1 s: the plan holds
+    # the law ignores the state, and interpolates linearly between samples
+    law = OpenLoop(t, tau)
+    assert np.array_equal(law.efforts(0.0005, np.ones(3), np.ones(3)), 0.5 * (tau[0] + tau[1]))
+
+
+def test_a_users_controller_from_the_command_line(tmp_path, capsys, monkeypatch):
+    (tmp_path / "mylaw.py").write_text(
+        "import numpy as np\n\ndef law(t, q, qd):\n"
+        "    return -50.0 * (np.asarray(q) - 0.3) - 10.0 * np.asarray(qd)\n"
+    )
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.delitem(__import__("sys").modules, "mylaw", raising=False)
+    code, text, err = run(["simulate", "--controller", "mylaw:law", "--tf", "2", "--csv",
+                           "run.csv"], capsys)  # fmt: skip
+    assert code == 0, err
+    assert "mylaw:law (your law)" in text
+    import mylaw  # noqa: E402  (the module the run imported, from the current directory)
+
+    arm = chapter_arm()
+    expected = simulate(arm, mylaw.law, arm.defaults.q0, None, time_grid(2.0, 0.01))
+    _, data = read_csv(tmp_path / "run.csv")
+    np.testing.assert_array_equal(data, expected.table())

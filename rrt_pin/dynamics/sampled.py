@@ -43,6 +43,7 @@ __all__ = [
     "SampledMotion",
     "coordinate_columns",
     "motion_from_frame",
+    "read_efforts",
     "read_motion",
     "sampled_motion",
 ]
@@ -250,7 +251,7 @@ def coordinate_columns(robot: Robot, header: list[str], where: str = "the file")
     )
 
 
-def _read_parquet(path: str, robot: Robot) -> tuple[list[str], np.ndarray, dict[str, str]]:
+def _read_parquet(path: str) -> tuple[list[str], np.ndarray, dict[str, str]]:
     pq = require("pyarrow.parquet", "parquet", "a .parquet motion")
     import json
 
@@ -290,22 +291,7 @@ def read_motion(path: str | os.PathLike[str], robot: Robot) -> SampledMotion:
         MissingExtra: a .parquet file without pyarrow (the ``parquet`` extra).
     """
     name = os.fspath(path)
-    units: dict[str, str] = {}
-    if name.lower().endswith(".parquet"):
-        header, data, units = _read_parquet(name, robot)
-        where = f"Parquet {name!r}"
-    else:
-        table = read_csv_table(name, required=("t",))
-        header, data = table.header, table.data
-        where = f"CSV {name!r}"
-        steps = np.diff(data[:, header.index("t")])
-        if (steps <= 0.0).any():  # said with the editor's line numbers
-            k = int(np.argmax(steps <= 0.0))
-            raise InputError(
-                f"{table.where(k + 1, 't')}: times must increase strictly, but "
-                f"{table.value_text(k + 1, 't')} s follows {table.value_text(k, 't')} s "
-                f"(line {int(table.lines[k])})"
-            )
+    header, data, units, where = _read_columns(name)
     return _from_columns(header, data, units, robot, where, name)
 
 
@@ -361,3 +347,53 @@ def _from_columns(
         column["t"], q, parts.get("qd"), parts.get("qdd"), robot=robot, names=cols,
         where=where, source=source,
     )  # fmt: skip
+
+
+def _read_columns(path: str) -> tuple[list[str], np.ndarray, dict[str, str], str]:
+    """Header, numbers, units (Parquet) and a name for messages of a CSV or Parquet file."""
+    if path.lower().endswith(".parquet"):
+        header, data, units = _read_parquet(path)
+        return header, data, units, f"Parquet {path!r}"
+    table = read_csv_table(path, required=("t",))
+    steps = np.diff(table.data[:, table.header.index("t")])
+    if (steps <= 0.0).any():  # said with the editor's line numbers
+        k = int(np.argmax(steps <= 0.0))
+        raise InputError(
+            f"{table.where(k + 1, 't')}: times must increase strictly, but "
+            f"{table.value_text(k + 1, 't')} s follows {table.value_text(k, 't')} s "
+            f"(line {int(table.lines[k])})"
+        )
+    return table.header, table.data, {}, f"CSV {path!r}"
+
+
+def read_efforts(path: str | os.PathLike[str], robot: Robot) -> tuple[np.ndarray, np.ndarray]:
+    """Times (N,) [s] and efforts (N, nv) [N·m or N] from a CSV or Parquet file.
+
+    Columns ``t`` and the robot's effort names (as ``rrt-pin joints`` lists them and
+    ``rrt-pin inverse --csv`` writes them); other columns are ignored.
+
+    Raises:
+        InputError: the file cannot be read, a column is missing, a unit is not the
+            robot's (Parquet), a value is not finite or the times do not increase.
+    """
+    name = os.fspath(path)
+    header, data, units, where = _read_columns(name)
+    if "t" not in header:
+        raise InputError(f"{where} lacks column 't' [s]")
+    names = list(robot.effort_names)
+    missing = [c for c in names if c not in header]
+    if missing:
+        raise InputError(
+            f"{where} lacks column {missing[0]!r}; it needs t and {text.names(names, sep=',')}; "
+            f"it has {','.join(header)}"
+        )
+    for c in names:
+        if c in units and units[c] != robot.units[c]:
+            raise InputError(
+                f"{where}: column {c!r} is in {units[c]}; {robot.name} needs {robot.units[c]}"
+            )
+    t = data[:, header.index("t")]
+    _check_times(t, where)
+    tau = _check_values("tau", np.column_stack([data[:, header.index(c)] for c in names]),
+                        robot.nv, t.size, where)  # fmt: skip
+    return t, tau

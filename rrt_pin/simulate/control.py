@@ -59,6 +59,7 @@ __all__ = [
     "ChapterController",
     "Controller",
     "LinearFeedback",
+    "OpenLoop",
     "PDGravityController",
     "SeedController",
     "TrackingController",
@@ -454,6 +455,48 @@ class TrackingController(Controller):
         return np.array(pin.rnea(model, self._data, self.robot.configuration(q), qd, a))
 
 
+@dataclass(frozen=True, eq=False)
+class OpenLoop(Controller):
+    """Efforts played from samples, whatever the state: τ(t) interpolated linearly.
+
+    Between samples the efforts are interpolated linearly; before the first and after
+    the last sample they hold the end values.
+
+    Attributes:
+        t: sample times, strictly increasing (N,) [s].
+        tau: efforts at those times (N, nv) [N·m or N].
+    """
+
+    t: np.ndarray = field(repr=False)
+    tau: np.ndarray = field(repr=False)
+
+    def __post_init__(self) -> None:
+        t = np.array(self.t, dtype=float)
+        tau = np.array(self.tau, dtype=float)
+        if t.ndim != 1 or tau.ndim != 2 or tau.shape[0] != t.size or t.size == 0:
+            raise InputError(f"OpenLoop needs t (N,) and tau (N, nv); got {t.shape}, {tau.shape}")
+        if not (np.isfinite(t).all() and np.isfinite(tau).all()) or (np.diff(t) <= 0).any():
+            raise InputError("OpenLoop needs finite efforts at strictly increasing times")
+        for a in (t, tau):
+            a.setflags(write=False)
+        object.__setattr__(self, "t", t)
+        object.__setattr__(self, "tau", tau)
+
+    @property
+    def nv(self) -> int:
+        """Number of joint coordinates."""
+        return int(self.tau.shape[1])
+
+    def efforts(self, t: float, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
+        """The efforts at time ``t`` [N·m or N] (the state is not used)."""
+        return np.array([np.interp(t, self.t, self.tau[:, k]) for k in range(self.nv)])
+
+    def efforts_many(self, t: Any, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
+        """The efforts at each time of ``t`` (scalar or (N,)) for N states."""
+        ts = np.broadcast_to(np.asarray(t, dtype=float), (np.asarray(q).shape[0],))
+        return np.column_stack([np.interp(ts, self.t, self.tau[:, k]) for k in range(self.nv)])
+
+
 def chapter_controller(params: Params | None = None) -> ChapterController:
     """The chapter's eq. (31) with the gains, target and arm of ``params`` (the chapter's by default).
 
@@ -526,7 +569,7 @@ def regulator(robot: Robot, kp: Any = None, kd: Any = None, qf: Any = None) -> C
 
 
 #: The laws defined here: their results are trusted (tested), not checked at every call.
-for _law in (ChapterController, PDGravityController, TrackingController):
+for _law in (ChapterController, PDGravityController, TrackingController, OpenLoop):
     trusted(_law)
 
 #: Deprecated names (kept for one release): the chapter was called "the seed".

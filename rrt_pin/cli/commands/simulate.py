@@ -10,7 +10,7 @@ import argparse
 import json
 import logging
 import sys
-from typing import IO, TYPE_CHECKING
+from typing import IO, TYPE_CHECKING, Any
 
 from rrt_pin.cli.commands import _chapter
 from rrt_pin.cli.commands._common import (
@@ -133,11 +133,39 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="absolute tolerance of the adaptive methods [rad, m, rad/s, m/s] "
         f"(default {methods.DEFAULT_ATOL:g}; odepack {methods.ODEPACK_ATOL:g})",
     )
-    parser.add_argument(
+    law = parser.add_argument_group(
+        "the law (default: the robot's regulator, eq. (31) for the chapter's arm; at most one)"
+    )
+    law.add_argument(
         "--passive",
         action="store_true",
         help="no controller: zero efforts, no gravity compensation (the robot moves under "
         "gravity from q0; --kp, --kd, --qf do not apply)",
+    )
+    law.add_argument(
+        "--track",
+        metavar="FILE",
+        default=None,
+        help="computed-torque tracking of the motion in FILE (.csv or .parquet: t and the "
+        "robot's q columns, as `rrt-pin inverse --trajectory` reads them): τ = M(q)(q̈r − "
+        "kd·ė − kp·e) + b(q, q̇) with the reference interpolated linearly between samples "
+        "and held after the last; starts on the motion unless --q0/--qd0 are given; "
+        "--kp, --kd default 100, 20",
+    )
+    law.add_argument(
+        "--efforts",
+        metavar="FILE",
+        default=None,
+        help="open loop: the efforts in FILE (.csv or .parquet: t and the robot's effort "
+        "columns, as `rrt-pin inverse --csv` writes them) [N·m or N], interpolated linearly "
+        "between samples and held outside them, whatever the state",
+    )
+    law.add_argument(
+        "--controller",
+        metavar="MODULE:FUNCTION",
+        default=None,
+        help="your own law, a Python function f(t, q, qd) -> efforts (or f(q, qd)), imported "
+        "from MODULE (found in the current directory first); checked at every call",
     )
     parser.add_argument(
         "--no-error-estimate",
@@ -188,11 +216,9 @@ def run(args: argparse.Namespace) -> int:
         )
     if args.method is not None:
         methods.get(args.method)
-    if getattr(args, "passive", False):
-        for flag in ("kp", "kd", "qf"):
-            if getattr(args, flag, None) is not None:
-                raise InputError(f"--{flag} does not apply with --passive: no controller acts")
-        robot = robot_from_args(args, params, "view")  # no gains, no target needed
+    source = _law_source(args)
+    if source is not None:
+        robot = robot_from_args(args, params, "view")  # the law needs no regulator's defaults
     else:
         robot = robot_from_args(args, params, "simulate")
     columns = 1 + 3 * robot.nv
@@ -216,17 +242,22 @@ def run(args: argparse.Namespace) -> int:
     from rrt_pin.simulate.control import regulator
 
     d = robot.defaults
-    passive = getattr(args, "passive", False)
-    law = None if passive else regulator(robot)
-    law_name = PASSIVE if passive else robot.regulator
+    passive = source is not None
+    law, law_name, start = (
+        _law(args, robot, source) if passive else (regulator(robot), robot.regulator, None)
+    )
     q0 = d.q0 if d.q0 is not None else np.zeros(robot.nv)
+    qd0 = d.qd0
+    if start is not None:  # a tracked motion starts the run on it unless told otherwise
+        q0 = start[0] if args.q0 is None else q0
+        qd0 = start[1] if args.qd0 is None else qd0
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", AccuracyWarning)  # said below, in one line
         result = simulate(
             robot,
             law,
             q0,
-            d.qd0,
+            qd0,
             time_grid(tf, dt),
             method=method,
             rtol=args.rtol,
@@ -259,7 +290,7 @@ def run(args: argparse.Namespace) -> int:
         regulator=law_name,
         kp=[float(x) for x in d.kp] if d.kp is not None and not passive else None,
         kd=[float(x) for x in d.kd] if d.kd is not None and not passive else None,
-        qd0=[float(x) for x in d.qd0] if d.qd0 is not None else None,
+        qd0=[float(x) for x in qd0] if qd0 is not None else None,
         error_estimate=facts["error_estimate"],
     )  # fmt: skip
     progress = Progress(result.t.size, f"writing {args.csv}", force=args.progress)
@@ -458,3 +489,81 @@ def _picture(robot: Robot, result: SimulationResult, path: str) -> bytes:
 
     return simulate_figure(robot, result.t, result.q, result.tau, targets=robot.defaults.qf,
                            fmt=plot_format(path))  # fmt: skip
+
+
+#: The flags that choose the law instead of the robot's regulator (at most one).
+LAW_FLAGS = ("passive", "track", "efforts", "controller")
+
+
+def _law_source(args: argparse.Namespace) -> str | None:
+    """Which of :data:`LAW_FLAGS` was given (None: the regulator); gains only where they apply."""
+    given = [f for f in LAW_FLAGS if getattr(args, f, None) not in (None, False)]
+    if len(given) > 1:
+        raise InputError(f"--{given[0]} and --{given[1]} both choose the law: give one")
+    source = given[0] if given else None
+    unused = {"passive": ("kp", "kd", "qf"), "efforts": ("kp", "kd", "qf"),
+              "controller": ("kp", "kd"), "track": ("qf",)}.get(source or "", ())  # fmt: skip
+    for flag in unused:
+        if getattr(args, flag, None) is not None:
+            why = "no controller acts" if source == "passive" else f"--{source} sets the law"
+            raise InputError(f"--{flag} does not apply with --{source}: {why}")
+    return source
+
+
+def _law(args: argparse.Namespace, robot: Robot, source: str) -> tuple[Any, str, Any]:
+    """The law of ``source``, its name for summaries, and the tracked motion's start."""
+    import os
+
+    if source == "passive":
+        return None, PASSIVE, None
+    if source == "track":
+        from rrt_pin.dynamics.sampled import read_motion
+        from rrt_pin.dynamics.trajectory import Trajectory
+        from rrt_pin.simulate.control import tracking_controller
+
+        m = read_motion(args.track, robot)
+        kp = args.kp if args.kp is not None else 100.0
+        kd = args.kd if args.kd is not None else 20.0
+        law = tracking_controller(robot, Trajectory(m.t, m.q, m.qd, m.qdd), kp=kp, kd=kd)
+        name = f"computed-torque tracking of {os.path.basename(args.track)}"
+        return law, name, (m.q[0], m.qd[0])
+    if source == "efforts":
+        from rrt_pin.dynamics.sampled import read_efforts
+        from rrt_pin.simulate.control import OpenLoop
+
+        t, tau = read_efforts(args.efforts, robot)
+        return (
+            OpenLoop(t, tau),
+            f"the efforts in {os.path.basename(args.efforts)} (open loop)",
+            None,
+        )
+    return _user_law(args.controller), f"{args.controller} (your law)", None
+
+
+def _user_law(spec: str) -> Any:
+    """The function ``MODULE:FUNCTION`` names, the current directory searched first."""
+    import importlib
+    import os
+
+    module_name, sep, name = spec.partition(":")
+    if not sep or not module_name or not name:
+        raise InputError(f"--controller {spec!r} must be MODULE:FUNCTION (e.g. mylaw:law)")
+    here = os.getcwd()
+    added = here not in sys.path
+    if added:
+        sys.path.insert(0, here)
+    try:
+        module = importlib.import_module(module_name)
+    except ImportError as e:
+        raise InputError(f"--controller {spec!r}: module {module_name!r} not found ({e})") from e
+    except Exception as e:  # the user's module failed while importing: say how, in one line
+        raise InputError(
+            f"--controller {spec!r}: importing {module_name!r} raised {type(e).__name__}: {e}"
+        ) from e
+    finally:
+        if added:
+            sys.path.remove(here)
+    law = getattr(module, name, None)
+    if not callable(law):
+        raise InputError(f"--controller {spec!r}: {module_name} has no function {name!r}")
+    return law
