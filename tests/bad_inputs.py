@@ -288,6 +288,11 @@ CASES = (
         "backwards.csv' line 4, column 't': times must increase strictly, but 1 s follows 2 s",
     ),
     Case(
+        "view --path-frame that the robot does not have",
+        ("view", "--path-frame", "nope", "--serve-for", "0"),
+        "--path-frame='nope' is not a frame of the robot; its last frames: mount, link0",
+    ),
+    Case(
         "simulate: two laws at once",
         ("simulate", "--passive", "--track", "{tmp}/nan.csv", "--csv", OUT),
         "--passive and --track both choose the law: give one",

@@ -748,3 +748,36 @@ def test_a_signal_right_after_the_url_still_stops_the_server_cleanly(attempt):
     finally:
         proc.kill()
     assert proc.stderr.read().splitlines()[-1] == "rrt-pin: viewer stopped"
+
+
+@pytest.mark.parametrize(
+    "name, flange",
+    [("rrt", "link3"), ("ur5", "tool0"), ("panda", "panda_hand_tcp"),
+     ("kinova", "j2s6s200_end_effector"), ("double_pendulum", "link2")],
+)  # fmt: skip
+def test_the_path_follows_the_tool_flange_not_a_finger(name, flange):
+    from rrt_pin.robot.robots import get
+    from rrt_pin.viewer.drawing import default_path_frame
+
+    assert default_path_frame(get(name).model) == flange
+
+
+def test_a_chosen_path_frame_is_drawn_and_an_unknown_one_refused():
+    from rrt_pin.robot.robots import get
+    from rrt_pin.viewer.drawing import default_path_frame
+    from rrt_pin.viewer.keyframes import frame_placements
+    from rrt_pin.viewer.show import prepare
+
+    ur5 = get("ur5")
+    t = np.linspace(0.0, 1.0, 31)
+    q = np.column_stack([np.linspace(0.0, 0.8, 31), *[np.zeros(31)] * 5])
+    prepared = prepare(ur5, t, ur5.configuration(q), 30.0, path_frame="wrist_3_link")
+    drawing = prepared.drawing
+    assert drawing.path_frame == "wrist_3_link" and "path of wrist_3_link" in prepared.page
+    placements = frame_placements(
+        ur5.model, ur5.configuration(q), [ur5.model.getFrameId("wrist_3_link")]
+    )
+    np.testing.assert_allclose(drawing.path, placements[:, 0, :3, 3], atol=1e-12)
+    assert default_path_frame(ur5.model) != "wrist_3_link"  # the choice made a difference
+    with pytest.raises(InputError, match=r"path_frame='nope' is not a frame of the robot"):
+        prepare(ur5, t, ur5.configuration(q), 30.0, path_frame="nope")

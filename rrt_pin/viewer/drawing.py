@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from rrt_pin.core.errors import InputError
+from rrt_pin.core.text import argument
 from rrt_pin.viewer.keyframes import Keyframes, frame_placements, keyframes
 
 if TYPE_CHECKING:
@@ -293,16 +294,58 @@ class RobotDrawing:
 
 
 def default_path_frame(model: pin.Model) -> str:
-    """The body frame of the last joint (the RRT arm's ``link3``, whose origin is C3)."""
+    """The tool flange: the last body frame of the chain's last joint, before a gripper.
+
+    The deepest joint's last body frame (the RRT arm's ``link3``, whose origin is C3;
+    UR5's ``tool0``), except below a gripper — a joint whose subtree of at most four
+    joints forks (Panda's fingers) — whose own body frames are taken. Among those, a
+    frame named for the tool (:data:`_FLANGE_WORDS`) wins: Panda's ``panda_hand_tcp``,
+    Kinova's ``j2s6s200_end_effector`` rather than a finger tip.
+    """
     import pinocchio as pin
 
-    last = model.njoints - 1
+    n = model.njoints
+    depth, children = [0] * n, [[] for _ in range(n)]
+    for j in range(1, n):
+        depth[j] = depth[model.parents[j]] + 1
+        children[model.parents[j]].append(j)
+
+    def subtree(j: int) -> int:
+        return sum(1 + subtree(c) for c in children[j])
+
+    last = max(range(1, n), key=lambda j: (depth[j], j)) if n > 1 else 0
+    walk = model.parents[last] if last else 0
+    while walk:  # the first fork above the deepest joint, if a gripper's (≤ 4 joints)
+        if len(children[walk]) > 1 and subtree(walk) <= 4:
+            last = walk  # the fingers' common joint: the hand, not a finger
+            break
+        walk = model.parents[walk]
     bodies = [
         f.name for f in model.frames if f.type == pin.FrameType.BODY and f.parentJoint == last
     ]
+    for word in _FLANGE_WORDS:  # a frame named for the tool, if the URDF has one
+        named = [b for b in bodies if word in b.lower()]
+        if named:
+            return named[-1]
     if bodies:
         return bodies[-1]
     return model.frames[len(model.frames) - 1].name
+
+
+#: Words of a tool frame's name, by preference (UR5's ``tool0``, Panda's ``panda_hand_tcp``,
+#: Kinova's ``j2s6s200_end_effector``).
+_FLANGE_WORDS = ("tcp", "tool", "flange", "end_effector", "ee_link")
+
+
+def check_frame(model: pin.Model, name: str, what: str = "path_frame") -> str:
+    """``name`` if ``model`` has a frame of that name, else one line listing some it has."""
+    names = [f.name for f in model.frames]
+    if name not in names:
+        shown = ", ".join(names[-8:])
+        raise InputError(
+            f"{argument(what)}={name!r} is not a frame of the robot; its last frames: {shown}"
+        )
+    return name
 
 
 def build_drawing(

@@ -124,13 +124,22 @@ def prepare(
     loop: bool = True,
     ghost: bool = True,
     what: str = "",
+    path_frame: str | None = None,
 ) -> Prepared:
-    """The drawing, commands and page of configurations ``q_config`` (Pinocchio's, (N, nq)) at ``t`` [s]."""
-    from rrt_pin.viewer.drawing import build_drawing
+    """The drawing, commands and page of configurations ``q_config`` (Pinocchio's, (N, nq)) at ``t`` [s].
+
+    ``path_frame``: the frame whose path is drawn (default: the tool flange,
+    :func:`~rrt_pin.viewer.drawing.default_path_frame`).
+    """
+    from rrt_pin.viewer.drawing import build_drawing, check_frame
     from rrt_pin.viewer.meshcat_scene import scene_commands
     from rrt_pin.viewer.page import drawing_legend, meshcat_index, page_html
 
-    drawing = build_drawing(robot.model, geometry(robot), t, q_config, fps, ghost_q=ghost_q)
+    if path_frame is not None:
+        check_frame(robot.model, path_frame)
+    drawing = build_drawing(
+        robot.model, geometry(robot), t, q_config, fps, ghost_q=ghost_q, path_frame=path_frame
+    )
     commands = scene_commands(drawing, play=play, loop=loop, ghost=ghost)
     title = f"{robot.name}: {what}" if what else robot.name
     page = page_html(meshcat_index(), title, drawing_legend(drawing, ghost))
@@ -165,6 +174,7 @@ def show(
     host: str = "127.0.0.1",
     port: int | None = None,
     loop: bool = True,
+    path_frame: str | None = None,
 ) -> ViewerURL:
     """Play ``result`` in the browser and return the page's URL.
 
@@ -179,6 +189,8 @@ def show(
         host: interface to listen on (127.0.0.1: this machine only).
         port: TCP port; None takes 7000 or the next free one.
         loop: repeat the animation.
+        path_frame: the frame whose path is drawn (default the tool flange: UR5's
+            ``tool0``, Panda's ``panda_hand_tcp``, the arm's ``link3``).
 
     Returns:
         The URL (a ``str``; in Jupyter the cell shows the page). The server runs
@@ -214,6 +226,7 @@ def show(
     prepared = prepare(
         robot, tk, robot.configuration(qk), fps,
         ghost_q=robot.configuration(np.asarray(target, dtype=float)), loop=loop, what="motion",
+        path_frame=path_frame,
     )  # fmt: skip
     server = ViewerServer(host, port, page=prepared.page)
     try:

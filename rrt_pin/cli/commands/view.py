@@ -83,6 +83,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="what to play (default inverse; see below)",
     )
     parser.add_argument(
+        "--path-frame",
+        default=None,
+        metavar="NAME",
+        help="draw the path of this frame of the robot (default: the tool flange — the "
+        "chain's last link before any gripper, e.g. UR5's tool0, Panda's panda_hand_tcp)",
+    )
+    parser.add_argument(
         "--fps",
         type=positive_float,
         default=30.0,
@@ -192,6 +199,7 @@ def run(args: argparse.Namespace) -> int:
     prepared = prepare(
         robot, frames.t, frames.q, args.fps, ghost_q=frames.ghost,
         play=not args.paused, loop=args.loop, ghost=not args.no_ghost, what=what,
+        path_frame=args.path_frame,
     )  # fmt: skip
     drawing = prepared.drawing
     if args.zmq_url:
