@@ -42,6 +42,8 @@ _LAZY = {
     "RestToRest": "rrt_pin.dynamics.trajectory",
     "Trajectory": "rrt_pin.dynamics.trajectory",
     "read_motion": "rrt_pin.dynamics.sampled",
+    "inverse_derivatives": "rrt_pin.dynamics.derivatives",
+    "forward_derivatives": "rrt_pin.dynamics.derivatives",
     "sampled_motion": "rrt_pin.dynamics.sampled",
     "time_grid": "rrt_pin.core.grid",
     "inverse_dynamics": "rrt_pin.dynamics.inverse",
@@ -71,6 +73,7 @@ _MODULES = {
     "backends": "rrt_pin.core.backends",
     "control": "rrt_pin.simulate.control",
     "compiled": "rrt_pin.compiled",
+    "derivatives": "rrt_pin.dynamics.derivatives",
 }
 
 __all__ = [

@@ -35,6 +35,10 @@ def make_files(tmp: Path) -> None:
     (tmp / "missing.csv").write_text("t,q1,q2\n0,0.1,0.2\n1,0.1,0.2\n")
     rows = "".join(f"{k / 10},{k * 9},0,0\n" for k in range(8))  # q1 in degrees
     (tmp / "degrees.csv").write_text("t,q1,q2,q3\n" + rows)
+    (tmp / "extra_joint.csv").write_text(
+        "t,q1,q2,q3,q4\n" + "".join(f"{k / 10},0,0,0,0\n" for k in range(8))
+    )
+    (tmp / "boom_law.py").write_text('raise RuntimeError("the law module failed")\n')
     (tmp / "sparse.csv").write_text("t,q1,q2,q3\n" + "".join(f"{k},0,0,0\n" for k in range(5)))
     (tmp / "half_qd.csv").write_text(
         "t,q1,q2,q3,qd1\n" + "".join(f"{k},0,0,0,0\n" for k in range(8))
@@ -301,6 +305,16 @@ CASES = (
         "simulate --controller: a module that is not there",
         ("simulate", "--controller", "no_such_law_module:law", "--csv", OUT),
         "--controller 'no_such_law_module:law': module 'no_such_law_module' not found",
+    ),
+    Case(
+        "simulate --controller: a module that raises when imported",
+        ("simulate", "--controller", "{tmp}/boom_law.py:law", "--csv", OUT),
+        "boom_law.py' raised RuntimeError: the law module failed",
+    ),
+    Case(
+        "inverse --trajectory: a joint the robot does not have",
+        ("inverse", "--trajectory", "{tmp}/extra_joint.csv", "--csv", OUT),
+        "has column 'q4', which is not one of RRT arm's 3 joints (q1,q2,q3)",
     ),
     Case(
         "simulate --controller without a function name",

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -224,6 +225,21 @@ def sampled_motion(
     )  # fmt: skip
 
 
+_JOINT_COLUMN = re.compile(r"(q|qd|qdd|tau)(_.+|\d+)")
+
+
+def _refuse_other_joints(robot: Robot, header: list[str], where: str) -> None:
+    """A column named as a joint's (``q_…``, ``qd3``, ``tau_…``) that the robot lacks is an error."""
+    known = {*robot.q_names, *robot.qd_names, *robot.qdd_names, *robot.effort_names}
+    known |= {f"{kind}{k + 1}" for kind in ("q", "qd", "qdd") for k in range(robot.nv)}
+    for column in header:
+        if column not in known and _JOINT_COLUMN.fullmatch(column):
+            raise InputError(
+                f"{where} has column {column!r}, which is not one of {robot.name}'s "
+                f"{robot.nv} joints ({text.names(list(robot.q_names), sep=',')})"
+            )
+
+
 def coordinate_columns(robot: Robot, header: list[str], where: str = "the file") -> list[str]:
     """The columns of ``header`` holding the robot's joint coordinates.
 
@@ -322,6 +338,7 @@ def _from_columns(
 ) -> SampledMotion:
     if "t" not in header:
         raise InputError(f"{where} lacks column 't' [s]")
+    _refuse_other_joints(robot, header, where)
     cols = coordinate_columns(robot, header, where)
     for col, expected in zip(cols, robot.coordinate_units, strict=True):
         if col in units and units[col] != expected:
@@ -380,6 +397,7 @@ def read_efforts(path: str | os.PathLike[str], robot: Robot) -> tuple[np.ndarray
     header, data, units, where = _read_columns(name)
     if "t" not in header:
         raise InputError(f"{where} lacks column 't' [s]")
+    _refuse_other_joints(robot, header, where)
     names = list(robot.effort_names)
     missing = [c for c in names if c not in header]
     if missing:

@@ -178,6 +178,37 @@ class _Run:
 class SimulationResult(_Run):
     """One simulated run, sampled at the output times (shapes (N, nv))."""
 
+    def frame(self, name: str, velocity: bool = False) -> Any:
+        """Frame ``name`` of the robot along the run (world frame).
+
+        Its position [m], orientation quaternion (x, y, z, w), and with ``velocity`` its
+        spatial velocity [m/s, rad/s] (:class:`~rrt_pin.dynamics.kinematics.FrameMotion`).
+
+        Raises:
+            InputError: the result has no robot (made by hand), or no such frame.
+        """
+        from rrt_pin.dynamics.kinematics import frame_motion
+
+        return frame_motion(self._robot(), self.t, self.q, name, self.qd if velocity else None)
+
+    def jacobian(self, name: str, k: int) -> np.ndarray:
+        """Frame ``name``'s Jacobian (6, nv) at sample ``k`` (world-aligned; linear rows first).
+
+        Raises:
+            InputError: the result has no robot, no such frame, or no sample ``k``.
+        """
+        from rrt_pin.dynamics.kinematics import frame_jacobian
+
+        if not -self.t.size <= k < self.t.size:
+            raise InputError(f"sample k={k} is not one of the run's {self.t.size}")
+        return frame_jacobian(self._robot(), self.q[k], name)
+
+    def _robot(self) -> Robot:
+        """The robot that moved (an error for a result without one)."""
+        if self.robot is None:
+            raise InputError("this result has no robot (made by hand, or unpickled)")
+        return self.robot
+
     def table(self) -> np.ndarray:
         """The run as rows ``t, q…, qd…, tau…`` (SI units), shape (N, 1 + 3·nv)."""
         return np.column_stack((self.t, self.q, self.qd, self.tau))

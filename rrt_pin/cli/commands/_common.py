@@ -276,6 +276,48 @@ def add_robot_arguments(parser: argparse.ArgumentParser, task: str) -> None:
         )
 
 
+def name_list(text: str) -> list[str]:
+    """Argparse type: comma-separated names, e.g. ``tool0,wrist_3_link`` (none empty)."""
+    names = [n.strip() for n in text.split(",")]
+    if not all(names):
+        raise argparse.ArgumentTypeError(f"{text!r} must be names separated by commas")
+    return names
+
+
+def add_frame_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add ``--frames`` and ``--frame-velocities`` (``inverse`` and ``simulate``)."""
+    parser.add_argument(
+        "--frames",
+        type=name_list,
+        default=None,
+        metavar="NAME,...",
+        help="add columns for these frames of the robot's model (its URDF links and joints, "
+        "e.g. UR5's tool0; an unknown name lists the model's last frames): NAME_x, NAME_y, "
+        "NAME_z [m], the origin in the world frame, and NAME_qx, NAME_qy, NAME_qz, NAME_qw "
+        "[1], the orientation as a unit quaternion",
+    )
+    parser.add_argument(
+        "--frame-velocities",
+        action="store_true",
+        help="with --frames, also NAME_vx, NAME_vy, NAME_vz [m/s] and NAME_wx, NAME_wy, NAME_wz "
+        "[rad/s]: the frame's velocity along the world's axes",
+    )
+
+
+def frames_from_args(args: argparse.Namespace, robot: Robot) -> tuple[list[str], bool]:
+    """The frames asked for (checked against the robot) and whether with velocities."""
+    from rrt_pin.core.errors import InputError
+    from rrt_pin.dynamics.kinematics import frame_ids
+
+    names = list(getattr(args, "frames", None) or [])
+    velocities = bool(getattr(args, "frame_velocities", False))
+    if velocities and not names:
+        raise InputError("--frame-velocities needs --frames NAME,...")
+    if names:
+        frame_ids(robot, names)
+    return names, velocities
+
+
 def nonempty(text: str) -> str:
     """Argparse type: a non-empty string (an empty path or host never changes meaning)."""
     if not text.strip():

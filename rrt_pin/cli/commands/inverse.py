@@ -14,10 +14,12 @@ from typing import IO, TYPE_CHECKING
 
 from rrt_pin.cli.commands import _chapter
 from rrt_pin.cli.commands._common import (
+    add_frame_arguments,
     add_output_arguments,
     add_param_arguments,
     add_robot_arguments,
     finite_float,
+    frames_from_args,
     params_from_args,
     positive_seconds,
     report_run,
@@ -125,6 +127,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "enough for it to be at least twice as fast, start-up included (docs/benchmarks.md "
         "gives the threshold), else pinocchio; -v says why (default: pinocchio)",
     )
+    add_frame_arguments(parser)
     add_robot_arguments(parser, "inverse")
     add_param_arguments(parser)
 
@@ -158,7 +161,7 @@ def run(args: argparse.Namespace) -> int:
             raise InputError(f"--dt={dt!r} is larger than --tf={tf!r} [s]")
         grid = grid_size(tf, dt, what="--tf/--dt" if args.tf is not None else "Tp (the --tf)/--dt")
         motion = RestToRestMotion(robot, grid, d.Tp if d.Tp is not None else tf)
-    job = InverseJob(robot, motion, args.wrenches)
+    job = InverseJob(robot, motion, args.wrenches, *frames_from_args(args, robot))
     job.keep_plot = bool(args.plot)
     check_space(args.csv, estimate_bytes(fmt, motion.size, len(job.header)), "--csv")
     args.backend = resolve_backend(args.backend, robot, "inverse", work=motion.size)
@@ -293,10 +296,18 @@ class InverseJob:
     (at most :data:`PLOT_POINTS` samples).
     """
 
-    def __init__(self, robot: Robot, motion: Motion, wrenches: bool) -> None:
+    def __init__(
+        self,
+        robot: Robot,
+        motion: Motion,
+        wrenches: bool,
+        frames: list[str] | None = None,
+        frame_velocities: bool = False,
+    ) -> None:
         import numpy as np
 
         self.robot, self.motion = robot, motion
+        self.frames, self.frame_velocities = list(frames or []), frame_velocities
         self.backend = "pinocchio"
         self.wrenches = wrenches
         self.header = [
@@ -307,6 +318,12 @@ class InverseJob:
             names, _ = self._wrench_table(*motion.samples(0, 1)[1:])
             self.header += names
             self.units.update({n: "N" if n[0] in "Ff" else "N·m" for n in names})
+        if self.frames:
+            from rrt_pin.dynamics.kinematics import frame_columns
+
+            columns = frame_columns(self.frames, frame_velocities)
+            self.header += list(columns)
+            self.units.update(columns)
         n = len(robot.effort_names) + (2 * len(robot.load_labels()) if wrenches else 0)
         self.peak = np.full(n, -1.0)  # peak |value| of each effort and load magnitude
         self.peak_t = np.zeros(n)
@@ -340,6 +357,10 @@ class InverseJob:
             for j in range(w.force.shape[1]):
                 watched.append(np.linalg.norm(w.force[:, j], axis=1)[:, None])
                 watched.append(np.linalg.norm(w.moment[:, j], axis=1)[:, None])
+        if self.frames:
+            from rrt_pin.dynamics.kinematics import frame_table
+
+            columns.append(frame_table(self.robot, q, qd, self.frames, self.frame_velocities))
         values = np.abs(np.hstack(watched))
         i = np.argmax(values, axis=0)
         best = values[i, np.arange(values.shape[1])]

@@ -10,13 +10,15 @@ import argparse
 import json
 import logging
 import sys
-from typing import IO, TYPE_CHECKING, Any
+from typing import IO, TYPE_CHECKING
 
 from rrt_pin.cli.commands import _chapter
 from rrt_pin.cli.commands._common import (
+    add_frame_arguments,
     add_output_arguments,
     add_param_arguments,
     add_robot_arguments,
+    frames_from_args,
     params_from_args,
     positive_float,
     positive_seconds,
@@ -26,6 +28,7 @@ from rrt_pin.cli.commands._common import (
     run_metadata,
     write_run_outputs,
 )
+from rrt_pin.cli.commands._laws import law_from_args, law_source
 from rrt_pin.cli.commands._progress import Progress
 from rrt_pin.core import backends
 from rrt_pin.core.errors import InputError
@@ -33,11 +36,11 @@ from rrt_pin.io.files import check_outputs, check_space
 from rrt_pin.simulate import methods
 
 if TYPE_CHECKING:
+    import numpy as np
+
     from rrt_pin.robot.robot import Robot
     from rrt_pin.simulate import ErrorEstimate, SimulationResult
 
-#: The law's name in summaries and metadata of a ``--passive`` run.
-PASSIVE = "no controller (passive: zero efforts, no gravity compensation)"
 
 HELP = "direct dynamics under the chapter's feedback law, eq. (31) (SI units)"
 
@@ -158,14 +161,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=None,
         help="open loop: the efforts in FILE (.csv or .parquet: t and the robot's effort "
         "columns, as `rrt-pin inverse --csv` writes them) [N·m or N], interpolated linearly "
-        "between samples and held outside them, whatever the state",
+        "between samples and held outside them, whatever the state; a CSV that also holds "
+        "the motion (q…, as inverse --csv writes it) starts the run on it unless --q0/--qd0 "
+        "are given",
     )
     law.add_argument(
         "--controller",
         metavar="MODULE:FUNCTION",
         default=None,
         help="your own law, a Python function f(t, q, qd) -> efforts (or f(q, qd)), imported "
-        "from MODULE (found in the current directory first); checked at every call",
+        "from MODULE (found in the current directory first) or a file PATH.py; checked at "
+        "every call",
     )
     parser.add_argument(
         "--no-error-estimate",
@@ -192,6 +198,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "method or tolerances) and the job is long enough for it to be at least twice as "
         "fast, start-up included, else pinocchio; -v says why (default: pinocchio)",
     )
+    add_frame_arguments(parser)
     add_robot_arguments(parser, "simulate")
     add_param_arguments(parser)
 
@@ -216,12 +223,16 @@ def run(args: argparse.Namespace) -> int:
         )
     if args.method is not None:
         methods.get(args.method)
-    source = _law_source(args)
+    source = law_source(args)
     if source is not None:
         robot = robot_from_args(args, params, "view")  # the law needs no regulator's defaults
     else:
         robot = robot_from_args(args, params, "simulate")
-    columns = 1 + 3 * robot.nv
+    frames, frame_velocities = frames_from_args(args, robot)
+    from rrt_pin.dynamics.kinematics import frame_columns
+
+    frame_units = frame_columns(frames, frame_velocities)
+    columns = 1 + 3 * robot.nv + len(frame_units)
     check_space(args.csv, estimate_bytes(fmt, grid.size, columns), "--csv")
     args.backend = resolve_backend(
         args.backend, robot, "simulate", args.method, work=float(args.tf)
@@ -244,7 +255,7 @@ def run(args: argparse.Namespace) -> int:
     d = robot.defaults
     passive = source is not None
     law, law_name, start = (
-        _law(args, robot, source) if passive else (regulator(robot), robot.regulator, None)
+        law_from_args(args, robot, source) if passive else (regulator(robot), robot.regulator, None)
     )
     q0 = d.q0 if d.q0 is not None else np.zeros(robot.nv)
     qd0 = d.qd0
@@ -282,11 +293,18 @@ def run(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
     units = {name: robot.units.get(name, "") for name in result.header}
+    units.update(frame_units)
+    header = [*result.header, *frame_units]
+    extra = None
+    if frames:
+        from rrt_pin.dynamics.kinematics import frame_table
+
+        extra = frame_table(robot, result.q, result.qd, frames, frame_velocities)
     facts = summary(robot, result, law_name)
     meta = run_metadata(
         args, robot, params, command="simulate", backend=result.backend,
         method=result.method, rtol=result.rtol, atol=result.atol, step=result.step,
-        tf=tf, dt=dt, samples=int(result.t.size), columns=list(result.header), units=units,
+        tf=tf, dt=dt, samples=int(result.t.size), columns=header, units=units,
         regulator=law_name,
         kp=[float(x) for x in d.kp] if d.kp is not None and not passive else None,
         kd=[float(x) for x in d.kd] if d.kd is not None and not passive else None,
@@ -296,7 +314,7 @@ def run(args: argparse.Namespace) -> int:
     progress = Progress(result.t.size, f"writing {args.csv}", force=args.progress)
 
     def table(fh: IO[bytes]) -> None:
-        write_result(fh, fmt, result, units, meta, progress)
+        write_result(fh, fmt, result, units, meta, progress, extra=extra)
 
     def summary_json() -> str:
         doc = {"metadata": meta, "summary": facts}
@@ -371,26 +389,26 @@ def write_result(
     units: dict[str, str],
     metadata: dict,
     progress: Progress | None = None,
+    extra: np.ndarray | None = None,
 ) -> None:
-    """Write a result's table (t, q…, qd…, tau…) to ``fh``, a block of rows at a time."""
+    """Write a result's table (t, q…, qd…, tau…) to ``fh``, a block of rows at a time.
+
+    ``extra``: more columns, one row per sample (the frames'), named by ``units``'s last keys.
+    """
     import numpy as np
 
     from rrt_pin.io.tables import BLOCK_ROWS, TableWriter
 
     n = result.t.size
-    with TableWriter(fh, fmt, result.header, units, metadata) as sink:
+    header = [*result.header, *list(units)[len(result.header) :]] if extra is not None else None
+    with TableWriter(fh, fmt, header or result.header, units, metadata) as sink:
         for start in range(0, n, BLOCK_ROWS):
             stop = min(start + BLOCK_ROWS, n)
-            sink.write(
-                np.column_stack(
-                    (
-                        result.t[start:stop],
-                        result.q[start:stop],
-                        result.qd[start:stop],
-                        result.tau[start:stop],
-                    )
-                )
-            )
+            parts = [result.t[start:stop], result.q[start:stop], result.qd[start:stop],
+                     result.tau[start:stop]]  # fmt: skip
+            if extra is not None:
+                parts.append(extra[start:stop])
+            sink.write(np.column_stack(parts))
             if progress is not None:
                 progress.update(stop - start)
 
@@ -489,81 +507,3 @@ def _picture(robot: Robot, result: SimulationResult, path: str) -> bytes:
 
     return simulate_figure(robot, result.t, result.q, result.tau, targets=robot.defaults.qf,
                            fmt=plot_format(path))  # fmt: skip
-
-
-#: The flags that choose the law instead of the robot's regulator (at most one).
-LAW_FLAGS = ("passive", "track", "efforts", "controller")
-
-
-def _law_source(args: argparse.Namespace) -> str | None:
-    """Which of :data:`LAW_FLAGS` was given (None: the regulator); gains only where they apply."""
-    given = [f for f in LAW_FLAGS if getattr(args, f, None) not in (None, False)]
-    if len(given) > 1:
-        raise InputError(f"--{given[0]} and --{given[1]} both choose the law: give one")
-    source = given[0] if given else None
-    unused = {"passive": ("kp", "kd", "qf"), "efforts": ("kp", "kd", "qf"),
-              "controller": ("kp", "kd"), "track": ("qf",)}.get(source or "", ())  # fmt: skip
-    for flag in unused:
-        if getattr(args, flag, None) is not None:
-            why = "no controller acts" if source == "passive" else f"--{source} sets the law"
-            raise InputError(f"--{flag} does not apply with --{source}: {why}")
-    return source
-
-
-def _law(args: argparse.Namespace, robot: Robot, source: str) -> tuple[Any, str, Any]:
-    """The law of ``source``, its name for summaries, and the tracked motion's start."""
-    import os
-
-    if source == "passive":
-        return None, PASSIVE, None
-    if source == "track":
-        from rrt_pin.dynamics.sampled import read_motion
-        from rrt_pin.dynamics.trajectory import Trajectory
-        from rrt_pin.simulate.control import tracking_controller
-
-        m = read_motion(args.track, robot)
-        kp = args.kp if args.kp is not None else 100.0
-        kd = args.kd if args.kd is not None else 20.0
-        law = tracking_controller(robot, Trajectory(m.t, m.q, m.qd, m.qdd), kp=kp, kd=kd)
-        name = f"computed-torque tracking of {os.path.basename(args.track)}"
-        return law, name, (m.q[0], m.qd[0])
-    if source == "efforts":
-        from rrt_pin.dynamics.sampled import read_efforts
-        from rrt_pin.simulate.control import OpenLoop
-
-        t, tau = read_efforts(args.efforts, robot)
-        return (
-            OpenLoop(t, tau),
-            f"the efforts in {os.path.basename(args.efforts)} (open loop)",
-            None,
-        )
-    return _user_law(args.controller), f"{args.controller} (your law)", None
-
-
-def _user_law(spec: str) -> Any:
-    """The function ``MODULE:FUNCTION`` names, the current directory searched first."""
-    import importlib
-    import os
-
-    module_name, sep, name = spec.partition(":")
-    if not sep or not module_name or not name:
-        raise InputError(f"--controller {spec!r} must be MODULE:FUNCTION (e.g. mylaw:law)")
-    here = os.getcwd()
-    added = here not in sys.path
-    if added:
-        sys.path.insert(0, here)
-    try:
-        module = importlib.import_module(module_name)
-    except ImportError as e:
-        raise InputError(f"--controller {spec!r}: module {module_name!r} not found ({e})") from e
-    except Exception as e:  # the user's module failed while importing: say how, in one line
-        raise InputError(
-            f"--controller {spec!r}: importing {module_name!r} raised {type(e).__name__}: {e}"
-        ) from e
-    finally:
-        if added:
-            sys.path.remove(here)
-    law = getattr(module, name, None)
-    if not callable(law):
-        raise InputError(f"--controller {spec!r}: {module_name} has no function {name!r}")
-    return law
