@@ -272,6 +272,11 @@ CASES = (
         "missing.csv' lacks column 'q3'; it needs t and q1,q2,q3; it has t,q1,q2",
     ),
     Case(
+        "inverse --trajectory: NaN in the file",
+        ("inverse", "--trajectory", "{tmp}/nan.csv", "--csv", OUT),
+        "nan.csv' line 3, column 'q1': 'nan' is not a finite number",
+    ),
+    Case(
         "inverse --trajectory: degrees for radians",
         ("inverse", "--trajectory", "{tmp}/degrees.csv", "--csv", OUT),
         "q1 reaches 63, more than two turns (12.57 rad) for a revolute joint: given in degrees?",
