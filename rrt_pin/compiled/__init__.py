@@ -17,6 +17,8 @@ Public API (SI units throughout):
 * whole simulations: :func:`simulate_compiled` (the ``backend="compiled"`` of
   :func:`rrt_pin.simulate.simulate`) and :func:`simulate_batch_compiled` (many
   chapter variants: gains, targets, initial states and masses per variant);
+* forward dynamics, M(q), bias and gravity of any such robot:
+  :func:`rrt_pin.compiled.forward.forward_kernel_for` (not yet run by ``simulate``);
 * inverse dynamics of any other fixed-base robot with revolute, prismatic or
   continuous joints: :mod:`rrt_pin.compiled.rnea` (the RNEA generated from its
   Pinocchio model by :mod:`rrt_pin.dynamics.rnea_source`, compiled once per model and cached
