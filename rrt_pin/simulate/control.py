@@ -1,34 +1,17 @@
-"""Controllers: the laws rrt-pin ships, and the contract every law follows.
+"""Controllers: the laws rrt-pin ships.
 
-The contract (:class:`Controller`, :func:`as_controller`) lives in
-:mod:`rrt_pin.simulate.contract` and is offered here too. It gives time to the law, as robotics-toolbox,
-MuJoCo and Drake do::
-
-    tau = controller.efforts(t, q, qd)          # one state: (nv,) -> (nv,)
-    tau = controller.efforts_many(t, Q, QD)     # N states (N, nv), t scalar or (N,)
-
-with ``t`` [s], ``q`` the joint coordinates [rad or m] (angles for continuous
-joints, see :mod:`rrt_pin.robot.robot`), ``qd`` [rad/s or m/s] and efforts [N·m for
-revolute joints, N for prismatic ones]. Two optional capabilities are declared
-by methods, never guessed: :meth:`Controller.jacobian` (∂τ/∂q, ∂τ/∂q̇ for the
-implicit integrators) and :meth:`Controller.feedback` (the law is
-τ = −kd·q̇ − kp·(q − qf) + G(q): a simulation may then fold an exact gravity
-compensation into the dynamics, and a batch of such laws is evaluated as arrays).
-
-What a batch may share: :func:`rrt_pin.simulate.simulate_batch` runs one plant
-(one model) and one controller per variant. Laws whose :meth:`feedback` share
-the same gravity term are evaluated together (gains and targets stacked);
-any other controller is evaluated variant by variant through ``efforts``.
-
-Any object with ``nv`` and ``efforts(t, q, qd)``, or any function
-``f(t, q, qd)``, is accepted where a controller is (see :func:`as_controller`).
+Every law follows the contract of :mod:`rrt_pin.simulate.contract` (``efforts(t, q,
+qd)``, optional ``efforts_many``, ``jacobian`` and ``feedback``; see there), whose
+:class:`Controller`, :class:`LinearFeedback` and :func:`as_controller` are offered here
+too.
 
 Laws here:
 
 * :class:`ChapterController`: the chapter's eq. (31), exactly as printed;
 * :class:`PDGravityController`: PD plus Pinocchio's gravity compensation, any robot;
 * :class:`TrackingController`: computed torque along a prescribed motion
-  (feed-forward M(q)·q̈_d + b(q, q̇) with PD on the tracking error).
+  (feed-forward M(q)·q̈_d + b(q, q̇) with PD on the tracking error);
+* :class:`OpenLoop`: efforts played from samples, whatever the state.
 """
 
 from __future__ import annotations
