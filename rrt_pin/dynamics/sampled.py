@@ -46,6 +46,7 @@ __all__ = [
     "motion_from_frame",
     "read_efforts",
     "read_motion",
+    "read_playback",
     "sampled_motion",
 ]
 
@@ -328,6 +329,22 @@ def motion_from_frame(frame: Any, robot: Robot) -> SampledMotion:
     return _from_columns(header, data, units, robot, "frame", None)
 
 
+def _check_units(
+    robot: Robot,
+    units: dict[str, str],
+    columns: list[str],
+    where: str,
+    expected: dict[str, str] | None = None,
+) -> None:
+    """Each of ``columns`` a file gives a unit for must be in the robot's unit for it."""
+    expected = expected or robot.units
+    for c in columns:
+        if c in units and units[c] != expected[c]:
+            raise InputError(
+                f"{where}: column {c!r} is in {units[c]}; {robot.name} needs {expected[c]}"
+            )
+
+
 def _from_columns(
     header: list[str],
     data: np.ndarray,
@@ -340,11 +357,7 @@ def _from_columns(
         raise InputError(f"{where} lacks column 't' [s]")
     _refuse_other_joints(robot, header, where)
     cols = coordinate_columns(robot, header, where)
-    for col, expected in zip(cols, robot.coordinate_units, strict=True):
-        if col in units and units[col] != expected:
-            raise InputError(
-                f"{where}: column {col!r} is in {units[col]}; {robot.name} needs {expected}"
-            )
+    _check_units(robot, units, cols, where, dict(zip(cols, robot.coordinate_units, strict=True)))
     column = {c: data[:, header.index(c)] for c in header}
     q = np.column_stack([column[c] for c in cols])
     parts = {}
@@ -354,11 +367,7 @@ def _from_columns(
             missing = next(c for c, p in zip(names, present, strict=True) if not p)
             raise InputError(f"{where} has some {kind} columns but lacks {missing!r}")
         if all(present):
-            for c in names:
-                if c in units and units[c] != robot.units[c]:
-                    raise InputError(
-                        f"{where}: column {c!r} is in {units[c]}; {robot.name} needs {robot.units[c]}"
-                    )
+            _check_units(robot, units, list(names), where)
             parts[kind] = np.column_stack([column[c] for c in names])
     return sampled_motion(
         column["t"], q, parts.get("qd"), parts.get("qdd"), robot=robot, names=cols,
@@ -393,6 +402,21 @@ def read_efforts(path: str | os.PathLike[str], robot: Robot) -> tuple[np.ndarray
         InputError: the file cannot be read, a column is missing, a unit is not the
             robot's (Parquet), a value is not finite or the times do not increase.
     """
+    t, tau, _ = read_playback(path, robot)
+    return t, tau
+
+
+def read_playback(
+    path: str | os.PathLike[str], robot: Robot
+) -> tuple[np.ndarray, np.ndarray, SampledMotion | None]:
+    """:func:`read_efforts`, and the motion the same file holds, read once.
+
+    The motion is the file's ``q`` columns (and ``qd``, ``qdd``), as ``rrt-pin inverse
+    --csv`` writes them, or None when the file has no such columns.
+
+    Raises:
+        InputError: as :func:`read_efforts`, and as :func:`read_motion` for the motion.
+    """
     name = os.fspath(path)
     header, data, units, where = _read_columns(name)
     if "t" not in header:
@@ -405,13 +429,11 @@ def read_efforts(path: str | os.PathLike[str], robot: Robot) -> tuple[np.ndarray
             f"{where} lacks column {missing[0]!r}; it needs t and {text.names(names, sep=',')}; "
             f"it has {','.join(header)}"
         )
-    for c in names:
-        if c in units and units[c] != robot.units[c]:
-            raise InputError(
-                f"{where}: column {c!r} is in {units[c]}; {robot.name} needs {robot.units[c]}"
-            )
+    _check_units(robot, units, names, where)
     t = data[:, header.index("t")]
     _check_times(t, where)
     tau = _check_values("tau", np.column_stack([data[:, header.index(c)] for c in names]),
                         robot.nv, t.size, where)  # fmt: skip
-    return t, tau
+    has_motion = all(c in header for c in robot.q_names)
+    motion = _from_columns(header, data, units, robot, where, name) if has_motion else None
+    return t, tau, motion

@@ -58,27 +58,14 @@ def law_from_args(args: argparse.Namespace, robot: Robot, source: str) -> tuple[
         name = f"computed-torque tracking of {os.path.basename(args.track)}"
         return law, name, (m.q[0], m.qd[0])
     if source == "efforts":
-        from rrt_pin.dynamics.sampled import read_efforts
+        from rrt_pin.dynamics.sampled import read_playback
         from rrt_pin.simulate.control import OpenLoop
 
-        t, tau = read_efforts(args.efforts, robot)
+        t, tau, motion = read_playback(args.efforts, robot)
         name = f"the efforts in {os.path.basename(args.efforts)} (open loop)"
-        return OpenLoop(t, tau), name, _start_in(args.efforts, robot)
+        start = None if motion is None else (motion.q[0], motion.qd[0])
+        return OpenLoop(t, tau), name, start
     return _user_law(args.controller), f"{args.controller} (your law)", None
-
-
-def _start_in(path: str, robot: Robot) -> Any:
-    """The first state of the motion a CSV also holds (as ``inverse --csv`` writes), or None."""
-    from rrt_pin.dynamics.sampled import read_motion
-    from rrt_pin.io.csvio import read_csv_table
-
-    if path.lower().endswith(".parquet"):
-        return None
-    header = read_csv_table(path).header
-    if not all(name in header for name in robot.q_names):
-        return None
-    m = read_motion(path, robot)
-    return m.q[0], m.qd[0]
 
 
 def _user_law(spec: str) -> Any:

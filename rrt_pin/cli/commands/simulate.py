@@ -161,7 +161,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=None,
         help="open loop: the efforts in FILE (.csv or .parquet: t and the robot's effort "
         "columns, as `rrt-pin inverse --csv` writes them) [N·m or N], interpolated linearly "
-        "between samples and held outside them, whatever the state; a CSV that also holds "
+        "between samples and held outside them, whatever the state; a file that also holds "
         "the motion (q…, as inverse --csv writes it) starts the run on it unless --q0/--qd0 "
         "are given",
     )
