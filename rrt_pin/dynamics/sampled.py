@@ -381,14 +381,7 @@ def _read_columns(path: str) -> tuple[list[str], np.ndarray, dict[str, str], str
         header, data, units = _read_parquet(path)
         return header, data, units, f"Parquet {path!r}"
     table = read_csv_table(path, required=("t",))
-    steps = np.diff(table.data[:, table.header.index("t")])
-    if (steps <= 0.0).any():  # said with the editor's line numbers
-        k = int(np.argmax(steps <= 0.0))
-        raise InputError(
-            f"{table.where(k + 1, 't')}: times must increase strictly, but "
-            f"{table.value_text(k + 1, 't')} s follows {table.value_text(k, 't')} s "
-            f"(line {int(table.lines[k])})"
-        )
+    table.check_increasing("t")  # said with the editor's line numbers
     return table.header, table.data, {}, f"CSV {path!r}"
 
 

@@ -139,6 +139,21 @@ class CsvTable:
         name = column if isinstance(column, str) else self.header[column]
         return f"{_name(self.path)} line {int(self.lines[row])}, column {name!r}"
 
+    def check_increasing(self, column: str = "t") -> None:
+        """Refuse a ``column`` whose values do not increase strictly (naming both lines).
+
+        Raises:
+            InputError: the first value that does not exceed the one before it.
+        """
+        steps = np.diff(self.data[:, self.header.index(column)])
+        if (steps <= 0.0).any():
+            k = int(np.argmax(steps <= 0.0))
+            raise InputError(
+                f"{self.where(k + 1, column)}: times must increase strictly, but "
+                f"{self.value_text(k + 1, column)} s follows {self.value_text(k, column)} s "
+                f"(line {int(self.lines[k])})"
+            )
+
     def value_text(self, row: int, column: int | str) -> str:
         """The text of a value as the file has it (stripped), for messages."""
         index = column if isinstance(column, int) else self.header.index(column)

@@ -81,14 +81,7 @@ def read_trajectory_csv(path: str, robot: Robot) -> tuple[np.ndarray, np.ndarray
             raise InputError(
                 f"{table.where(row, name)}: {table.value_text(row, name)} is beyond ±{MAX_VALUE:g}"
             )
-    steps = np.diff(t)
-    if (steps <= 0.0).any():
-        k = int(np.argmax(steps <= 0.0))
-        raise InputError(
-            f"{table.where(k + 1, 't')}: times must increase strictly, but "
-            f"{table.value_text(k + 1, 't')} s follows {table.value_text(k, 't')} s "
-            f"(line {int(table.lines[k])})"
-        )
+    table.check_increasing("t")
     return t, values
 
 
