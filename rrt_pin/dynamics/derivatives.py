@@ -71,25 +71,43 @@ def _symmetric(upper: np.ndarray) -> np.ndarray:
     return np.triu(upper) + np.triu(upper, 1).T
 
 
+def _along(
+    robot: Robot,
+    algorithm: str,
+    q: np.ndarray,
+    qd: np.ndarray,
+    third: np.ndarray,
+    outputs: tuple[str, str, str],
+) -> list[np.ndarray]:
+    """Pinocchio's ``algorithm`` at each state, its outputs gathered (N, nv, nv) each.
+
+    The third output (M or M⁻¹) is symmetrised: Pinocchio fills its upper triangle only.
+    """
+    import pinocchio as pin
+
+    model = robot.model
+    data = model.createData()
+    config = np.ascontiguousarray(robot.configuration(q))
+    run = getattr(pin, algorithm)
+    n, nv = q.shape
+    out = [np.empty((n, nv, nv)) for _ in range(3)]
+    for k in range(n):
+        run(model, data, config[k], qd[k], third[k])
+        out[0][k], out[1][k] = getattr(data, outputs[0]), getattr(data, outputs[1])
+        out[2][k] = _symmetric(getattr(data, outputs[2]))
+    return out
+
+
 def inverse_derivatives(robot: Robot, q: Any, qd: Any, qdd: Any) -> InverseDerivatives:
     """∂τ/∂q, ∂τ/∂q̇, ∂τ/∂q̈ of the inverse dynamics at each state (N, nv) [SI units].
 
     Raises:
         InputError: not a Robot, shapes that differ from (N, nv), or a non-finite value.
     """
-    import pinocchio as pin
-
-    q, qd, qdd = _arrays(robot, ("q", q), ("qd", qd), ("qdd", qdd))
-    model = robot.model
-    data = model.createData()
-    config = np.ascontiguousarray(robot.configuration(q))
-    n, nv = q.shape
-    out = [np.empty((n, nv, nv)) for _ in range(3)]
-    for k in range(n):
-        pin.computeRNEADerivatives(model, data, config[k], qd[k], qdd[k])
-        out[0][k], out[1][k] = data.dtau_dq, data.dtau_dv
-        out[2][k] = _symmetric(data.M)
-    return InverseDerivatives(*out)
+    arrays = _arrays(robot, ("q", q), ("qd", qd), ("qdd", qdd))
+    return InverseDerivatives(
+        *_along(robot, "computeRNEADerivatives", *arrays, ("dtau_dq", "dtau_dv", "M"))
+    )
 
 
 def forward_derivatives(robot: Robot, q: Any, qd: Any, tau: Any) -> ForwardDerivatives:
@@ -98,16 +116,7 @@ def forward_derivatives(robot: Robot, q: Any, qd: Any, tau: Any) -> ForwardDeriv
     Raises:
         InputError: not a Robot, shapes that differ from (N, nv), or a non-finite value.
     """
-    import pinocchio as pin
-
-    q, qd, tau = _arrays(robot, ("q", q), ("qd", qd), ("tau", tau))
-    model = robot.model
-    data = model.createData()
-    config = np.ascontiguousarray(robot.configuration(q))
-    n, nv = q.shape
-    out = [np.empty((n, nv, nv)) for _ in range(3)]
-    for k in range(n):
-        pin.computeABADerivatives(model, data, config[k], qd[k], tau[k])
-        out[0][k], out[1][k] = data.ddq_dq, data.ddq_dv
-        out[2][k] = _symmetric(data.Minv)
-    return ForwardDerivatives(*out)
+    arrays = _arrays(robot, ("q", q), ("qd", qd), ("tau", tau))
+    return ForwardDerivatives(
+        *_along(robot, "computeABADerivatives", *arrays, ("ddq_dq", "ddq_dv", "Minv"))
+    )
