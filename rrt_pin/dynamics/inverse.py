@@ -25,7 +25,6 @@ from rrt_pin.core import backends, cpus, memory, validate
 from rrt_pin.core.errors import ArgumentTypeError, InputError
 from rrt_pin.core.identity import IdentityCache
 from rrt_pin.dynamics import kernel
-from rrt_pin.dynamics.sampled import motion_from_frame
 from rrt_pin.robot.params import check_params, plant_difference
 from rrt_pin.robot.robot import CHAPTER_COLUMNS, Robot, bare_model, params_given
 
@@ -261,6 +260,8 @@ def _motion(model: Any, q: Any, qd: Any, qdd: Any) -> tuple[Any, Any, Any]:
         return q.q, q.qd, q.qdd
     if not isinstance(model, Robot):
         raise InputError("inverse_dynamics() of a data frame needs a Robot (its column names)")
+    from rrt_pin.dynamics.sampled import motion_from_frame  # CSV and spline code: only here
+
     motion = motion_from_frame(q, model)
     return motion.q, motion.qd, motion.qdd
 
