@@ -10,6 +10,8 @@ import importlib.util
 import json
 import math
 import os
+import platform
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -181,7 +183,7 @@ def test_a_robot_takes_joint_coordinates(robot_name):
     from rrt_pin.robot.robots import get
 
     robot = get(robot_name)
-    assert robot.supports("compiled", "inverse") and not robot.supports("compiled", "simulate")
+    assert robot.supports("compiled", "inverse")
     rng = np.random.default_rng(3)
     q, qd, qdd = (rng.uniform(-2, 2, (64, robot.nv)) for _ in range(3))
     tau = inverse_dynamics(robot, q, qd, qdd, backend="compiled")
@@ -418,3 +420,193 @@ def test_the_cli_runs_a_urdf_robot_on_the_compiled_backend(tmp_path, capsys):
     gains = ["--kp", "1", "--kd", "1", "--tf", "1"]
     code = main(["simulate", "--urdf", urdf, *motion[:4], *gains, "--backend", "compiled"])
     assert code == 2 and "simulates the chapter's RRT arm only" in capsys.readouterr().err
+
+
+# --- the kernel vectorised across samples (rrt_pin.compiled.rnea_vector) ------------------
+
+#: Joint models of random trees: revolute, prismatic and continuous, axes aligned or not
+#: (an unaligned continuous joint, which Pinocchio's Python cannot make, is in TREE_URDF).
+_JOINTS = (
+    lambda axis: pin.JointModelRX(),
+    lambda axis: pin.JointModelRUBY(),
+    lambda axis: pin.JointModelPrismaticUnaligned(axis),
+    lambda axis: pin.JointModelRevoluteUnaligned(axis),
+    lambda axis: pin.JointModelRUBZ(),
+    lambda axis: pin.JointModelPZ(),
+    lambda axis: pin.JointModelRZ(),
+    lambda axis: pin.JointModelRY(),
+    lambda axis: pin.JointModelPX(),
+)
+
+
+def random_tree(seed: int, joints: int = 6) -> pin.Model:
+    """A random tree: random parents, joint kinds, rotated and offset placements, inertias."""
+    rng = np.random.default_rng(seed)
+    model = pin.Model()
+    model.gravity.linear[:] = rng.normal(0, 5, 3)
+    for i in range(joints):
+        axis = rng.normal(size=3)
+        kind = _JOINTS[i] if i < 3 else _JOINTS[int(rng.integers(len(_JOINTS)))]
+        parent = int(rng.integers(0, i + 1))
+        rotation = pin.exp3(rng.normal(size=3))
+        placement = pin.SE3(rotation, rng.uniform(-0.3, 0.3, 3))
+        jid = model.addJoint(parent, kind(axis / np.linalg.norm(axis)), placement, f"j{i}")
+        a, b, c = rng.uniform(0.01, 0.2, 3)
+        r = pin.exp3(rng.normal(size=3))
+        inertia = r @ np.diag([b + c, a + c, a + b]) @ r.T
+        body = pin.Inertia(float(rng.uniform(0.2, 3)), rng.uniform(-0.2, 0.2, 3), inertia)
+        model.appendBodyToJoint(jid, body, pin.SE3.Identity())
+    return model
+
+
+def _raw(model: pin.Model, q, qd, qdd):
+    """The compiled kernel's efforts on one thread (Pinocchio's configuration layout)."""
+    from rrt_pin.compiled import rnea
+
+    tau, finite = rnea.inverse_dynamics(model, q, qd, qdd, num_threads=1)
+    return tau, finite
+
+
+@needs_numba
+@pytest.mark.parametrize("seed", [3, 4])
+def test_random_trees_agree_with_pinocchio(seed):
+    model = random_tree(seed)
+    kinds = {j.shortname() for j in model.joints[1:]}
+    assert {"JointModelRUBY", "JointModelPrismaticUnaligned", "JointModelRX"} <= kinds
+    assert len(set(model.parents[1:])) > 1 and model.nq > model.nv  # a tree; continuous joints
+    q, qd, qdd = random_batch(model, 261, seed=seed)  # two full blocks and a partial one
+    tau, finite = _raw(model, q, qd, qdd)
+    assert finite and worst(tau, pin_loop(model, q, qd, qdd)) <= AGREEMENT
+
+
+@needs_numba
+@pytest.mark.parametrize("n", [1, 5, 127, 128, 129, 300])
+def test_every_sample_gets_the_bits_it_gets_alone(n):
+    """Lanes are independent: batch sizes not multiples of a block, samples anywhere in it."""
+    from rrt_pin.compiled.rnea_vector import BLOCK
+
+    assert BLOCK == 128  # the sizes above straddle it
+    model = _models()["panda"]()
+    q, qd, qdd = random_batch(model, n, seed=n)
+    tau, finite = _raw(model, q, qd, qdd)
+    assert finite and worst(tau, pin_loop(model, q, qd, qdd)) <= AGREEMENT
+    for i in sorted({0, n // 2, n - 1}):
+        alone, _ = _raw(model, q[i : i + 1], qd[i : i + 1], qdd[i : i + 1])
+        assert np.array_equal(alone[0], tau[i])
+
+
+@needs_numba
+def test_a_block_with_a_huge_angle_takes_libm_for_it_only():
+    """|q| >= SINCOS_LIMIT: that sample's sine and cosine from libm (as Pinocchio's); the
+    other samples of its block keep the polynomial's bits."""
+    from rrt_pin.compiled.rnea_vector import SINCOS_LIMIT
+
+    model = _models()["ur5"]()
+    q, qd, qdd = random_batch(model, 300, seed=4)
+    before, _ = _raw(model, q, qd, qdd)
+    for huge in (SINCOS_LIMIT, 3.7e9, -1e15):
+        big = q.copy()
+        big[140, 2] = huge  # the second block
+        big[141, 1] = SINCOS_LIMIT * (1 - 2**-50)  # below the limit: the polynomial
+        tau, finite = _raw(model, big, qd, qdd)
+        assert finite
+        ref = pin_loop(model, big[140:142], qd[140:142], qdd[140:142])
+        assert worst(tau[140:142], ref) <= AGREEMENT
+        same = np.ones(300, bool)
+        same[140:142] = False
+        assert np.array_equal(tau[same], before[same])
+
+
+@needs_numba
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
+@pytest.mark.parametrize("column", [0, 2])  # q[0] reaches no effort of UR5; q[2] does
+def test_a_non_finite_angle_is_refused(bad, column):
+    model = _models()["ur5"]()
+    q, qd, qdd = random_batch(model, 300, seed=6)
+    q[200, column] = bad
+    tau, finite = _raw(model, q, qd, qdd)
+    assert not finite
+    assert np.isfinite(np.delete(tau, 200, axis=0)).all()  # the other samples are computed
+    robot = Robot.from_model(model)
+    with pytest.raises(InputError, match=rf"q\[200, {column}\]={bad!r}"):
+        inverse_dynamics(robot, q, qd, qdd, backend="compiled")
+
+
+def test_the_polynomial_sine_and_cosine_are_within_cephes_bound():
+    """The generated sin/cos statements, run as plain Python, against libm."""
+    from rrt_pin.compiled.rnea_vector import sincos_lines
+
+    code = "\n".join(sincos_lines("x", "s", "c", "p"))
+    rng = np.random.default_rng(0)
+    xs = [0.0, -0.0, math.pi / 4, -math.pi / 2, 1e-300, *rng.uniform(-50, 50, 2000)]
+    xs += list(rng.uniform(-1e7, 1e7, 200))
+    errs = []
+    for x in xs:
+        scope = {"x": float(x)}
+        exec(code, scope)
+        errs.append(max(abs(scope["s"] - math.sin(x)), abs(scope["c"] - math.cos(x))))
+    assert max(errs) <= 2.3e-16 * max(1.0, max(abs(x) for x in xs) * 1e-9)
+    assert max(errs[:2005]) <= 2.3e-16
+
+
+def test_the_copied_sine_constants_are_the_arm_kernels():
+    """rnea_vector copies _jit_dynamics' Cephes constants (that module compiles on import)."""
+    import ast
+
+    from rrt_pin.compiled import rnea_vector as rv
+
+    tree = ast.parse((ROOT / "rrt_pin/compiled/_jit_dynamics.py").read_text(encoding="utf-8"))
+    values = {
+        node.targets[0].id: ast.literal_eval(node.value)
+        for node in tree.body
+        if isinstance(node, ast.Assign) and isinstance(node.targets[0], ast.Name)
+        and node.targets[0].id in {"SINCOS_LIMIT", "_FOPI", "_DP1", "_DP2", "_DP3", "_S", "_C"}
+    }  # fmt: skip
+    assert values["SINCOS_LIMIT"] == rv.SINCOS_LIMIT and values["_FOPI"] == rv._FOPI
+    assert (values["_DP1"], values["_DP2"], values["_DP3"]) == rv._DP
+    assert values["_S"] == rv._S and values["_C"] == rv._C
+
+
+def test_the_generated_module_runs_as_plain_python():
+    """The module's text alone (no numba): the same kernel, interpreted, on a tree."""
+    from rrt_pin.compiled.rnea_vector import vector_source
+
+    model = tree_model()
+    source, pairs = vector_source(rnea_source(model), block=4)
+    assert pairs == 2  # revolute j3 and j5 (the continuous joints read their cos, sin)
+    scope: dict = {}
+    exec(source, scope)
+    q, qd, qdd = random_batch(model, 10, seed=3)
+    out = np.empty((10, model.nv))
+    assert scope["kernel"](q, qd, qdd, out) == 0.0
+    assert worst(out, pin_loop(model, q, qd, qdd)) <= AGREEMENT
+    qd[9, 1] = np.nan
+    assert math.isnan(scope["kernel"](q, qd, qdd, out))
+
+
+@needs_numba
+def test_the_kernel_is_vectorised_and_counts_its_sines():
+    from rrt_pin.compiled import rnea
+    from rrt_pin.simulate.codes import SINCOS_FLOPS
+
+    kernel = rnea.kernel_for(_models()["ur5"]())
+    assert kernel.vectorised and kernel.sincos == 5  # the shoulder pan's angle reaches no effort
+    assert kernel.all_flops == kernel.flops + 5 * SINCOS_FLOPS
+
+
+@needs_numba
+@pytest.mark.skipif(platform.machine() not in ("x86_64", "AMD64"), reason="x86 assembly")
+def test_the_block_loop_compiles_to_packed_arithmetic():
+    """A call or a branch in the body would leave it scalar (compiled here, not from the cache,
+    whose code numba does not show)."""
+    import numba
+
+    from rrt_pin.compiled import rnea
+
+    scope: dict = {}
+    exec(rnea.module_source(rnea_source(rrt_model())), scope)
+    kernel = numba.njit(rnea._signature(numba), error_model="numpy")(scope["kernel"])
+    asm = kernel.inspect_asm(kernel.signatures[0])
+    packed = len(re.findall(r"\bv?mulpd\b", asm))
+    scalar = len(re.findall(r"\bv?mulsd\b", asm))
+    assert packed >= 0.9 * scalar > 0  # the lanes' body, and the scalar remainder's

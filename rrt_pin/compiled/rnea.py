@@ -1,8 +1,10 @@
 """Inverse dynamics of any supported fixed-base robot in machine code, generated from its model.
 
 :func:`rrt_pin.dynamics.rnea_source.rnea_source` turns a ``pin.Model`` into the straight-line
-RNEA of one sample; :func:`module_source` wraps it in a loop over a batch,
-``kernel(Q (N, nq), V (N, nv), A (N, nv), out (N, nv))``, which is written to a
+RNEA of one sample; :func:`module_source` makes of it a kernel over a batch,
+``kernel(Q (N, nq), V (N, nv), A (N, nv), out (N, nv))``, vectorised across samples
+(:mod:`rrt_pin.compiled.rnea_vector`: blocks of samples as structure of arrays, the
+polynomial sine and cosine over a block, several samples an instruction), which is written to a
 file named by the SHA-256 of that source, imported from there and compiled by
 numba with ``cache=True`` and ``nogil=True`` (:func:`kernel_for`). The file's
 directory is ``generated/`` under the base cache directory of
@@ -18,7 +20,7 @@ process keeps one kernel per source in memory.
 :func:`inverse_dynamics` splits a batch over threads as the compiled batches do
 (:func:`rrt_pin.compiled.lanes._in_slices`). Each call of the kernel
 returns 0.0 when every input and effort of its samples is finite, else NaN (one
-sum a sample, no branch), so non-finite values are searched only then.
+test a sample, OR-ed without a branch), so non-finite values are searched only then.
 
 Units: Q in rad or m (continuous joints: cos θ, sin θ), V in rad/s or m/s, A in
 rad/s² or m/s²; efforts in N·m (revolute) or N (prismatic).
@@ -42,10 +44,12 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from rrt_pin.compiled import rnea_vector
 from rrt_pin.core import backends, cpus
 from rrt_pin.core.errors import InputError
 from rrt_pin.core.identity import IdentityCache
 from rrt_pin.dynamics import rnea_source
+from rrt_pin.simulate.codes import SINCOS_FLOPS
 
 if TYPE_CHECKING:
     import pinocchio as pin
@@ -66,6 +70,11 @@ __all__ = [
 MIN_SECONDS_PER_THREAD = 150e-6
 #: The fewest samples a thread takes, whatever the kernel.
 MIN_SAMPLES_PER_THREAD = 256
+#: Costs of the thread estimate (:attr:`Kernel.min_per_thread`) [ns]: an operation of a
+#: one-sample kernel, a libm sine or cosine, an operation of a vectorised kernel.
+_NS_PER_OP = 0.3
+_NS_PER_SINCOS = 10.0
+_NS_PER_LANE_OP = 0.04
 _logger = logging.getLogger("rrt_pin")
 _lock = threading.Lock()
 
@@ -83,17 +92,31 @@ class Kernel:
         path: the module's file, or None (compiled in memory only).
         origin: ``loaded`` (numba's disk cache), ``compiled`` (and saved) or ``memory``.
         seconds: what importing and compiling (or loading) took [s].
+        vectorised: the kernel runs several samples an instruction (the RNEA's).
+        sincos: angles a sample whose sine and cosine the kernel computes by polynomial
+            (below ``rnea_vector.SINCOS_LIMIT``; libm's beyond).
     """
 
     @property
     def min_per_thread(self) -> int:
         """The fewest samples worth a thread: :data:`MIN_SECONDS_PER_THREAD` of estimated work.
 
-        The estimate, ~0.3 ns an operation and ~10 ns a sine or cosine, is what the
-        generated kernels of the chapter's arm, UR5 and Panda take on one core (within 40 %).
+        The estimate is what the generated kernels of the chapter's arm, UR5 and Panda
+        take on one core (within 40 %): :data:`_NS_PER_OP` an operation and
+        :data:`_NS_PER_SINCOS` a libm sine or cosine one sample at a time; vectorised,
+        :data:`_NS_PER_LANE_OP` an operation, polynomial sines and cosines included
+        (:attr:`all_flops`).
         """
-        ns = 0.3 * self.flops + 10.0 * self.transcendentals + 1.0
+        if self.vectorised:
+            ns = _NS_PER_LANE_OP * self.all_flops + 1.0
+        else:
+            ns = _NS_PER_OP * self.flops + _NS_PER_SINCOS * self.transcendentals + 1.0
         return max(MIN_SAMPLES_PER_THREAD, int(MIN_SECONDS_PER_THREAD * 1e9 / ns))
+
+    @property
+    def all_flops(self) -> int:
+        """Operations a sample with the polynomial sines and cosines (:attr:`sincos` pairs)."""
+        return self.flops + SINCOS_FLOPS * self.sincos
 
     digest: str
     kernel: Any
@@ -104,6 +127,8 @@ class Kernel:
     path: Path | None
     origin: str
     seconds: float
+    vectorised: bool = False
+    sincos: int = 0
 
 
 #: Kernels of this process, by the SHA-256 of their source.
@@ -112,50 +137,18 @@ _KERNELS: dict[str, Kernel] = {}
 _MODELS: IdentityCache[tuple[Any, Kernel]] = IdentityCache(16)
 
 
-def _pairwise_sum(terms: list[str]) -> str:
-    """A balanced sum of ``terms`` (a short dependency chain)."""
-    while len(terms) > 1:
-        terms = [
-            f"({terms[k]} + {terms[k + 1]})" if k + 1 < len(terms) else terms[k]
-            for k in range(0, len(terms), 2)
-        ]
-    return terms[0]
+#: A balanced sum of terms (a short dependency chain); the other generated kernels use it.
+_pairwise_sum = rnea_vector.pairwise_sum
 
 
 def module_source(gen: rnea_source.GeneratedRnea) -> str:
     """The Python module of the batch kernel around ``gen``'s straight-line RNEA (no numba import).
 
     ``kernel(Q, V, A, out)`` writes the efforts of each row into ``out`` and returns
-    0.0 when every entry of Q, V, A and out is finite, else NaN.
+    0.0 when every entry of Q, V, A and out is finite, else NaN; it is vectorised
+    across samples (:func:`rrt_pin.compiled.rnea_vector.vector_source`).
     """
-    ind = " " * 8
-    checked = [f"q[{k}]" for k in range(gen.nq)]
-    checked += [f"{x}[{k}]" for x in ("v", "a") for k in range(gen.nv)]
-    checked += [t for t in gen.tau if not t[:1].isdigit() and not t.startswith("-")]
-    lines = [
-        '"""Generated by rrt_pin.compiled.rnea from a Pinocchio model: do not edit.',
-        "",
-        f"RNEA of nq={gen.nq}, nv={gen.nv}: {gen.flops} flops and "
-        f"{gen.transcendentals} sines/cosines a sample.",
-        '"""',
-        "",
-        "from math import cos, sin",
-        "",
-        "",
-        "def kernel(Q, V, A, out):",
-        "    check = 0.0",
-        "    for i in range(Q.shape[0]):",
-        f"{ind}q = Q[i]",
-        f"{ind}v = V[i]",
-        f"{ind}a = A[i]",
-        *(f"{ind}{line}" for line in gen.lines),
-        *(f"{ind}out[i, {k}] = {t}" for k, t in enumerate(gen.tau)),
-        f"{ind}s = {_pairwise_sum(checked)}",
-        f"{ind}check += s - s",
-        "    return check",
-        "",
-    ]
-    return "\n".join(lines)
+    return rnea_vector.vector_source(gen)[0]
 
 
 def generated_dir() -> Path | None:
@@ -264,11 +257,13 @@ def _compile(
     gen: Any,
     kind: str = "rnea",
     signature: Callable[[Any], Any] = _signature,
+    sincos: int | None = None,
 ) -> Kernel:
     """Compile (or load) the ``kernel`` of a generated module (``gen``: its sizes and flops).
 
     ``kind`` prefixes the module's file (``<kind>_<digest[:24]>.py``); ``signature``
-    makes numba's signature of ``kernel`` from the numba module.
+    makes numba's signature of ``kernel`` from the numba module; ``sincos``: for a
+    vectorised kernel, its polynomial sine-cosine pairs a sample (None: not vectorised).
     """
     try:
         import numba
@@ -318,6 +313,8 @@ def _compile(
         path=path,
         origin=origin,
         seconds=seconds,
+        vectorised=sincos is not None,
+        sincos=sincos or 0,
     )
 
 
@@ -337,12 +334,12 @@ def kernel_for(model: pin.Model) -> Kernel:
     import pinocchio as pin
 
     gen = rnea_source.rnea_source(model)
-    source = module_source(gen)
+    source, sincos = rnea_vector.vector_source(gen)
     digest = hashlib.sha256(source.encode()).hexdigest()
     with _lock:
         kernel = _KERNELS.get(digest)
         if kernel is None:
-            kernel = _KERNELS[digest] = _compile(source, digest, gen)
+            kernel = _KERNELS[digest] = _compile(source, digest, gen, sincos=sincos)
     _MODELS.put(model, value=(pin.Model(model), kernel))
     return kernel
 
