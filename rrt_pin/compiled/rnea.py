@@ -74,7 +74,7 @@ MIN_SAMPLES_PER_THREAD = 256
 #: one-sample kernel, a libm sine or cosine, an operation of a vectorised kernel.
 _NS_PER_OP = 0.3
 _NS_PER_SINCOS = 10.0
-_NS_PER_LANE_OP = 0.04
+_NS_PER_LANE_OP = 0.035
 _logger = logging.getLogger("rrt_pin")
 _lock = threading.Lock()
 
@@ -108,7 +108,7 @@ class Kernel:
         (:attr:`all_flops`).
         """
         if self.vectorised:
-            ns = _NS_PER_LANE_OP * self.all_flops + 1.0
+            ns = _NS_PER_LANE_OP * self.all_flops + 2.0
         else:
             ns = _NS_PER_OP * self.flops + _NS_PER_SINCOS * self.transcendentals + 1.0
         return max(MIN_SAMPLES_PER_THREAD, int(MIN_SECONDS_PER_THREAD * 1e9 / ns))
