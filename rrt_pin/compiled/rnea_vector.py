@@ -27,6 +27,7 @@ give the bits a one-sample loop gives.
 from __future__ import annotations
 
 import re
+from collections.abc import Callable
 
 from rrt_pin.dynamics.rnea_source import GeneratedRnea
 
@@ -202,7 +203,9 @@ def vector_source(gen: GeneratedRnea, block: int = BLOCK) -> tuple[str, int]:
     return "\n".join(src), len(order)
 
 
-def _sincos_block(order: list[int], at, indent: str, libm: bool) -> list[str]:
+def _sincos_block(
+    order: list[int], at: Callable[[tuple[str, int]], str], indent: str, libm: bool
+) -> list[str]:
     """The loop body setting the sine and cosine rows of every angle of a block."""
     if not order:
         return [f"{indent}pass"]
