@@ -165,11 +165,6 @@ def test_urdf_needs_its_own_values(tmp_path, capsys):
             ],
             "parameter m3 describes the RRT arm",
         ),
-        (
-            ["--q0", "0,0,0,0,0,0", "--qf", "0,0,0,0,0,0", "--kp", "1", "--kd", "1"]
-            + ["--backend", "compiled"],
-            "simulates the chapter's RRT arm only; --urdf needs --backend pinocchio",
-        ),
     ]
     for extra, words in cases:
         code, out, err = run(["simulate", "--urdf", urdf, *extra], capsys)

@@ -51,9 +51,9 @@ def test_a_urdf_robot_takes_its_names_from_the_file():
     assert ur5.name == "ur5" and ur5.nv == ur5.nq == 6
     assert ur5.q_names[0] == "q_shoulder_pan_joint" and ur5.effort_names[-1] == "tau_wrist_3_joint"
     assert ur5.backends == ("pinocchio",) and ur5.parameters == ("g", "Tp")
-    # compiled: inverse dynamics only (its generated RNEA), the closed forms are the arm's
+    # compiled: from generated code (RNEA, integrators); the closed forms are the arm's
     assert ur5.inverse_backends == ("compiled",) and ur5.supports("compiled", "inverse")
-    assert not ur5.supports("compiled") and not ur5.supports("compiled", "simulate")
+    assert ur5.supports("compiled", "simulate") and not ur5.supports("compiled")
     assert not ur5.supports("symbolic", "inverse")
     assert ur5.defaults.q0 is None and ur5.defaults.qd0 == (0.0,) * 6
     np.testing.assert_array_equal(ur5.model.gravity.linear, [0, 0, -9.0])

@@ -416,7 +416,7 @@ def test_compiled_backend_is_dispatched_lazily(monkeypatch, seed_model, seed_par
         checked.append(model)
 
     fake = types.SimpleNamespace(run_one=run_one, check_model=check_model)
-    monkeypatch.setattr(api, "_compiled", lambda: fake)
+    monkeypatch.setattr(api, "_compiled", lambda job="simulate": fake)
     monkeypatch.setattr(api, "_prepare", lambda robot, backend, method=None: None)
     c = seed_controller(seed_params)
     r = simulate(
@@ -446,9 +446,10 @@ def test_compiled_backend_is_dispatched_lazily(monkeypatch, seed_model, seed_par
                  backend="compiled")  # fmt: skip
 
 
-def test_compiled_backend_needs_the_arms_parameters(seed_model, seed_params):
+def test_compiled_backend_refuses_a_law_it_cannot_run(seed_model, seed_params):
+    """The arm's model without its Params is any robot: its generated code runs built-in laws."""
     c = seed_controller(seed_params)
-    with pytest.raises(InputError, match="needs|Params"):
+    with pytest.raises(InputError, match="not function; use backend 'pinocchio'"):
         simulate(
             Robot.from_model(seed_model),
             lambda q, v: c(q, v),

@@ -53,18 +53,22 @@ def _raise_status(
     max_steps: int,
     variant: int | None,
     tau: np.ndarray | None = None,
+    names: Sequence[str] = _NAMES,
+    effort_names: Sequence[str] = _EFFORTS,
 ) -> None:
+    """Raise the DivergenceError of a run's status (the chapter arm's names unless given)."""
     status, coordinate = int(info[0]), int(info[1])
+    nv = len(effort_names)
     if status == codes.STATUS_OK:
         return
     if status == codes.STATUS_EFFORT_NONFINITE:
-        row, k = divmod(coordinate, 3)
+        row, k = divmod(coordinate, nv)
         where = f" (variant {variant})" if variant is not None else ""
         value = f" {float(tau[row, k])!r}" if tau is not None and row < tau.shape[0] else " nan"
         raise DivergenceError(
-            float(t_fail), f"{_EFFORTS[k]}{where}", f"the controller returned{value}"
+            float(t_fail), f"{effort_names[k]}{where}", f"the controller returned{value}"
         )
-    name = _NAMES[coordinate] if 0 <= coordinate < 6 else "q1"
+    name = names[coordinate] if 0 <= coordinate < len(names) else names[0]
     if variant is not None:
         name = f"{name} (variant {variant})"
     stiff = (  # not measured here: both causes named

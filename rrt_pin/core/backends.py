@@ -144,9 +144,9 @@ BACKENDS: dict[str, Backend] = {
         Backend(
             "compiled",
             "machine code (numba): the chapter arm's kernel and integrators; inverse "
-            "dynamics of any robot with revolute, prismatic or continuous joints, generated "
-            "from its model",
-            any_robot=("inverse",),
+            "dynamics and simulations of any robot with revolute, prismatic or continuous "
+            "joints, generated from its model",
+            any_robot=("inverse", "simulate"),
             tasks=("inverse", "simulate"),
             default_method="DOP853",
             requires="numba",
@@ -160,6 +160,8 @@ BACKENDS: dict[str, Backend] = {
                 ("inverse_generated", "rrt_pin.compiled.rnea:inverse_dynamics"),
                 ("unsupported_joint", "rrt_pin.dynamics.rnea_source:unsupported_joint"),
                 ("simulate", "rrt_pin.compiled.integrate"),  # run_one, run_batch, check_model
+                ("simulate_generated", "rrt_pin.compiled.robot_runs"),  # run_one, run_batch
+                ("integrators_generated", "rrt_pin.compiled.robot_code:integrators_for"),
                 ("load_batch", "rrt_pin.compiled:ensure_compiled"),
                 ("load_single", "rrt_pin.compiled:machine_code"),
                 ("mass_matrix", "rrt_pin.compiled.dynamics:mass_matrix"),

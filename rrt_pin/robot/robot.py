@@ -149,9 +149,9 @@ class Robot:
         defaults: the default task (:class:`RobotDefaults`).
         backends: backends that compute every task of theirs for this robot (see
             :mod:`rrt_pin.core.backends`).
-        inverse_backends: further backends that compute its inverse dynamics only
-            (``compiled``'s generated RNEA, when every joint is revolute, prismatic
-            or continuous).
+        inverse_backends: further backends that compute it from code generated from its
+            model: inverse dynamics and simulations (``compiled``'s generated RNEA and
+            integrators, when every joint is revolute, prismatic or continuous).
         parameters: the chapter's symbols that apply to it (``--set`` accepts only these).
         params: the arm's :class:`~rrt_pin.robot.params.Params` (None for a URDF).
         source: the URDF file, or None for the generated arm.
@@ -296,12 +296,13 @@ class Robot:
         return self.params is not None
 
     def supports(self, backend: str, task: str | None = None) -> bool:
-        """Whether ``backend`` computes this robot.
+        """Whether ``backend`` computes ``task`` (``inverse`` or ``simulate``) for this robot.
 
-        For ``task`` (``inverse`` or ``simulate``), or for every task of the
-        backend's when None.
+        With ``task`` None: whether it has this robot's hand-derived kernels (the
+        chapter's arm) or is its engine of record; a backend that computes it from
+        generated code (:attr:`inverse_backends`) answers only for a task.
         """
-        return backend in self.backends or (task == "inverse" and backend in self.inverse_backends)
+        return backend in self.backends or (task is not None and backend in self.inverse_backends)
 
     # ------------------------------------------------------------------ units
     @property
@@ -424,7 +425,7 @@ class Robot:
         if d.qf is not None:
             lines.append(f"  default qf: {','.join(f'{v:g}' for v in d.qf)}")
         extra = [b for b in self.inverse_backends if b not in self.backends]
-        also = f"; inverse dynamics also: {', '.join(extra)}" if extra else ""
+        also = f"; generated code also: {', '.join(extra)}" if extra else ""
         lines.append(f"  backends: {', '.join(self.backends)}{also}")
         return "\n".join(lines) + "\n"
 

@@ -81,11 +81,31 @@ def _params_for(robot: Robot, params: Any, controllers: Sequence[Any]) -> Params
     )
 
 
-def _compiled() -> Any:
+def _compiled(job: str = "simulate") -> Any:
 
     compiled = backends.get("compiled")
     compiled.require()
-    return compiled.entry("simulate")
+    return compiled.entry(job)
+
+
+def _generated(robot: Robot, params: Any, controllers: Sequence[Any]) -> bool:
+    """Whether a compiled run of ``robot`` runs its generated code (not the arm's kernel).
+
+    The arm's kernel runs the chapter's arm, and runs given the arm's Params (``params=``
+    or a chapter law's, deprecated with a bare model).
+
+    Raises:
+        InputError: the generated code does not handle one of its joints.
+    """
+    if robot.is_chapter_arm or params is not None:
+        return False
+    if any(isinstance(getattr(c, "params", None), Params) for c in controllers):
+        return False
+    if not robot.supports("compiled", "simulate"):
+        from rrt_pin.dynamics.rnea_source import unsupported_joint
+
+        raise InputError(f"backend 'compiled': {unsupported_joint(robot.model)}; use 'pinocchio'")
+    return True
 
 
 def simulate(
@@ -168,7 +188,14 @@ def simulate(
         None if controller is None else as_controller(controller, robot.nv, robot.effort_names)
     )
     plant = None  # the arm's parameters of a compiled run (the energy rule's M(q))
-    if options.backend == "compiled":
+    if options.backend == "compiled" and _generated(robot, params, [controller]):
+        runs = _compiled("simulate_generated")
+        _compiled("integrators_generated")(robot.model, robot.name)  # not simulation time
+        start = time.perf_counter()
+
+        def run(o: Options, began: float) -> SimulationResult:
+            return runs.run_one(robot, controller, q0, qd0, t, o, began)
+    elif options.backend == "compiled":
         integrate = _compiled()
         p = plant = _params_for(robot, params, [controller])
         if robot.params is None or robot.params is not p:
@@ -276,7 +303,7 @@ def _prepare(robot: Robot, backend: Any, method: Any = None, batch: bool = False
         import rrt_pin.simulate.pinocchio_backend  # noqa: F401
 
         robot.model  # noqa: B018  (builds the generated arm's model once)
-    elif backend == "compiled" and robot.params is not None:
+    elif backend == "compiled" and robot.is_chapter_arm:
         compiled = backends.get("compiled")
         if compiled.available():
             compiled.entry("simulate")
@@ -411,7 +438,16 @@ def simulate_batch(
             laws.append(_passive(robot) if law is None else law)
         except InputError as e:
             raise InputError(f"controllers[{i}]: {e}") from e
-    if options.backend == "compiled":
+    if options.backend == "compiled" and _generated(robot, params, controllers):
+        runs = _compiled("simulate_generated")
+        _compiled("integrators_generated")(robot.model, robot.name)  # not simulation time
+        start = time.perf_counter()
+
+        def run(o: Options, began: float, tau: bool, kept: str) -> BatchResult:
+            return runs.run_batch(
+                robot, controllers, q0s, qd0s, t, o, tau, keep=kept, threads=chosen, start=began
+            )
+    elif options.backend == "compiled":
         integrate = _compiled()
         if isinstance(params, (list, tuple)):
             plants = list(params)

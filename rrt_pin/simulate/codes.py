@@ -12,6 +12,10 @@ from __future__ import annotations
 
 __all__ = [
     "KIND_CHAPTER",
+    "LAW_NONE",
+    "LAW_OPEN_LOOP",
+    "LAW_PD_GRAVITY",
+    "LAW_TRACKING",
     "KIND_CHAPTER_FOLDED",
     "KIND_NONE",
     "KEEP_FINAL",
@@ -56,6 +60,12 @@ KIND_NONE = 0  # no effort: passive motion
 KIND_CHAPTER = 1  # eq. (31) with its own parameters (another arm than the plant's)
 KIND_PD_PLANT_GRAVITY = 2  # PD plus the plant's own G(q)
 KIND_CHAPTER_FOLDED = 3  # eq. (31) with the plant's g, m2, m3, L2: its gravity is the plant's G(q)
+
+# Laws of any robot's compiled integrators (rrt_pin.compiled._robot_template).
+LAW_NONE = 0  # no effort: passive motion
+LAW_PD_GRAVITY = 1  # PD plus the robot's own G(q)
+LAW_TRACKING = 2  # computed torque along a sampled motion
+LAW_OPEN_LOOP = 3  # efforts played from samples
 
 # Status codes of a run.
 STATUS_OK = 0

@@ -246,18 +246,21 @@ def metric_columns(
     rows: np.ndarray,
     q_names: tuple[str, ...],
     effort_names: tuple[str, ...],
+    width: int = 3,
 ) -> dict[str, np.ndarray]:
     """The named columns of :func:`batch_metrics` from compiled metrics rows (B, METRIC_WIDTH).
 
     ``rows`` laid out as the ``METRIC_*`` offsets of :mod:`rrt_pin.simulate.codes` say
-    (each :class:`Column`'s ``offset``, then one value per coordinate or effort).
+    (each :class:`Column`'s ``offset``, then one value per coordinate or effort), for
+    the chapter's 3 coordinates; ``width``: the coordinates of another robot's rows,
+    whose offsets are the same multiples of it.
     """
     out: dict[str, np.ndarray] = {}
     for group in groups:
         for column in METRICS[group].columns:
             if column.offset is None:
                 continue
-            start = getattr(codes, column.offset)
+            start = getattr(codes, column.offset) // 3 * width
             for k, name in enumerate(column.names(q_names, effort_names)):
                 out[name] = rows[:, start + k]
     return out

@@ -454,20 +454,25 @@ def report_run(args: argparse.Namespace, how: str, summary: str) -> None:
     to.write(summary)
 
 
-def _load_generated(robot: Robot) -> str:
-    """Load (or compile) ``robot``'s generated inverse dynamics, and say how long it took."""
-    from rrt_pin.compiled import rnea
+def _load_generated(robot: Robot, task: str) -> str:
+    """Load (or compile) ``robot``'s generated code for ``task``, and say how long it took."""
+    from rrt_pin.compiled import rnea, robot_code
     from rrt_pin.core.errors import InputError
 
     try:
-        kernel = rnea.kernel_for(robot.model)
+        if task == "inverse":
+            kernel = rnea.kernel_for(robot.model)
+            what = "inverse dynamics"
+            where = f" ({kernel.path.parent})" if kernel.path is not None else ""
+        else:
+            kernel = robot_code.integrators_for(robot.model, robot.name)
+            what, where = "integrators", ""
     except ImportError as e:
         raise InputError(f"backend 'compiled' is not available: {e}") from e
     how = {"loaded": "loaded from the cache", "compiled": "compiled"}.get(
         kernel.origin, "compiled (memory only, no cache)"
     )
-    where = f" ({kernel.path.parent})" if kernel.path is not None else ""
-    note(f"generated inverse dynamics of {robot.name} {how} in {kernel.seconds:.2f} s{where}")
+    note(f"generated {what} of {robot.name} {how} in {kernel.seconds:.2f} s{where}")
     return "compiled"
 
 
@@ -508,7 +513,7 @@ def resolve_backend(
             "--backend auto chose %s (%s)", choice.name, choice.reason
         )
         requested = choice.name
-    if requested == "compiled" and task == "inverse" and not robot.supports(requested, task):
+    if requested == "compiled" and not robot.supports(requested, task):
         from rrt_pin.dynamics.rnea_source import unsupported_joint
 
         raise InputError(
@@ -524,8 +529,8 @@ def resolve_backend(
         from rrt_pin.core.extras import MissingExtra
 
         backends.get("compiled").require()
-        if not robot.supports("compiled"):  # inverse dynamics only: the generated kernel
-            return _load_generated(robot)
+        if not robot.supports("compiled"):  # not the arm: its generated code
+            return _load_generated(robot, task)
         try:
             from rrt_pin import compiled
 

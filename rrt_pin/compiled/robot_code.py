@@ -1,0 +1,227 @@
+"""A robot's integrators in machine code: its generated dynamics inside the template, compiled once.
+
+:func:`integrators_for` writes one module a robot: its generated one-sample forward
+dynamics (ABA), gravity, mass matrix and bias (:mod:`rrt_pin.dynamics.forward_source`),
+the ``LAW_*``, ``KEEP_*``, ``METHOD_*`` and ``STATUS_*`` codes of
+:mod:`rrt_pin.simulate.codes`, and the integrators of :mod:`rrt_pin.compiled._robot_template`.
+The module is named by the SHA-256 of its source and kept under ``generated/`` of the
+cache directory, as the generated RNEA is (:mod:`rrt_pin.compiled.rnea`): numba's
+machine code beside it, its files' SHA-256 recorded and checked before they are
+read. Its entry point, ``run_many``, is compiled for one signature on first use,
+announced on the ``rrt_pin`` logger ("compiling ur5's integrators once (~N s)"); a later
+process loads it.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import re
+import threading
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from rrt_pin.compiled import rnea
+from rrt_pin.core import backends
+from rrt_pin.core._logging import note
+from rrt_pin.core.identity import IdentityCache
+from rrt_pin.dynamics import forward_source
+from rrt_pin.dynamics.rnea_source import check_supported
+from rrt_pin.simulate import codes
+
+if TYPE_CHECKING:
+    import pinocchio as pin
+
+__all__ = ["RobotCode", "integrators_for", "module_source"]
+
+_TEMPLATE = Path(__file__).with_name("_robot_template.py")
+_MARK = "# --- template ---\n"
+#: What compiling ``run_many`` takes, roughly [s]: a constant and a share per generated
+#: operation (for the announcement's estimate only).
+_COMPILE_S = 12.0
+_COMPILE_S_PER_FLOP = 2e-3
+_CODES = (
+    "LAW_NONE", "LAW_PD_GRAVITY", "LAW_TRACKING", "LAW_OPEN_LOOP",
+    "KEEP_TRAJECTORIES", "KEEP_FINAL", "KEEP_METRICS",
+    "METHOD_DOP853", "METHOD_RK4", "METHOD_SYMPLECTIC_EULER", "FIXED_STEP_FROM",
+    "STATUS_OK", "STATUS_NONFINITE", "STATUS_STEP_UNDERFLOW", "STATUS_MAX_STEPS",
+    "STATUS_NO_CONVERGENCE", "STATUS_EFFORT_NONFINITE",
+)  # fmt: skip
+_lock = threading.Lock()
+_CODE: dict[str, RobotCode] = {}
+_MODELS: IdentityCache[tuple[Any, RobotCode]] = IdentityCache(16)
+
+
+@dataclass(frozen=True)
+class RobotCode:
+    """One robot's compiled integrators.
+
+    Attributes:
+        name: what messages call the robot.
+        nv: joint coordinates (the state has 2·nv entries).
+        run_many: the numba dispatcher of the template's ``run_many``.
+        flops: arithmetic operations of one forward-dynamics evaluation.
+        origin: ``loaded`` (numba's disk cache), ``compiled`` (and saved) or ``memory``.
+        seconds: what importing and compiling (or loading) took [s].
+    """
+
+    name: str
+    nv: int
+    run_many: Any
+    flops: int
+    origin: str
+    seconds: float
+
+
+def _on_state(gen: forward_source.GeneratedFunction, name: str, shift: int) -> str:
+    """``gen`` as ``name(y, [tau,] out)``: q[k] read from y[k], q̇[k] from y[nv + k].
+
+    The state is read in place (no slices, whose reference counts cost more than a
+    few operations); ``shift`` moves the results' rows (q̈ into out[nv:] of ẏ).
+    """
+    nv = gen.nv
+    lines = [
+        re.sub(r"\bv\[(\d+)\]", lambda m: f"y[{nv + int(m[1])}]", re.sub(r"\bq\[", "y[", line))
+        for line in gen.lines
+    ]
+    args = ["y", "tau"] if "tau" in gen.inputs else ["y"]
+    body = [f"    {line}" for line in lines]
+    for flat, x in enumerate(gen.outputs):
+        index = str(flat + shift) if len(gen.shape) == 1 else ", ".join(map(str, divmod(flat, nv)))
+        body.append(f"    out[{index}] = {x}")
+    return "\n".join(["@jit", f"def {name}({', '.join(args)}, out):", *body, ""])
+
+
+def module_source(model: pin.Model) -> tuple[str, int]:
+    """(the module's source, flops of one forward-dynamics evaluation) for ``model``.
+
+    ``forward_free`` is the forward dynamics without gravity: under PD plus the robot's
+    own G(q), τ − b = τ_PD − C(q, q̇)·q̇, so one evaluation without gravity serves the
+    dynamics and the compensation (G is then computed at the output times only).
+    """
+    import pinocchio as pin
+
+    free = pin.Model(model)
+    free.gravity = pin.Motion.Zero()
+    nv = int(model.nv)
+    fwd = forward_source.forward_source(model, "aba")
+    parts = [
+        _on_state(fwd, "forward", nv),
+        _on_state(forward_source.forward_source(free, "aba"), "forward_free", nv),
+        _on_state(forward_source.gravity_source(model), "gravity", 0),
+        _on_state(forward_source.mass_matrix_source(model), "mass_matrix", 0),
+        _on_state(forward_source.bias_source(model), "bias", 0),
+    ]
+    template = _TEMPLATE.read_text(encoding="utf-8")
+    head, mark, body = template.partition(_MARK)
+    if not mark:  # pragma: no cover - the template's own marker
+        raise RuntimeError(f"{_TEMPLATE} lost its line {_MARK.strip()!r}")
+    lines = [
+        f'"""Generated by rrt_pin.compiled.robot_code (nv={nv}): do not edit."""',
+        "",
+        "import math",
+        "from math import cos, sin",
+        "",
+        "import numba",
+        "import numpy as np",
+        "",
+        "from rrt_pin.compiled import _dop853_coefficients as dop",
+        "",
+        "",
+        "def jit(f):",
+        '    return numba.njit(cache=True, nogil=True, error_model="numpy")(f)',
+        "",
+        "",
+        *(f"{c} = {getattr(codes, c)}" for c in _CODES),
+        "",
+        "",
+        *(part + "\n" for part in parts),
+        body,
+    ]
+    return "\n".join(lines), fwd.flops
+
+
+def _signature(numba: Any) -> Any:
+    i8, f8 = numba.int64, numba.float64
+    r1 = numba.types.Array(f8, 1, "C", readonly=True)
+    r2 = numba.types.Array(f8, 2, "C", readonly=True)
+    ri1 = numba.types.Array(i8, 1, "C", readonly=True)
+    return numba.types.void(
+        i8, r2, r1, f8, r1, f8, f8, i8, ri1, r2, r1, r2, i8, f8,
+        f8[:, :, ::1], f8[:, :, ::1], f8[:, ::1], i8[:, ::1], f8[::1], i8, i8,
+    )  # fmt: skip
+
+
+def _compile(source: str, digest: str, name: str, nv: int, flops: int) -> RobotCode:
+    try:
+        import numba
+    except ImportError as e:
+        backends.get("compiled").require(e)
+        raise  # not reached: require raises
+    start = time.perf_counter()
+    sig = _signature(numba).args
+    module = f"rrt_pin_robot_{digest[:24]}"
+    where = rnea.generated_dir()
+    path = where / f"{module.removeprefix('rrt_pin_')}.py" if where is not None else None
+    dispatcher, origin = None, "memory"
+    if path is not None and rnea._write(path, source):
+        try:
+            dispatcher = rnea._import(path, module).run_many
+            files = rnea._numba_files(dispatcher)
+            rnea._discard_unverified(path, files)
+            if not files():
+                note(f"compiling {name}'s integrators once (~{_estimate(flops):.0f} s)")
+            dispatcher.compile(sig)
+            dispatcher.disable_compile()
+            origin = "loaded" if sum(dispatcher.stats.cache_hits.values()) else "compiled"
+            if origin == "compiled":
+                rnea._record(path, files)
+        except Exception as exc:  # a damaged or unwritable numba cache: compile in memory
+            from rrt_pin.compiled._cache import warn_once
+
+            warn_once(
+                f"generated integrators cache {path.parent}: {type(exc).__name__}: {exc}"[:300]
+            )
+            dispatcher = None
+    if dispatcher is None:
+        note(f"compiling {name}'s integrators (~{_estimate(flops):.0f} s, not kept on disk)")
+        namespace: dict[str, Any] = {"__name__": module}
+        exec(compile(source.replace("cache=True", "cache=False"), f"<{module}>", "exec"), namespace)  # noqa: S102
+        dispatcher = namespace["run_many"]
+        dispatcher.compile(sig)
+        dispatcher.disable_compile()
+        origin = "memory"
+    seconds = time.perf_counter() - start
+    return RobotCode(name, nv, dispatcher, flops, origin, seconds)
+
+
+def _estimate(flops: int) -> float:
+    return _COMPILE_S + _COMPILE_S_PER_FLOP * flops
+
+
+def integrators_for(model: pin.Model, name: str | None = None) -> RobotCode:
+    """The compiled integrators of ``model`` (generated, written, loaded or compiled once).
+
+    A model seen before and unchanged (compared with a copy kept) costs a look-up and
+    a model comparison.
+
+    Raises:
+        UnsupportedJoint: a joint is not revolute, prismatic or continuous.
+        MissingExtra: numba is not installed.
+    """
+    entry = _MODELS.get(model)
+    if entry is not None and bool(entry[0] == model):
+        return entry[1]
+    import pinocchio as pin
+
+    check_supported(model)
+    label = name or str(model.name) or "the model"
+    source, flops = module_source(model)
+    digest = hashlib.sha256(source.encode()).hexdigest()
+    with _lock:
+        code = _CODE.get(digest)
+        if code is None:
+            code = _CODE[digest] = _compile(source, digest, label, int(model.nv), flops)
+    _MODELS.put(model, value=(pin.Model(model), code))
+    return code

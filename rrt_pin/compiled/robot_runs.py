@@ -1,0 +1,311 @@
+"""Simulations of any supported robot in machine code: ``simulate(robot, ..., backend="compiled")``.
+
+Each robot's integrators are generated and compiled once (:mod:`rrt_pin.compiled.robot_code`);
+here a run's robot, laws, states and options become arrays, the variants of a batch are
+shared out over threads, and a variant's status becomes a
+:class:`~rrt_pin.core.errors.DivergenceError` naming the robot's coordinate.
+
+Laws that run compiled (the exact classes; a subclass may override ``efforts``):
+
+* None: no effort (passive motion);
+* :class:`~rrt_pin.simulate.control.PDGravityController` compensating this robot's
+  own gravity (``pd_gravity_controller(robot.model, …)``, ``regulator(robot, …)``);
+* :class:`~rrt_pin.simulate.control.TrackingController` on this robot along a sampled
+  :class:`~rrt_pin.dynamics.trajectory.Trajectory` (``--track FILE``), shared by a batch's variants;
+* :class:`~rrt_pin.simulate.control.OpenLoop` (``--efforts FILE``), shared likewise.
+
+Any other law (a Python function, a user's controller, a motion given as a function of
+time) runs on the Pinocchio backend; here it is refused in one line saying so.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from rrt_pin.compiled import robot_code
+from rrt_pin.compiled.lanes import MAX_STEPS, _in_slices, _raise_status, _threads_that_fit
+from rrt_pin.core import cpus
+from rrt_pin.core.errors import InputError
+from rrt_pin.dynamics.trajectory import Trajectory
+from rrt_pin.robot.robot import Robot
+from rrt_pin.simulate import codes
+from rrt_pin.simulate.control import OpenLoop, PDGravityController, TrackingController
+from rrt_pin.simulate.metrics import GROUPS, SETTLING_BAND, metric_columns
+from rrt_pin.simulate.options import Options
+from rrt_pin.simulate.results import BatchResult, SimulationResult
+
+__all__ = ["run_batch", "run_one", "supports"]
+
+_KEEP = {
+    "trajectories": codes.KEEP_TRAJECTORIES,
+    "final": codes.KEEP_FINAL,
+    "metrics": codes.KEEP_METRICS,
+}
+#: A batch's default thread count gives no thread fewer variants than this.
+MIN_PER_THREAD = 4
+_NONE = (np.zeros(1), np.zeros((1, 1)))
+
+
+def supports(controller: Any) -> bool:
+    """Whether ``controller``'s law runs compiled (on a robot it is built for)."""
+    return controller is None or type(controller) in (
+        PDGravityController, TrackingController, OpenLoop,
+    )  # fmt: skip
+
+
+def _law(robot: Robot, controller: Any) -> tuple[int, np.ndarray, tuple[np.ndarray, np.ndarray]]:
+    """(law code, parameters, (reference times, values)) of ``controller`` on ``robot``."""
+    nv = robot.nv
+    kind = type(controller)
+    if controller is None:
+        return codes.LAW_NONE, np.zeros(3 * nv), _NONE
+    if kind is PDGravityController:
+        if controller.nv != nv or not controller.compensates_gravity_of(robot.model):
+            raise InputError(
+                "backend 'compiled' compensates the gravity of the robot simulated: the "
+                "pd_gravity controller's model must be that robot's model"
+            )
+        return (
+            codes.LAW_PD_GRAVITY,
+            np.array([*controller.kp, *controller.kd, *controller.qf]),
+            _NONE,
+        )
+    if kind is TrackingController:
+        motion = controller.motion
+        if not isinstance(motion, Trajectory):
+            raise InputError(
+                "backend 'compiled' tracks a sampled motion (a Trajectory, e.g. from "
+                "read_motion); a motion given as a function of time runs on backend 'pinocchio'"
+            )
+        if controller.robot.nv != nv or not bool(controller.robot.model == robot.model):
+            raise InputError(
+                "backend 'compiled' tracks with the robot simulated: the tracking "
+                "controller's robot must be that robot"
+            )
+        rv = np.ascontiguousarray(np.hstack([motion.q, motion.qd, motion.qdd]), dtype=float)
+        c = np.concatenate([controller.kp, controller.kd, np.zeros(nv)])
+        return codes.LAW_TRACKING, c, (np.ascontiguousarray(motion.t, dtype=float), rv)
+    if kind is OpenLoop:
+        if controller.nv != nv:
+            raise InputError(f"the open-loop efforts have {controller.nv} columns, the robot {nv}")
+        reference = (np.ascontiguousarray(controller.t), np.ascontiguousarray(controller.tau))
+        return codes.LAW_OPEN_LOOP, np.zeros(3 * nv), reference
+    raise InputError(
+        "backend 'compiled' runs pd_gravity_controller(...), tracking_controller(...) of a "
+        "sampled motion, OpenLoop efforts, or None (no effort) on this robot, not "
+        f"{kind.__name__}; use backend 'pinocchio' for other controllers"
+    )
+
+
+def _laws(robot: Robot, controllers: Sequence[Any]) -> tuple[np.ndarray, np.ndarray, tuple]:
+    """(codes (B,), parameters (B, 3·nv), the shared reference) of a batch's laws."""
+    count = len(controllers)
+    laws = np.empty(count, dtype=np.int64)
+    C = np.empty((count, 3 * robot.nv))
+    seen: dict[int, tuple] = {}
+    reference: tuple | None = None
+    for i, controller in enumerate(controllers):
+        key = id(controller)
+        if key not in seen:
+            try:
+                seen[key] = _law(robot, controller)
+            except InputError as e:
+                raise InputError(f"controllers[{i}]: {e}" if count > 1 else str(e)) from e
+        laws[i], C[i], ref = seen[key]
+        if ref is not _NONE:
+            if reference is None:
+                reference = ref
+            elif ref is not reference and not (
+                np.array_equal(ref[0], reference[0]) and np.array_equal(ref[1], reference[1])
+            ):
+                raise InputError(
+                    f"controllers[{i}]: backend 'compiled' runs a batch along one motion "
+                    "(or one set of open-loop efforts) shared by its variants; use backend "
+                    "'pinocchio' for variants with motions of their own"
+                )
+    return laws, C, reference or _NONE
+
+
+def _run(
+    robot: Robot,
+    controllers: Sequence[Any],
+    Y0: np.ndarray,
+    t: np.ndarray,
+    options: Options,
+    keep: str,
+    threads: int,
+    band: float,
+    max_steps: int,
+) -> tuple[np.ndarray, ...]:
+    code = robot_code.integrators_for(robot.model, robot.name)
+    laws, C, (rt, rv) = _laws(robot, controllers)
+    count, n, nv = Y0.shape[0], Y0.shape[1], robot.nv
+    keep_code = _KEEP[keep]
+    rows = t.size if keep == "trajectories" else 1
+    out_y = np.empty((count, rows, n))
+    out_tau = np.empty((count, rows, nv))
+    metrics = np.full((count, 5 * nv + 1), np.nan)
+    info = np.zeros((count, 3), dtype=np.int64)
+    reached = np.empty(count)
+    atol = np.full(n, options.atol if options.atol is not None else 0.0)
+    rtol = options.rtol if options.rtol is not None else 0.0
+    step = options.step if options.step is not None else 0.0
+    args = (
+        options.method.code, Y0, t, step, atol, rtol, math.inf, max_steps, laws, C, rt, rv,
+        keep_code, band, out_y, out_tau, metrics, info, reached,
+    )  # fmt: skip
+
+    def run(a: int, b: int) -> None:
+        code.run_many(*args, a, b)
+
+    used = _in_slices(run, count, threads)
+    return out_y, out_tau, metrics, info, reached, np.int64(used)
+
+
+def _raise(info: np.ndarray, reached: np.ndarray, tau: np.ndarray, robot: Robot,
+           options: Options, max_steps: int, batch: bool) -> None:  # fmt: skip
+    failed = np.flatnonzero(info[:, 0] != codes.STATUS_OK)
+    if failed.size:
+        b = int(failed[0])
+        names = (*robot.q_names, *robot.qd_names)
+        _raise_status(
+            info[b], reached[b], options.method.name, options.step, max_steps,
+            b if batch else None, tau[b], names=names, effort_names=robot.effort_names,
+        )  # fmt: skip
+
+
+def run_one(
+    robot: Robot,
+    controller: Any,
+    q0: np.ndarray,
+    qd0: np.ndarray,
+    t: np.ndarray,
+    options: Options,
+    start: float | None = None,
+    max_steps: int = MAX_STEPS,
+) -> SimulationResult:
+    """One run of ``robot`` on inputs already checked by :func:`rrt_pin.simulate.simulate`.
+
+    Args:
+        robot: the robot (its joints revolute, prismatic or continuous).
+        controller: a law that runs compiled (see the module), or None.
+        q0: initial coordinates (nv,) [rad or m].
+        qd0: initial velocities (nv,) [rad/s or m/s].
+        t: output times [s], as :func:`rrt_pin.core.validate.times` returns them.
+        options: as :func:`rrt_pin.simulate.options.resolve` returns them for this backend.
+        start: ``time.perf_counter()`` when the caller's call began (for ``wall_time``).
+        max_steps: step budget (accepted and rejected steps).
+
+    Raises:
+        InputError: a law that does not run compiled.
+        DivergenceError: the run failed (time and coordinate named).
+    """
+    robot_code.integrators_for(robot.model, robot.name)  # compiled before the clock starts
+    start = time.perf_counter() if start is None else start
+    Y0 = np.concatenate([q0, qd0])[None, :]
+    y, tau, _, info, reached, _ = _run(
+        robot, [controller], Y0, t, options, "trajectories", 1, SETTLING_BAND, max_steps
+    )
+    _raise(info, reached, tau, robot, options, max_steps, False)
+    nv = robot.nv
+    return SimulationResult(
+        t=t,
+        q=y[0, :, :nv],
+        qd=y[0, :, nv:],
+        tau=tau[0],
+        n_evals=int(info[0, 2]),
+        wall_time=time.perf_counter() - start,
+        method=options.method.name,
+        backend="compiled",
+        rtol=options.rtol,
+        atol=options.atol,
+        step=options.step,
+        q_names=robot.q_names,
+        qd_names=robot.qd_names,
+        tau_names=robot.effort_names,
+    )
+
+
+def run_batch(
+    robot: Robot,
+    controllers: Sequence[Any],
+    q0s: np.ndarray,
+    qd0s: np.ndarray,
+    t: np.ndarray,
+    options: Options,
+    efforts: bool = True,
+    *,
+    keep: str = "trajectories",
+    threads: int | None = None,
+    band: float = SETTLING_BAND,
+    max_steps: int = MAX_STEPS,
+    start: float | None = None,
+) -> BatchResult:
+    """B variants of ``robot`` (laws and initial states), on inputs already checked.
+
+    Args:
+        robot: the robot, shared by the variants.
+        controllers: B laws that run compiled (see the module); a tracking or open-loop
+            law's motion is shared by the batch.
+        q0s: initial coordinates (B, nv) [rad or m].
+        qd0s: initial velocities (B, nv) [rad/s or m/s].
+        t: output times [s].
+        options: as for :func:`run_one`.
+        efforts: return the efforts (they are computed in any case).
+        keep: ``"trajectories"``, ``"final"`` or ``"metrics"`` (as
+            :func:`rrt_pin.simulate.simulate_batch`; metrics need PD laws, their target qf).
+        threads: threads sharing the variants; default the CPUs free now, none with
+            fewer than :data:`MIN_PER_THREAD` variants. The numbers do not depend on it.
+        band: the settling band of ``keep="metrics"`` (share of |q0 − qf|).
+        max_steps: step budget of each variant.
+        start: ``time.perf_counter()`` when the caller's call began.
+
+    Raises:
+        InputError: a law that does not run compiled; metrics without PD laws.
+        DivergenceError: a variant failed (named, with its coordinate and time).
+    """
+    robot_code.integrators_for(robot.model, robot.name)
+    start = time.perf_counter() if start is None else start
+    count = q0s.shape[0]
+    if keep == "metrics" and any(type(c) is not PDGravityController for c in controllers):
+        raise InputError(
+            "keep='metrics' measures each variant against its controller's target qf: "
+            "every controller needs one (or keep='final')"
+        )
+    if threads is None:
+        threads = cpus.threads_for(count, MIN_PER_THREAD)
+    else:
+        threads = _threads_that_fit(threads, count)
+    Y0 = np.ascontiguousarray(np.concatenate([q0s, qd0s], axis=1))
+    y, tau, rows, info, reached, used = _run(
+        robot, controllers, Y0, t, options, keep, threads, band, max_steps
+    )
+    _raise(info, reached, tau, robot, options, max_steps, True)
+    nv = robot.nv
+    metrics = None
+    if keep == "metrics":
+        metrics = metric_columns(GROUPS, rows, robot.q_names, robot.effort_names, width=nv)
+    return BatchResult(
+        t=t if keep == "trajectories" else t[-1:],
+        q=y[:, :, :nv],
+        qd=y[:, :, nv:],
+        tau=tau if efforts else None,
+        n_evals=int(info[:, 2].sum()),
+        wall_time=time.perf_counter() - start,
+        method=options.method.name,
+        backend="compiled",
+        rtol=options.rtol,
+        atol=options.atol,
+        step=options.step,
+        q_names=robot.q_names,
+        qd_names=robot.qd_names,
+        tau_names=robot.effort_names,
+        threads=int(used),
+        keep=keep,
+        metrics=metrics,
+    )

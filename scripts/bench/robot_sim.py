@@ -1,0 +1,150 @@
+#!/usr/bin/env python
+"""Simulations of UR5 and Panda: compiled (generated) against rrt-pin's Pinocchio backend and SciPy.
+
+The scene: 15 s under PD plus gravity compensation from an offset, q0 = qf + 0.3 rad
+(0.01 m for a slider), outputs every 10 ms, gains critically damped at 10 rad/s on
+the diagonal of M(qf): kp_k = 100·M_kk, kd_k = 20·M_kk (an engineer's scaling: every
+joint answers alike, however light its link).
+
+The reference is the compiled DOP853 at rtol 1e-13 (checked against SciPy's DOP853
+with ``pin.aba`` at the same tolerance). Each side then runs at the loosest rtol of
+1e-6 … 1e-13 (atol = rtol/100) whose max |q error| over the run is at most the target
+(--accuracy, default 1e-8), and the sides are timed interleaved in ONE run (medians):
+
+* compiled        ``rrt_pin.simulate(robot, ..., backend="compiled")``, DOP853, no estimate;
+* pinocchio       the same on rrt-pin's Pinocchio backend (odepack, its default method);
+* scipy loop      a hand-written ``solve_ivp(DOP853)`` over ``pin.aba`` and
+                  ``pin.computeGeneralizedGravity`` (what a user writes without rrt-pin);
+* batch final     ``simulate_batch(..., keep="final", threads=1)`` of --batch variants (q0
+                  spread by ±0.05 rad) at the rtol meeting a tenth of the accuracy, as
+                  simulations a second on one core;
+* batch metrics   the same with ``keep="metrics"``.
+
+    .venv/bin/python -m scripts.bench.robot_sim [--robots ur5,panda] [--repeat 5] [--batch 200]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+
+import numpy as np
+import pinocchio as pin
+
+import rrt_pin
+from rrt_pin.robot import robots
+from rrt_pin.simulate.control import pd_gravity_controller
+from scripts.bench.common import interleaved, verdict
+
+LADDER = [10.0**-k for k in range(6, 14)]
+TF = 15.0
+
+
+def scene(name: str):
+    robot = robots.get(name)
+    model = robot.model
+    qf = np.zeros(robot.nv)
+    if name == "ur5":
+        qf = np.array([0.0, -1.2, 1.2, -1.0, -1.2, 0.0])
+    elif name == "panda":
+        qf = np.array([0.0, -0.5, 0.0, -2.0, 0.0, 1.5, 0.8, 0.02, 0.02])
+    M = pin.crba(model, model.createData(), robot.configuration(qf))
+    diag = np.diag(M)
+    law = pd_gravity_controller(robot, kp=100.0 * diag, kd=20.0 * diag, qf=qf)
+    q0 = qf + np.array([0.01 if u == "m" else 0.3 for u in robot.coordinate_units])
+    return robot, law, q0, qf
+
+
+def scipy_loop(robot, law, q0, t, rtol):
+    from scipy.integrate import solve_ivp
+
+    model, data = robot.model, robot.model.createData()
+    kp, kd, qf = np.array(law.kp), np.array(law.kd), np.array(law.qf)
+    nv = robot.nv
+    config = robot.configuration
+
+    def f(_t, y):
+        q, v = y[:nv], y[nv:]
+        c = config(q)
+        tau = -kd * v - kp * (q - qf) + pin.computeGeneralizedGravity(model, data, c)
+        return np.concatenate([v, pin.aba(model, data, c, v, tau)])
+
+    y0 = np.concatenate([q0, np.zeros(nv)])
+    s = solve_ivp(f, (t[0], t[-1]), y0, method="DOP853", t_eval=t, rtol=rtol, atol=rtol / 100)
+    return s.y[:nv].T
+
+
+def run(robot, law, q0, t, backend, rtol, method=None):
+    return rrt_pin.simulate(robot, law, q0, None, t, backend=backend, method=method, rtol=rtol,
+                            atol=rtol / 100, estimate_error=False)  # fmt: skip
+
+
+def loosest(side, reference, accuracy):
+    for rtol in LADDER:
+        err = np.abs(side(rtol) - reference).max()
+        if err <= accuracy:
+            return rtol, err
+    return LADDER[-1], err
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--robots", default="ur5,panda")
+    ap.add_argument("--repeat", type=int, default=5)
+    ap.add_argument("--batch", type=int, default=200)
+    ap.add_argument("--accuracy", type=float, default=1e-8)
+    args = ap.parse_args(argv)
+    t = np.arange(0.0, TF + 1e-9, 0.01)
+    for name in args.robots.split(","):
+        robot, law, q0, qf = scene(name)
+        rrt_pin.simulate(robot, law, q0, None, t[:3], backend="compiled", estimate_error=False)
+        reference = run(robot, law, q0, t, "compiled", 1e-13, "DOP853").q
+        check = scipy_loop(robot, law, q0, t, 1e-13)
+        print(f"\n{name}: nv={robot.nv}, 15 s, reference compiled DOP853 rtol 1e-13; "
+              f"SciPy's at 1e-13 differs by {np.abs(check - reference).max():.1e}")  # fmt: skip
+        sides = {
+            "compiled": lambda r: run(robot, law, q0, t, "compiled", r, "DOP853").q,
+            "pinocchio": lambda r: run(robot, law, q0, t, "pinocchio", r).q,
+            "scipy loop": lambda r: scipy_loop(robot, law, q0, t, r),
+        }
+        chosen = {}
+        for side, f in sides.items():
+            rtol, err = loosest(f, reference, args.accuracy)
+            chosen[side] = rtol
+            print(f"  {side:<12} rtol {rtol:.0e}: max |q error| {err:.1e}")
+        B = args.batch
+        rng = np.random.default_rng(1)
+        q0s = q0 + rng.uniform(-0.05, 0.05, (B, robot.nv))
+        r_batch, err = loosest(sides["compiled"], reference, args.accuracy / 10)
+        print(f"  batches      rtol {r_batch:.0e}: max |q error| {err:.1e} (target ≤ accuracy/10)")
+
+        def batch(keep):
+            return lambda: rrt_pin.simulate_batch(
+                robot, law, q0s, None, t, backend="compiled", keep=keep, threads=1,
+                rtol=r_batch, atol=r_batch / 100, estimate_error=False,
+            )  # fmt: skip
+
+        timed = {s: (lambda s=s: sides[s](chosen[s])) for s in sides}
+        timed["batch final"] = batch("final")
+        timed["batch metrics"] = batch("metrics")
+        start = time.perf_counter()
+        med = interleaved(timed, args.repeat, inner=1)
+        for side in sides:
+            print(f"  {side:<12} {med[side] * 1e3:9.2f} ms")
+        for keep in ("final", "metrics"):
+            rate = B / med[f"batch {keep}"]
+            print(f"  batch {keep:<7} {rate:9.0f} simulations/s on one core ({B} variants)")
+        fast = med["compiled"]
+        r_pin, r_scipy = med["pinocchio"] / fast, med["scipy loop"] / fast
+        target = 3000 if name == "ur5" else 1500
+        rate = B / med["batch metrics"]
+        print(f"  compiled: {r_pin:.1f}x rrt-pin's Pinocchio backend (target 25x: "
+              f"{verdict(r_pin >= 25)}), {r_scipy:.1f}x the SciPy loop (target 100x: "
+              f"{verdict(r_scipy >= 100)}); batch {rate:.0f}/s/core (target {target}: "
+              f"{verdict(rate >= target)}); timed in {time.perf_counter() - start:.0f} s")  # fmt: skip
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

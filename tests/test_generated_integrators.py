@@ -1,0 +1,147 @@
+"""Any robot's compiled simulations (generated dynamics inside the compiled integrators).
+
+Each run is checked against the Pinocchio backend (``pin.aba`` under SciPy's or
+rrt-pin's own integrators, an independent computation of the same method): the
+adaptive methods take the same steps up to round-off, the fixed-step ones the
+same steps exactly.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+pytest.importorskip("numba")
+
+import rrt_pin  # noqa: E402
+from rrt_pin.core.errors import DivergenceError, InputError  # noqa: E402
+from rrt_pin.dynamics.trajectory import Trajectory  # noqa: E402
+from rrt_pin.robot.robot import Robot  # noqa: E402
+from rrt_pin.simulate.control import (  # noqa: E402
+    OpenLoop,
+    pd_gravity_controller,
+    tracking_controller,
+)
+from tests.support import robot_urdf  # noqa: E402
+from tests.test_generated_forward import random_tree  # noqa: E402
+
+T = np.linspace(0.0, 1.0, 101)
+
+
+@pytest.fixture(scope="module")
+def ur5() -> Robot:
+    return Robot.from_urdf(robot_urdf("ur5"))
+
+
+@pytest.fixture(scope="module")
+def tree() -> Robot:
+    """Revolute (oblique axes), prismatic and continuous joints, branches, armature."""
+    return Robot.from_model(random_tree(3, joints=4))
+
+
+def _both(robot, law, q0, method, t=T, qd0=None, **options):
+    runs = [
+        rrt_pin.simulate(robot, law, q0, qd0, t, method=method, backend=b, estimate_error=False,
+                         **options)
+        for b in ("compiled", "pinocchio")
+    ]  # fmt: skip
+    return runs
+
+
+def _pd(robot, gain=20.0):
+    return pd_gravity_controller(robot, kp=gain, kd=2.0 * np.sqrt(gain), qf=np.zeros(robot.nv))
+
+
+@pytest.mark.parametrize("method", ["DOP853", "RK45"])
+def test_adaptive_runs_take_scipys_steps(ur5, method):
+    q0 = np.array([0.3, -1.0, 1.0, 0.3, 0.5, 0.0])
+    fast, engine = _both(ur5, _pd(ur5), q0, method, rtol=1e-10, atol=1e-12)
+    assert fast.backend == "compiled" and engine.backend == "pinocchio"
+    assert abs(fast.n_evals - engine.n_evals) <= 0.02 * engine.n_evals
+    assert np.abs(fast.q - engine.q).max() < 1e-9
+    assert np.abs(fast.qd - engine.qd).max() < 1e-8
+    # efforts: the same law (PD plus G) at nearly the same states
+    assert np.abs(fast.tau - engine.tau).max() < 1e-6 * (1.0 + np.abs(engine.tau).max())
+    assert not np.allclose(fast.q[-1], q0)  # it moved
+
+
+@pytest.mark.parametrize("method", ["rk4", "symplectic_euler", "verlet"])
+def test_fixed_step_runs_equal_the_python_integrators(tree, method):
+    q0 = np.array([0.2, -0.3, 0.05, 0.4])
+    fast, engine = _both(tree, _pd(tree), q0, method, step=1e-3)
+    assert fast.n_evals == engine.n_evals
+    assert np.abs(fast.q - engine.q).max() < 1e-11
+    assert np.abs(fast.qd - engine.qd).max() < 1e-10
+
+
+def test_passive_tree_with_continuous_joints_keeps_angles(tree):
+    q0 = np.array([3.0, -0.3, 0.05, 3.1])
+    fast, engine = _both(tree, None, q0, "DOP853", t=np.linspace(0, 2, 201))
+    assert np.abs(fast.q - engine.q).max() < 1e-8
+    assert np.abs(fast.q).max() > np.pi  # angles, not wrapped (cos, sin) pairs
+    assert np.all(fast.tau == 0.0)
+
+
+def test_tracking_a_sampled_motion(ur5):
+    t = np.linspace(0.0, 1.0, 201)
+    q = 0.3 * np.sin(np.outer(t, np.arange(1, 7)))
+    qd = 0.3 * np.cos(np.outer(t, np.arange(1, 7))) * np.arange(1, 7)
+    qdd = -0.3 * np.sin(np.outer(t, np.arange(1, 7))) * np.arange(1, 7) ** 2
+    motion = Trajectory(t=t, q=q, qd=qd, qdd=qdd)
+    law = tracking_controller(ur5, motion)
+    fast, engine = _both(ur5, law, q[0], "DOP853", t=t, qd0=qd[0], rtol=1e-10, atol=1e-12)
+    assert np.abs(fast.q - engine.q).max() < 1e-8
+    assert np.abs(fast.tau - engine.tau).max() < 1e-6 * np.abs(engine.tau).max()
+    assert np.abs(fast.q - q).max() < 1e-3  # and it tracks
+
+
+def test_open_loop_efforts(tree):
+    t = np.linspace(0.0, 1.0, 11)
+    tau = np.column_stack([np.sin(3 * t + k) for k in range(tree.nv)])
+    law = OpenLoop(t=t, tau=tau)
+    fast, engine = _both(tree, law, np.zeros(tree.nv), "DOP853", t=np.linspace(0, 1.5, 151))
+    assert np.abs(fast.q - engine.q).max() < 1e-8
+    np.testing.assert_allclose(fast.tau, engine.tau, rtol=0, atol=1e-14)
+
+
+@pytest.mark.parametrize("keep", ["trajectories", "final", "metrics"])
+def test_batches_equal_single_runs_on_any_thread_count(ur5, keep):
+    rng = np.random.default_rng(5)
+    q0s = rng.uniform(-1.0, 1.0, (6, 6))
+    laws = [_pd(ur5, gain) for gain in (5.0, 10.0, 20.0, 5.0, 10.0, 20.0)]
+    runs = [
+        rrt_pin.simulate_batch(ur5, laws, q0s, None, T, backend="compiled", keep=keep,
+                               threads=k, estimate_error=False)
+        for k in (1, 2)
+    ]  # fmt: skip
+    assert np.array_equal(runs[0].q, runs[1].q) and np.array_equal(runs[0].tau, runs[1].tau)
+    for b in (0, 4):
+        one = rrt_pin.simulate(ur5, laws[b], q0s[b], None, T, backend="compiled",
+                               estimate_error=False)  # fmt: skip
+        kept = one.q if keep == "trajectories" else one.q[-1:]
+        # the same steps; "final" skips the dense output: its state is the last step's
+        np.testing.assert_allclose(runs[0].q[b], kept, rtol=0, atol=1e-13)
+    if keep == "metrics":
+        engine = rrt_pin.simulate_batch(ur5, laws, q0s, None, T, keep="metrics",
+                                        method="DOP853", estimate_error=False)  # fmt: skip
+        for name, column in runs[0].metrics.items():
+            np.testing.assert_allclose(column, engine.metrics[name], rtol=1e-6, atol=1e-9,
+                                       err_msg=name)  # fmt: skip
+        assert len(runs[0].metrics) == 5 * 6 + 1
+
+
+def test_other_laws_are_refused_with_the_backend_that_runs_them(ur5):
+    with pytest.raises(InputError, match="use backend 'pinocchio'"):
+        rrt_pin.simulate(ur5, lambda t, q, qd: np.zeros(6), np.zeros(6), None, T,
+                         backend="compiled")  # fmt: skip
+    with pytest.raises(InputError, match="function of time runs on backend 'pinocchio'"):
+        law = tracking_controller(ur5, lambda t: None)
+        rrt_pin.simulate(ur5, law, np.zeros(6), None, T, backend="compiled")
+
+
+def test_a_diverging_run_names_the_robots_coordinate(tree):
+    law = pd_gravity_controller(tree, kp=1e9, kd=0.0, qf=np.zeros(tree.nv))
+    with pytest.raises(DivergenceError) as e:
+        rrt_pin.simulate(tree, law, np.full(tree.nv, 0.1), None, T, method="rk4", step=0.01,
+                         backend="compiled", estimate_error=False)  # fmt: skip
+    assert any(name in str(e.value) for name in (*tree.q_names, *tree.qd_names))
