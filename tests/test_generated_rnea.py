@@ -418,8 +418,15 @@ def test_the_cli_runs_a_urdf_robot_on_the_compiled_backend(tmp_path, capsys):
     efforts = [k for k, n in enumerate(names) if n.startswith("tau_")]
     assert worst(compiled[:, efforts], pinocchio[:, efforts]) <= AGREEMENT
     gains = ["--kp", "1", "--kd", "1", "--tf", "1"]
-    code = main(["simulate", "--urdf", urdf, *motion[:4], *gains, "--backend", "compiled"])
-    assert code == 2 and "simulates the chapter's RRT arm only" in capsys.readouterr().err
+    runs = {}
+    for backend in ("pinocchio", "compiled"):  # simulations too: the generated integrators
+        out = tmp_path / f"sim_{backend}.csv"
+        argv = ["simulate", "--urdf", urdf, *motion[:4], *gains, "--method", "DOP853"]
+        assert main([*argv, "--backend", backend, "--csv", str(out)]) == 0
+        runs[backend] = read_csv(out)
+    assert "generated integrators of ur5" in capsys.readouterr().err
+    assert runs["pinocchio"][0] == runs["compiled"][0]
+    assert worst(runs["compiled"][1], runs["pinocchio"][1]) <= 1e-6
 
 
 # --- the kernel vectorised across samples (rrt_pin.compiled.rnea_vector) ------------------

@@ -126,6 +126,10 @@ def _plan(digest: str, source_json: str) -> Plan:
                 )
             base.update({f"{key}_{k + 1}": float(v) for k, v in enumerate(values)})
         backend = "pinocchio"
+        fast = backends.get("compiled")
+        if spec.task == "simulate" and fast.available() and robot.supports(fast.name, "simulate"):
+            runs = spec.method is None or backends._method_runs(spec.method, fast.name)
+            backend = fast.name if runs else backend  # its generated integrators
     for axis in spec.axes:
         if axis.name not in names:
             raise SpecError(f"[vary] {axis.name}: unknown name; valid: {text.names(names, 20)}")
@@ -309,7 +313,7 @@ def _urdf_simulate(p: Plan, values: dict, start: int, count: int, rows: list[int
         for i in range(count)
     ]  # fmt: skip
     options = {"method": p.method, "rtol": p.rtol, "atol": p.atol, "step": p.step,
-               "estimate_error": False}  # fmt: skip
+               "backend": p.backend, "estimate_error": False}  # fmt: skip
     # efforts only where a metric (or a kept trajectory) needs them
     efforts = bool({"peak_effort", "control_energy"} & set(p.spec.metrics)) or bool(rows)
     edges = sorted({0, count, *range((-start) % BLOCK, count, BLOCK)})
