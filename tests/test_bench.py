@@ -105,7 +105,7 @@ def test_bench_quick_end_to_end(tmp_path, capsys):
     from rrt_pin.robot.robots import get
 
     generated = by_name["compiled inverse generated for ur5"]
-    assert int(generated[2]) == kernel_for(get("ur5").model).flops > 0
+    assert int(generated[2]) == kernel_for(get("ur5").model).all_flops > 0
     assert float(generated[3]) == pytest.approx(int(generated[2]) / float(generated[1]), rel=1e-4)
     assert 0 < float(generated[5]) <= 1
     assert "of the FMA limit" in out
