@@ -18,7 +18,11 @@ Public API (SI units throughout):
   :func:`rrt_pin.simulate.simulate`) and :func:`simulate_batch_compiled` (many
   chapter variants: gains, targets, initial states and masses per variant);
 * forward dynamics, M(q), bias and gravity of any such robot:
-  :func:`rrt_pin.compiled.forward.forward_kernel_for` (not yet run by ``simulate``);
+  :func:`rrt_pin.compiled.forward.forward_kernel_for`;
+* simulations of any such robot (``simulate``, ``simulate_batch`` with
+  ``backend="compiled"``): its generated dynamics inside the integrators of
+  :mod:`rrt_pin.compiled._robot_template` (:mod:`rrt_pin.compiled.robot_code`,
+  :mod:`rrt_pin.compiled.robot_runs`);
 * inverse dynamics of any other fixed-base robot with revolute, prismatic or
   continuous joints: :mod:`rrt_pin.compiled.rnea` (the RNEA generated from its
   Pinocchio model by :mod:`rrt_pin.dynamics.rnea_source`, compiled once per model and cached
