@@ -88,6 +88,56 @@ def loosest(side, reference, accuracy):
     return LADDER[-1], err
 
 
+def bench(name: str, args: argparse.Namespace, t: np.ndarray) -> None:
+    """One robot's table."""
+    robot, law, q0, qf = scene(name)
+    rrt_pin.simulate(robot, law, q0, None, t[:3], backend="compiled", estimate_error=False)
+    reference = run(robot, law, q0, t, "compiled", 1e-13, "DOP853").q
+    check = scipy_loop(robot, law, q0, t, 1e-13)
+    print(f"\n{name}: nv={robot.nv}, 15 s, reference compiled DOP853 rtol 1e-13; "
+          f"SciPy's at 1e-13 differs by {np.abs(check - reference).max():.1e}")  # fmt: skip
+    sides = {
+        "compiled": lambda r: run(robot, law, q0, t, "compiled", r, "DOP853").q,
+        "pinocchio": lambda r: run(robot, law, q0, t, "pinocchio", r).q,
+        "scipy loop": lambda r: scipy_loop(robot, law, q0, t, r),
+    }
+    chosen = {}
+    for side, f in sides.items():
+        rtol, err = loosest(f, reference, args.accuracy)
+        chosen[side] = rtol
+        print(f"  {side:<12} rtol {rtol:.0e}: max |q error| {err:.1e}")
+    B = args.batch
+    rng = np.random.default_rng(1)
+    q0s = q0 + rng.uniform(-0.05, 0.05, (B, robot.nv))
+    r_batch, err = loosest(sides["compiled"], reference, args.accuracy / 10)
+    print(f"  batches      rtol {r_batch:.0e}: max |q error| {err:.1e} (target ≤ accuracy/10)")
+
+    def batch(keep):
+        return lambda: rrt_pin.simulate_batch(
+            robot, law, q0s, None, t, backend="compiled", keep=keep, threads=1,
+            rtol=r_batch, atol=r_batch / 100, estimate_error=False,
+        )  # fmt: skip
+
+    timed = {s: (lambda s=s: sides[s](chosen[s])) for s in sides}
+    timed["batch final"] = batch("final")
+    timed["batch metrics"] = batch("metrics")
+    start = time.perf_counter()
+    med = interleaved(timed, args.repeat, inner=1)
+    for side in sides:
+        print(f"  {side:<12} {med[side] * 1e3:9.2f} ms")
+    for keep in ("final", "metrics"):
+        rate = B / med[f"batch {keep}"]
+        print(f"  batch {keep:<7} {rate:9.0f} simulations/s on one core ({B} variants)")
+    fast = med["compiled"]
+    r_pin, r_scipy = med["pinocchio"] / fast, med["scipy loop"] / fast
+    target = 3000 if name == "ur5" else 1500
+    rate = B / med["batch metrics"]
+    print(f"  compiled: {r_pin:.1f}x rrt-pin's Pinocchio backend (target 25x: "
+          f"{verdict(r_pin >= 25)}), {r_scipy:.1f}x the SciPy loop (target 100x: "
+          f"{verdict(r_scipy >= 100)}); batch {rate:.0f}/s/core (target {target}: "
+          f"{verdict(rate >= target)}); timed in {time.perf_counter() - start:.0f} s")  # fmt: skip
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--robots", default="ur5,panda")
@@ -97,52 +147,7 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     t = np.arange(0.0, TF + 1e-9, 0.01)
     for name in args.robots.split(","):
-        robot, law, q0, qf = scene(name)
-        rrt_pin.simulate(robot, law, q0, None, t[:3], backend="compiled", estimate_error=False)
-        reference = run(robot, law, q0, t, "compiled", 1e-13, "DOP853").q
-        check = scipy_loop(robot, law, q0, t, 1e-13)
-        print(f"\n{name}: nv={robot.nv}, 15 s, reference compiled DOP853 rtol 1e-13; "
-              f"SciPy's at 1e-13 differs by {np.abs(check - reference).max():.1e}")  # fmt: skip
-        sides = {
-            "compiled": lambda r: run(robot, law, q0, t, "compiled", r, "DOP853").q,
-            "pinocchio": lambda r: run(robot, law, q0, t, "pinocchio", r).q,
-            "scipy loop": lambda r: scipy_loop(robot, law, q0, t, r),
-        }
-        chosen = {}
-        for side, f in sides.items():
-            rtol, err = loosest(f, reference, args.accuracy)
-            chosen[side] = rtol
-            print(f"  {side:<12} rtol {rtol:.0e}: max |q error| {err:.1e}")
-        B = args.batch
-        rng = np.random.default_rng(1)
-        q0s = q0 + rng.uniform(-0.05, 0.05, (B, robot.nv))
-        r_batch, err = loosest(sides["compiled"], reference, args.accuracy / 10)
-        print(f"  batches      rtol {r_batch:.0e}: max |q error| {err:.1e} (target ≤ accuracy/10)")
-
-        def batch(keep):
-            return lambda: rrt_pin.simulate_batch(
-                robot, law, q0s, None, t, backend="compiled", keep=keep, threads=1,
-                rtol=r_batch, atol=r_batch / 100, estimate_error=False,
-            )  # fmt: skip
-
-        timed = {s: (lambda s=s: sides[s](chosen[s])) for s in sides}
-        timed["batch final"] = batch("final")
-        timed["batch metrics"] = batch("metrics")
-        start = time.perf_counter()
-        med = interleaved(timed, args.repeat, inner=1)
-        for side in sides:
-            print(f"  {side:<12} {med[side] * 1e3:9.2f} ms")
-        for keep in ("final", "metrics"):
-            rate = B / med[f"batch {keep}"]
-            print(f"  batch {keep:<7} {rate:9.0f} simulations/s on one core ({B} variants)")
-        fast = med["compiled"]
-        r_pin, r_scipy = med["pinocchio"] / fast, med["scipy loop"] / fast
-        target = 3000 if name == "ur5" else 1500
-        rate = B / med["batch metrics"]
-        print(f"  compiled: {r_pin:.1f}x rrt-pin's Pinocchio backend (target 25x: "
-              f"{verdict(r_pin >= 25)}), {r_scipy:.1f}x the SciPy loop (target 100x: "
-              f"{verdict(r_scipy >= 100)}); batch {rate:.0f}/s/core (target {target}: "
-              f"{verdict(rate >= target)}); timed in {time.perf_counter() - start:.0f} s")  # fmt: skip
+        bench(name, args, t)
     return 0
 
 
