@@ -1,5 +1,6 @@
 # Sourced by scripts/demo and scripts/test: make .venv and install the project
-# with the given extras, reinstalling only when pyproject.toml or the extras change.
+# with the given extras, reinstalling only when pyproject.toml or the extras change,
+# then write the package's bytecode (.pyc) if any is missing or out of date.
 # PYTHON=/path/to/python3.11 chooses the interpreter that creates .venv.
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -69,3 +70,11 @@ if ! covered; then
   fi
   echo "$want" >> "$stamp"
 fi
+# The editable install leaves rrt_pin's .pyc to the first import, which a process may not
+# write (PYTHONDONTWRITEBYTECODE=1, as containers and CI images often set, or a read-only
+# checkout): it would then compile every module it imports, in every run. Write them here,
+# as pip does for a wheel; compileall only redoes the files changed since (timestamps, as
+# Python checks them at import, even when SOURCE_DATE_EPOCH is set).
+# A module that does not compile (its error is printed) is left to fail where it is imported.
+.venv/bin/python -m compileall -q --invalidation-mode timestamp rrt_pin >&2 ||
+  echo "some of rrt_pin's modules did not compile (above): they fail when imported" >&2

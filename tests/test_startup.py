@@ -1,9 +1,15 @@
-"""Start-up: a run imports only what it uses; the lean ODEPACK route gives scipy's bits."""
+"""Start-up: a run imports only what it uses; the install step writes the package's bytecode,
+so a process that may not write it compiles nothing; the lean ODEPACK route gives scipy's bits."""
 
 from __future__ import annotations
 
+import hashlib
+import importlib.util
+import os
+import shutil
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -20,6 +26,83 @@ def _modules_after(argv: list[str], tmp_path) -> set[str]:
     status, modules = proc.stdout.strip().splitlines()[-2:]
     assert status == "0", proc.stderr
     return set(modules.split())
+
+
+ROOT = Path(__file__).resolve().parents[1]
+
+#: Runs the default jobs with PYTHONDONTWRITEBYTECODE=1 and prints the files of the modules
+#: compiled from source, one a line: importlib's SourceLoader compiles them in this method
+#: only when no current .pyc exists.
+_COUNT_COMPILED = """\
+import importlib._bootstrap_external as be, sys
+compiled = []
+source_to_code = be.SourceLoader.source_to_code
+def counting(self, data, path, *args, **kwargs):
+    compiled.append(str(path))
+    return source_to_code(self, data, path, *args, **kwargs)
+be.SourceLoader.source_to_code = counting
+from rrt_pin.cli.app import main
+assert main(["inverse", "--csv", "i.csv"]) == 0
+assert main(["simulate", "--csv", "s.csv"]) == 0
+print("\\n".join(compiled))
+"""
+
+
+def _compiled_at_import(checkout: Path) -> list[str]:
+    """rrt_pin's files that the default inverse and simulate jobs compile from source."""
+    env = {**os.environ, "PYTHONDONTWRITEBYTECODE": "1"}
+    proc = subprocess.run([sys.executable, "-c", _COUNT_COMPILED], cwd=checkout, env=env,
+                          capture_output=True, text=True)  # fmt: skip
+    assert proc.returncode == 0, proc.stderr
+    package = checkout / "rrt_pin"
+    return [p for p in proc.stdout.splitlines() if Path(p).is_relative_to(package)]
+
+
+def _stale_bytecode(package: Path) -> list[str]:
+    """Modules of ``package`` whose .pyc is missing or not current for their source."""
+    stale = []
+    for source in sorted(package.rglob("*.py")):
+        pyc = Path(importlib.util.cache_from_source(str(source)))
+        stat = source.stat()
+        header = pyc.read_bytes()[:16] if pyc.exists() else b""
+        current = (
+            header[:4] == importlib.util.MAGIC_NUMBER
+            and int.from_bytes(header[4:8], "little") == 0  # checked by timestamp
+            and int.from_bytes(header[8:12], "little") == int(stat.st_mtime) & 0xFFFFFFFF
+            and int.from_bytes(header[12:16], "little") == stat.st_size & 0xFFFFFFFF
+        )
+        if not current:
+            stale.append(str(source.relative_to(package)))
+    return stale
+
+
+def test_the_install_step_writes_the_bytecode_a_process_may_not(tmp_path):
+    """scripts/_venv.sh (what scripts/test, scripts/demo and CI run) compiles every module, so
+    that with PYTHONDONTWRITEBYTECODE=1 the default jobs compile none of rrt_pin's at import."""
+    checkout = tmp_path / "clone"
+    (checkout / "scripts").mkdir(parents=True)
+    shutil.copy(ROOT / "scripts" / "_venv.sh", checkout / "scripts")
+    shutil.copy(ROOT / "pyproject.toml", checkout)
+    shutil.copytree(ROOT / "rrt_pin", checkout / "rrt_pin",
+                    ignore=shutil.ignore_patterns("__pycache__"))  # fmt: skip
+    # A .venv whose install is recorded as done: the step under test is what follows it.
+    bin_dir = checkout / ".venv" / "bin"
+    bin_dir.mkdir(parents=True)
+    (bin_dir / "python").write_text(f'#!/bin/sh\nexec "{sys.executable}" "$@"\n')
+    (bin_dir / "python").chmod(0o755)
+    digest = hashlib.sha256((checkout / "pyproject.toml").read_bytes()).hexdigest()[:16]
+    (checkout / ".venv" / ".rrt-pin-installed").write_text(f"{digest} test\n")
+
+    before = _compiled_at_import(checkout)
+    assert any(p.endswith(os.path.join("rrt_pin", "cli", "app.py")) for p in before), before
+    assert _stale_bytecode(checkout / "rrt_pin")  # nothing was written: the flag was set
+
+    proc = subprocess.run(["bash", "-c", "source scripts/_venv.sh test"], cwd=checkout,
+                          capture_output=True, text=True)  # fmt: skip
+    assert proc.returncode == 0, proc.stderr
+    assert "installing" not in proc.stderr  # the recorded install was taken as done
+    assert _stale_bytecode(checkout / "rrt_pin") == []
+    assert _compiled_at_import(checkout) == []
 
 
 def test_default_simulate_skips_scipy_integrate(tmp_path):
