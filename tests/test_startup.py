@@ -105,6 +105,62 @@ def test_the_install_step_writes_the_bytecode_a_process_may_not(tmp_path):
     assert _compiled_at_import(checkout) == []
 
 
+#: What the chapter's default jobs never need: the optional parts and their libraries, the
+#: TOML parser (no --config), importlib.metadata (the version is a module constant).
+NOT_FOR_DEFAULT_JOBS = {
+    "rrt_pin.sweeps", "rrt_pin.viewer", "rrt_pin.dynamics.symbolic", "rrt_pin.cli.bench_report",
+    "rrt_pin.cli.bench_measure", "rrt_pin.cli.flops", "rrt_pin.simulate.reference",
+    "rrt_pin.simulate.accuracy", "matplotlib", "meshcat", "sympy", "dask",
+    "pandas", "pyarrow", "tqdm", "selenium", "tomllib", "tomli", "importlib.metadata",
+}  # fmt: skip
+#: ... and what each job needs least: the other's dynamics.
+NOT_FOR = {
+    "inverse": {"scipy", "rrt_pin.simulate.api", "rrt_pin.simulate.integrators"},
+    "simulate": {"rrt_pin.dynamics.inverse", "rrt_pin.dynamics.wrenches"},
+}
+
+
+@pytest.mark.parametrize("command", ["inverse", "simulate"])
+def test_default_jobs_import_only_their_own_command_and_what_it_runs(command, tmp_path):
+    from rrt_pin.cli.commands import COMMANDS
+
+    modules = _modules_after([command, "--csv", "out.csv"], tmp_path)
+    assert f"rrt_pin.cli.commands.{command}" in modules and "numpy" in modules
+    others = {f"rrt_pin.cli.commands.{c}" for c in COMMANDS if c != command}
+    assert modules & others == set()
+    assert modules & (NOT_FOR_DEFAULT_JOBS | NOT_FOR[command]) == set()
+
+
+@pytest.mark.parametrize(
+    ("argv", "command"),
+    [
+        (["inverse", "--csv", "x.csv"], "inverse"),
+        (["-v", "-qq", "--quiet", "simulate", "--tf", "1"], "simulate"),
+        (["--verbose", "urdf"], "urdf"),
+        (["-h", "inverse"], None),  # the top-level help lists every command
+        (["--version"], None),
+        (["nosuchcommand"], None),  # argparse's error lists the valid ones
+        (["--csv", "inverse"], None),
+        ([], None),
+    ],
+)
+def test_only_a_plainly_named_command_gets_a_parser_alone(argv, command):
+    from rrt_pin.cli import app
+
+    assert app._command_of(argv) == command
+    _, subparsers = app.build_parser(command)
+    assert len(subparsers) == (1 if command else len(app.COMMANDS))
+
+
+def test_a_run_files_options_of_other_commands_still_pass(tmp_path):
+    """[options] may hold any command's option: with --config every subparser is built."""
+    run = tmp_path / "run.toml"
+    run.write_text('[options]\nmethod = "rk4"\n[inverse]\ndt = 0.01\n')
+    modules = _modules_after(["-q", "inverse", "--config", str(run), "--csv", "i.csv"], tmp_path)
+    assert "tomllib" in modules or "tomli" in modules
+    assert "rrt_pin.cli.commands.simulate" in modules  # its options were checked against
+
+
 def test_default_simulate_skips_scipy_integrate(tmp_path):
     modules = _modules_after(["simulate", "--csv", "s.csv"], tmp_path)
     assert "scipy.integrate._odepack" in modules

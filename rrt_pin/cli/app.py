@@ -10,6 +10,7 @@ import argparse
 import contextlib
 import importlib
 import logging
+import re
 import sys
 from collections.abc import Callable, Iterator, Sequence
 from types import ModuleType
@@ -71,9 +72,9 @@ class _Parser(argparse.ArgumentParser):
         raise _OneLineError(self.prog, message)
 
 
-def _command_modules() -> dict[str, ModuleType]:
+def _command_modules(names: Sequence[str] = COMMANDS) -> dict[str, ModuleType]:
     modules = {}
-    for name in COMMANDS:
+    for name in names:
         try:
             modules[name] = importlib.import_module(f"rrt_pin.cli.commands.{name}")
         except ModuleNotFoundError as e:
@@ -82,8 +83,14 @@ def _command_modules() -> dict[str, ModuleType]:
     return modules
 
 
-def build_parser() -> tuple[_Parser, dict[str, _Parser]]:
-    """The top-level parser and one subparser per available command."""
+def build_parser(command: str | None = None) -> tuple[_Parser, dict[str, _Parser]]:
+    """The top-level parser and one subparser per available command.
+
+    Args:
+        command: build only this command's subparser (a run imports only its own
+            command's module); None builds them all (what ``--help``, a mistyped
+            command and run files need).
+    """
     from rrt_pin._version import __version__ as ver  # not importlib.metadata: ~20 ms
 
     parser = _Parser(
@@ -106,7 +113,8 @@ def build_parser() -> tuple[_Parser, dict[str, _Parser]]:
                            help="say less on stderr: only warnings and errors (-qq: errors)")  # fmt: skip
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     subparsers = {}
-    for name, module in _command_modules().items():
+    modules = _command_modules((command,)) if command is not None else {}
+    for name, module in (modules or _command_modules()).items():
         p = sub.add_parser(name, help=module.HELP, description=module.HELP, parents=[verbosity])
         module.add_arguments(p)
         p.set_defaults(command_run=module.run)
@@ -186,6 +194,20 @@ def _apply_runfile(
             defaults[dest] = _option_value(label, mine[dest], value)
     subparsers[args.command].set_defaults(**defaults)
     return runfile
+
+
+#: What may come before the command on its line when only its subparser is built.
+_BEFORE_COMMAND = re.compile(r"-[vq]+|--verbose|--quiet")
+
+
+def _command_of(argv: list[str]) -> str | None:
+    """The command ``argv`` runs, when it plainly names one after nothing but -v/-q; else None."""
+    for token in argv:
+        if token in COMMANDS:
+            return token
+        if not _BEFORE_COMMAND.fullmatch(token):
+            return None
+    return None
 
 
 #: Options whose value is a comma-separated list that may start with a minus sign.
@@ -273,13 +295,17 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 def _main(argv: list[str], set_level: Callable[[int], None]) -> int:
     try:
-        parser, subparsers = build_parser()
+        command = _command_of(argv)
+        parser, subparsers = build_parser(command)
         args = parser.parse_args(argv)
         if args.command is None:
             parser.print_help(sys.stderr)
             return EXIT_USAGE
         set_level(verbosity_level(args.verbose, args.quiet))
         if getattr(args, "config", None):
+            if command is not None:  # a run file's [options] may hold any command's options
+                parser, subparsers = build_parser()
+                args = parser.parse_args(argv)
             runfile = _apply_runfile(args, subparsers)
             args = parser.parse_args(argv)  # explicit flags win over the run file's options
             args.runfile = runfile

@@ -21,11 +21,6 @@ from typing import Any
 
 from rrt_pin.core.errors import RrtPinError
 
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover - Python 3.10
-    import tomli as tomllib
-
 __all__ = ["FIFO_TIMEOUT", "check_int64", "load_toml", "read_text_capped"]
 
 _CHUNK = 1 << 20
@@ -125,6 +120,13 @@ def load_toml(path: str | Path, *, cap: int, what: str, error: type[RrtPinError]
         error: one line: the file cannot be read (see :func:`read_text_capped`), is
             not TOML, or is nested too deeply to parse.
     """
+    # Imported here: the parser compiles its regular expressions when imported, and most
+    # runs read no TOML (their commands only check that --config is not given).
+    if sys.version_info >= (3, 11):
+        import tomllib
+    else:  # pragma: no cover - Python 3.10
+        import tomli as tomllib
+
     name = str(path)
     text = read_text_capped(path, cap=cap, what=what, error=error)
     try:
