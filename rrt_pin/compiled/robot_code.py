@@ -15,14 +15,16 @@ process loads it.
 from __future__ import annotations
 
 import hashlib
+import json
+import os
 import re
 import threading
 import time
-from dataclasses import dataclass
+import types
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from rrt_pin.compiled import rnea
+from rrt_pin.compiled import rnea, rnea_vector
 from rrt_pin.core import backends
 from rrt_pin.core._logging import note
 from rrt_pin.core.identity import IdentityCache
@@ -33,10 +35,14 @@ from rrt_pin.simulate import codes
 if TYPE_CHECKING:
     import pinocchio as pin
 
-__all__ = ["RobotCode", "integrators_for", "module_source"]
+__all__ = ["LANES", "RobotCode", "integrators_for", "module_source"]
 
 _TEMPLATE = Path(__file__).with_name("_robot_template.py")
 _MARK = "# --- template ---\n"
+_LANES = Path(__file__).with_name("_robot_lanes.py")
+_LANES_MARK = "# --- lanes ---\n"
+#: A batch's variants a thread runs side by side (vectors of 8 doubles, AVX-512).
+LANES = 8
 #: What compiling ``run_many`` takes, roughly [s]: a constant and a share per generated
 #: operation (for the announcement's estimate only).
 _COMPILE_S = 12.0
@@ -48,30 +54,103 @@ _CODES = (
     "STATUS_OK", "STATUS_NONFINITE", "STATUS_STEP_UNDERFLOW", "STATUS_MAX_STEPS",
     "STATUS_NO_CONVERGENCE", "STATUS_EFFORT_NONFINITE",
 )  # fmt: skip
-_lock = threading.Lock()
+_lock = threading.RLock()
 _CODE: dict[str, RobotCode] = {}
 _MODELS: IdentityCache[tuple[Any, RobotCode]] = IdentityCache(16)
 
 
-@dataclass(frozen=True)
 class RobotCode:
-    """One robot's compiled integrators.
+    """One robot's compiled integrators: entry points compiled (or loaded) on first use.
 
     Attributes:
         name: what messages call the robot.
         nv: joint coordinates (the state has 2·nv entries).
-        run_many: the numba dispatcher of the template's ``run_many``.
         flops: arithmetic operations of one forward-dynamics evaluation.
-        origin: ``loaded`` (numba's disk cache), ``compiled`` (and saved) or ``memory``.
-        seconds: what importing and compiling (or loading) took [s].
+        origin: how ``run_many`` came: ``loaded`` (numba's disk cache), ``compiled``
+            (and saved) or ``memory``.
+        seconds: what importing and compiling (or loading) ``run_many`` took [s].
     """
 
-    name: str
-    nv: int
-    run_many: Any
-    flops: int
-    origin: str
-    seconds: float
+    def __init__(self, name: str, nv: int, flops: int, module: Any, path: Path | None) -> None:
+        self.name, self.nv, self.flops = name, nv, flops
+        self._module, self._path = module, path
+        self._entries: dict[str, Any] = {}
+        self.origin, self.seconds = "memory", 0.0
+        start = time.perf_counter()
+        self.entry("run_many")
+        self.seconds = time.perf_counter() - start
+
+    @property
+    def run_many(self) -> Any:
+        """Variants one after the other (any law, any method)."""
+        return self.entry("run_many")
+
+    @property
+    def run_lanes(self) -> Any:
+        """Variants side by side in :data:`LANES` lanes (PD plus gravity, RK45 or DOP853)."""
+        return self.entry("run_lanes")
+
+    def entry(self, name: str) -> Any:
+        """The numba dispatcher of ``name``, compiled (or loaded) for its one signature."""
+        found = self._entries.get(name)
+        if found is not None:
+            return found
+        with _lock:
+            found = self._entries.get(name)
+            if found is None:
+                found = self._entries[name] = self._compile(name)
+        return found
+
+    def _compile(self, name: str) -> Any:
+        import numba
+
+        sig = _SIGNATURES[name](numba).args
+        dispatcher = getattr(self._module, name)
+        what = "integrators" if name == "run_many" else "batch lanes"
+        estimate = _estimate(self.flops) * (1.0 if name == "run_many" else 0.7)
+        if self._path is None:
+            note(f"compiling {self.name}'s {what} (~{estimate:.0f} s, not kept on disk)")
+            dispatcher.compile(sig)
+            dispatcher.disable_compile()
+            return dispatcher
+        files = rnea._numba_files(dispatcher)
+        record = self._path.with_name(f"{self._path.stem}.{name}.cache.json")
+        _discard_unverified(record, files)
+        if not files():
+            note(f"compiling {self.name}'s {what} once (~{estimate:.0f} s)")
+        dispatcher.compile(sig)
+        dispatcher.disable_compile()
+        origin = "loaded" if sum(dispatcher.stats.cache_hits.values()) else "compiled"
+        if origin == "compiled":
+            _record(record, files)
+        if name == "run_many":
+            self.origin = origin
+        return dispatcher
+
+
+def _record(record: Path, files: Any) -> None:
+    """Record the SHA-256 of numba's files of an entry just compiled."""
+    tmp = record.with_name(f".{record.name}.{os.getpid()}.{threading.get_ident()}.tmp")
+    try:
+        tmp.write_text(json.dumps(rnea._digests(files()), indent=1), encoding="utf-8")
+        os.replace(tmp, record)
+    except OSError:
+        tmp.unlink(missing_ok=True)
+
+
+def _discard_unverified(record: Path, files: Any) -> None:
+    """Delete numba's files of an entry unless they are the ones recorded at its compilation."""
+    present = files()
+    if not present:
+        return
+    try:
+        recorded = json.loads(record.read_text(encoding="utf-8"))
+        if isinstance(recorded, dict) and rnea._digests(present) == recorded:
+            return
+    except (OSError, ValueError):
+        pass
+    for f in [*present, record]:
+        f.unlink(missing_ok=True)
 
 
 def _on_state(gen: forward_source.GeneratedFunction, name: str, shift: int) -> str:
@@ -93,6 +172,71 @@ def _on_state(gen: forward_source.GeneratedFunction, name: str, shift: int) -> s
     return "\n".join(["@jit", f"def {name}({', '.join(args)}, out):", *body, ""])
 
 
+def _lanes_source(gen: forward_source.GeneratedFunction, name: str) -> str:
+    """``name(w)``: ``gen`` of :data:`LANES` states at once, one lane each, in place in ``w``.
+
+    ``w`` is one flat work array of rows of :data:`LANES` values (constant offsets, no
+    call and no branch in the loops, so that LLVM runs the lanes side by side): rows
+    0 … n − 1 the states (q, q̇), then (kp, kd, qf) (3·nv rows), the sine and cosine of
+    each angle, the largest |angle|, then the results: for the forward dynamics (``gen``
+    without gravity, under the PD efforts from those rows) the n rows of ẏ, else gen's
+    nv rows. The sines and cosines are the polynomial ones; a lane with an angle at or
+    beyond their limit (or not finite) gets NaN.
+    """
+    nv, L = gen.nv, LANES
+    n = 2 * nv
+    forward = "tau" in gen.inputs
+    trig = re.compile(r"^(t\d+) = (sin|cos)\((t\d+)\)$")
+    inputs = {}
+    for line in gen.lines:
+        m = re.match(r"^(t\d+) = q\[(\d+)\]$", line)
+        if m:
+            inputs[m[1]] = int(m[2])
+    angles = sorted({inputs[m[3]] for line in gen.lines if (m := trig.match(line))})
+    row = {("y", i): i for i in range(n)}
+    row.update({("c", i): n + i for i in range(3 * nv)})
+    for k in angles:
+        row["sin", k] = len(row)
+        row["cos", k] = len(row)
+    row["amax", 0] = len(row)
+    row.update({("out", i): len(row) + i for i in range(n if forward else len(gen.outputs))})
+
+    def at(kind: str, i: int) -> str:
+        return f"w[{row[kind, i] * L} + l]"
+
+    def pd(k: int) -> str:
+        return (
+            f"(-{at('c', nv + k)} * {at('y', nv + k)} - {at('c', k)} * "
+            f"({at('y', k)} - {at('c', 2 * nv + k)}))"
+        )
+
+    src = ["@jit", f"def {name}(w):", f"    for l in range({L}):"]
+    for k in angles:
+        src += [f"        {x}" for x in rnea_vector.sincos_lines(at("y", k), "s", "c", "p")]
+        src += [f"        {at('sin', k)} = s", f"        {at('cos', k)} = c"]
+    biggest = ", ".join(f"abs({at('y', k)})" for k in angles)
+    src.append(f"        {at('amax', 0)} = {f'max({biggest}, 0.0)' if angles else '0.0'}")
+    src.append(f"    for l in range({L}):")
+    for line in gen.lines:
+        if m := trig.match(line):
+            src.append(f"        {m[1]} = {at(m[2], inputs[m[3]])}")
+            continue
+        line = re.sub(r"\bq\[(\d+)\]", lambda g: at("y", int(g[1])), line)
+        line = re.sub(r"\bv\[(\d+)\]", lambda g: at("y", nv + int(g[1])), line)
+        line = re.sub(r"\btau\[(\d+)\]", lambda g: pd(int(g[1])), line)
+        src.append(f"        {line}")
+    limit = repr(rnea_vector.SINCOS_LIMIT)
+    shift = nv if forward else 0
+    if forward:
+        src += [f"        {at('out', k)} = {at('y', nv + k)}" for k in range(nv)]
+    for k, x in enumerate(gen.outputs):
+        src.append(
+            f"        {at('out', shift + k)} = {x} if {at('amax', 0)} < {limit} else math.nan"
+        )
+    tag = name.upper()
+    return "\n".join([*src, "", f"{tag}_ROWS = {len(row)}", f"{tag}_OUT = {row['out', 0]}", ""])
+
+
 def module_source(model: pin.Model) -> tuple[str, int]:
     """(the module's source, flops of one forward-dynamics evaluation) for ``model``.
 
@@ -106,9 +250,14 @@ def module_source(model: pin.Model) -> tuple[str, int]:
     free.gravity = pin.Motion.Zero()
     nv = int(model.nv)
     fwd = forward_source.forward_source(model, "aba")
+    fwd_free = forward_source.forward_source(free, "aba")
+    # The lanes run the variant with fewer operations (on UR5 CRBA + LDLᵀ, 1,085 against
+    # ABA's 1,508; on Panda ABA): their rounding differs by ~1e-13 relative, far below
+    # any tolerance of an integration.
+    lanes_gen = min(fwd_free, forward_source.forward_source(free, "crba"), key=lambda g: g.flops)
     parts = [
         _on_state(fwd, "forward", nv),
-        _on_state(forward_source.forward_source(free, "aba"), "forward_free", nv),
+        _on_state(fwd_free, "forward_free", nv),
         _on_state(forward_source.gravity_source(model), "gravity", 0),
         _on_state(forward_source.mass_matrix_source(model), "mass_matrix", 0),
         _on_state(forward_source.bias_source(model), "bias", 0),
@@ -138,11 +287,16 @@ def module_source(model: pin.Model) -> tuple[str, int]:
         "",
         *(part + "\n" for part in parts),
         body,
+        "",
+        f"LANE_COUNT = {LANES}",
+        _lanes_source(lanes_gen, "rhs_lanes"),
+        _lanes_source(forward_source.gravity_source(model), "gravity_lanes"),
+        _LANES.read_text(encoding="utf-8").partition(_LANES_MARK)[2],
     ]
     return "\n".join(lines), fwd.flops
 
 
-def _signature(numba: Any) -> Any:
+def _many_signature(numba: Any) -> Any:
     i8, f8 = numba.int64, numba.float64
     r1 = numba.types.Array(f8, 1, "C", readonly=True)
     r2 = numba.types.Array(f8, 2, "C", readonly=True)
@@ -153,47 +307,42 @@ def _signature(numba: Any) -> Any:
     )  # fmt: skip
 
 
-def _compile(source: str, digest: str, name: str, nv: int, flops: int) -> RobotCode:
+def _lanes_signature(numba: Any) -> Any:
+    i8, f8 = numba.int64, numba.float64
+    r1 = numba.types.Array(f8, 1, "C", readonly=True)
+    r2 = numba.types.Array(f8, 2, "C", readonly=True)
+    return numba.types.void(
+        i8, r2, r1, r1, f8, f8, i8, r2, i8, f8,
+        f8[:, :, ::1], f8[:, :, ::1], f8[:, ::1], i8[:, ::1], f8[::1], i8, i8,
+    )  # fmt: skip
+
+
+_SIGNATURES = {"run_many": _many_signature, "run_lanes": _lanes_signature}
+
+
+def _load(source: str, digest: str, name: str, nv: int, flops: int) -> RobotCode:
+    """Write and import the module (or, without a writable cache, execute it in memory)."""
     try:
-        import numba
+        import numba  # noqa: F401
     except ImportError as e:
         backends.get("compiled").require(e)
         raise  # not reached: require raises
-    start = time.perf_counter()
-    sig = _signature(numba).args
-    module = f"rrt_pin_robot_{digest[:24]}"
+    module_name = f"rrt_pin_robot_{digest[:24]}"
     where = rnea.generated_dir()
-    path = where / f"{module.removeprefix('rrt_pin_')}.py" if where is not None else None
-    dispatcher, origin = None, "memory"
+    path = where / f"{module_name.removeprefix('rrt_pin_')}.py" if where is not None else None
     if path is not None and rnea._write(path, source):
         try:
-            dispatcher = rnea._import(path, module).run_many
-            files = rnea._numba_files(dispatcher)
-            rnea._discard_unverified(path, files)
-            if not files():
-                note(f"compiling {name}'s integrators once (~{_estimate(flops):.0f} s)")
-            dispatcher.compile(sig)
-            dispatcher.disable_compile()
-            origin = "loaded" if sum(dispatcher.stats.cache_hits.values()) else "compiled"
-            if origin == "compiled":
-                rnea._record(path, files)
+            return RobotCode(name, nv, flops, rnea._import(path, module_name), path)
         except Exception as exc:  # a damaged or unwritable numba cache: compile in memory
             from rrt_pin.compiled._cache import warn_once
 
             warn_once(
                 f"generated integrators cache {path.parent}: {type(exc).__name__}: {exc}"[:300]
             )
-            dispatcher = None
-    if dispatcher is None:
-        note(f"compiling {name}'s integrators (~{_estimate(flops):.0f} s, not kept on disk)")
-        namespace: dict[str, Any] = {"__name__": module}
-        exec(compile(source.replace("cache=True", "cache=False"), f"<{module}>", "exec"), namespace)  # noqa: S102
-        dispatcher = namespace["run_many"]
-        dispatcher.compile(sig)
-        dispatcher.disable_compile()
-        origin = "memory"
-    seconds = time.perf_counter() - start
-    return RobotCode(name, nv, dispatcher, flops, origin, seconds)
+    namespace = types.ModuleType(module_name)
+    text = source.replace("cache=True", "cache=False")
+    exec(compile(text, f"<{module_name}>", "exec"), namespace.__dict__)  # noqa: S102
+    return RobotCode(name, nv, flops, namespace, None)
 
 
 def _estimate(flops: int) -> float:
@@ -222,6 +371,6 @@ def integrators_for(model: pin.Model, name: str | None = None) -> RobotCode:
     with _lock:
         code = _CODE.get(digest)
         if code is None:
-            code = _CODE[digest] = _compile(source, digest, label, int(model.nv), flops)
+            code = _CODE[digest] = _load(source, digest, label, int(model.nv), flops)
     _MODELS.put(model, value=(pin.Model(model), code))
     return code

@@ -155,13 +155,26 @@ def _run(
     atol = np.full(n, options.atol if options.atol is not None else 0.0)
     rtol = options.rtol if options.rtol is not None else 0.0
     step = options.step if options.step is not None else 0.0
-    args = (
-        options.method.code, Y0, t, step, atol, rtol, math.inf, max_steps, laws, C, rt, rv,
-        keep_code, band, out_y, out_tau, metrics, info, reached,
-    )  # fmt: skip
+    method = options.method.code
+    if count >= 2 and method < codes.FIXED_STEP_FROM and bool(np.all(laws == codes.LAW_PD_GRAVITY)):
+        # side by side in vector lanes: the same steps, each variant its own
+        lanes = code.run_lanes
+        args = (
+            method, Y0, t, atol, rtol, math.inf, max_steps, C, keep_code, band,
+            out_y, out_tau, metrics, info, reached,
+        )  # fmt: skip
 
-    def run(a: int, b: int) -> None:
-        code.run_many(*args, a, b)
+        def run(a: int, b: int) -> None:
+            lanes(*args, a, b)
+    else:
+        many = code.run_many
+        args = (
+            method, Y0, t, step, atol, rtol, math.inf, max_steps, laws, C, rt, rv,
+            keep_code, band, out_y, out_tau, metrics, info, reached,
+        )  # fmt: skip
+
+        def run(a: int, b: int) -> None:
+            many(*args, a, b)
 
     used = _in_slices(run, count, threads)
     return out_y, out_tau, metrics, info, reached, np.int64(used)

@@ -1,0 +1,447 @@
+"""The lanes of any robot's batches: adaptive variants side by side, one vector lane each.
+
+Appended by :mod:`rrt_pin.compiled.robot_code` to the module it makes from
+:mod:`rrt_pin.compiled._robot_template` (from the line ``# --- lanes ---`` on), with
+``rhs_lanes``: the closed loop under PD plus gravity of ``L`` states at once, the
+generated forward dynamics without gravity inside one loop over the lanes (no call,
+no branch: the polynomial sine and cosine of :mod:`rrt_pin.compiled.rnea_vector`),
+which LLVM runs several lanes an instruction.
+
+``run_lanes`` integrates a batch's variants with RK45 or DOP853 as ``run_many`` does
+(SciPy's steps, error norms, step-size control and dense output, each variant with its
+own step size): every lane attempts a step at once; each accepts or rejects its own;
+a lane whose variant ends takes the next. A lane's arithmetic never depends on the
+other lanes, so the results do not depend on the lane count, the threads or the chunks.
+"""
+
+import math
+
+import numpy as np
+
+
+def jit(f):  # the module's header defines numba's
+    return f
+
+
+def rhs_lanes(w):  # generated: ẏ of LANE_COUNT states under PD plus gravity, in place in w
+    raise NotImplementedError
+
+
+def gravity_lanes(w):  # generated: G(q) of LANE_COUNT states, in place in w
+    raise NotImplementedError
+
+
+LANE_COUNT = RHS_LANES_ROWS = RHS_LANES_OUT = GRAVITY_LANES_ROWS = GRAVITY_LANES_OUT = 0
+
+
+first_step = adaptive = efforts_at = metrics_of = samples_until = rhs_lanes
+SAFETY = MIN_FACTOR = MAX_FACTOR = 0.0
+D8_NS = D8_A = D8_C = D8_E3 = D8_E5 = D8_D = RK45_AB = RK45_C = RK45_E = RK45_P = None
+LAW_PD_GRAVITY = METHOD_DOP853 = KEEP_FINAL = KEEP_METRICS = KEEP_TRAJECTORIES = 0
+STATUS_OK = STATUS_STEP_UNDERFLOW = STATUS_MAX_STEPS = STATUS_EFFORT_NONFINITE = 0
+# --- lanes ---
+
+
+@jit
+def combine_lanes(Y, K, A, s, h, out):
+    """out[:, l] = Y[:, l] + (Σ_{j<s} A[s, j] K[j, :, l]) · h[l] for every lane (combine's order)."""
+    n = Y.shape[0]
+    for i in range(n):
+        for lane in range(LANE_COUNT):
+            out[i, lane] = 0.0
+        for j in range(s):
+            aj = A[s, j]
+            if aj != 0.0:
+                for lane in range(LANE_COUNT):
+                    out[i, lane] += aj * K[j, i, lane]
+        for lane in range(LANE_COUNT):
+            out[i, lane] = Y[i, lane] + out[i, lane] * h[lane]
+
+
+@jit
+def error_lanes(dop853, n_stages, K, Y, Ynew, h, atol, rtol, ERR, e5s, e3s):
+    """Each lane's scaled error components (ERR) and sums of squares (e5s, e3s), side by side.
+
+    The operations, in order, of ``adaptive``'s error norm for one run: a lane's bits
+    are a single run's.
+    """
+    n = Y.shape[0]
+    L = LANE_COUNT
+    acc5 = np.zeros(L)
+    acc3 = np.zeros(L)
+    for lane in range(L):
+        e5s[lane] = 0.0
+        e3s[lane] = 0.0
+    for i in range(n):
+        for lane in range(L):
+            acc5[lane] = 0.0
+            acc3[lane] = 0.0
+        for j in range(n_stages + 1):
+            if dop853:
+                e5j = D8_E5[j]
+                e3j = D8_E3[j]
+                for lane in range(L):
+                    acc5[lane] += K[j, i, lane] * e5j
+                    acc3[lane] += K[j, i, lane] * e3j
+            else:
+                ej = RK45_E[j]
+                for lane in range(L):
+                    acc5[lane] += K[j, i, lane] * ej
+        ai = atol[i]
+        for lane in range(L):
+            sc = ai + max(abs(Y[i, lane]), abs(Ynew[i, lane])) * rtol
+            if dop853:
+                a5 = acc5[lane] / sc
+                a3 = acc3[lane] / sc
+                e3s[lane] += a3 * a3
+            else:
+                a5 = acc5[lane] * h[lane] / sc
+            ERR[i, lane] = a5
+            e5s[lane] += a5 * a5
+
+
+@jit
+def dense_lanes(dop853, n_stages, K, Y, Ynew, h, F):
+    """Every lane's dense-output coefficients F (7, n, L) of its last step (SciPy's)."""
+    n = Y.shape[0]
+    L = LANE_COUNT
+    acc = np.zeros(L)
+    if dop853:
+        for i in range(n):
+            for lane in range(L):
+                dy = Ynew[i, lane] - Y[i, lane]
+                F[0, i, lane] = dy
+                F[1, i, lane] = h[lane] * K[0, i, lane] - dy
+                F[2, i, lane] = 2.0 * dy - h[lane] * (K[n_stages, i, lane] + K[0, i, lane])
+        for r in range(4):
+            for i in range(n):
+                for lane in range(L):
+                    acc[lane] = 0.0
+                for j in range(16):
+                    drj = D8_D[r, j]
+                    if drj != 0.0:
+                        for lane in range(L):
+                            acc[lane] += drj * K[j, i, lane]
+                for lane in range(L):
+                    F[3 + r, i, lane] = acc[lane] * h[lane]
+    else:
+        for r in range(4):
+            for i in range(n):
+                for lane in range(L):
+                    acc[lane] = 0.0
+                for j in range(n_stages + 1):
+                    pjr = RK45_P[j, r]
+                    if pjr != 0.0:
+                        for lane in range(L):
+                            acc[lane] += K[j, i, lane] * pjr
+                for lane in range(L):
+                    F[r, i, lane] = acc[lane]
+
+
+@jit
+def efforts_lanes(ys, rows, c, taus, gw):
+    """PD plus G(q) at the first ``rows`` states ys (…, n) into taus, LANE_COUNT at a time.
+
+    ``gw``: the work array of ``gravity_lanes``. Returns -1, or nv·i + k of the first
+    non-finite effort.
+    """
+    n = ys.shape[1]
+    nv = n // 2
+    L = LANE_COUNT
+    out = GRAVITY_LANES_OUT * L
+    for start in range(0, rows, L):
+        m = min(L, rows - start)
+        for i in range(n):
+            for j in range(L):
+                gw[i * L + j] = ys[start + min(j, m - 1), i]
+        gravity_lanes(gw)
+        for j in range(m):
+            y = ys[start + j]
+            for k in range(nv):
+                pd = -c[nv + k] * y[nv + k] - c[k] * (y[k] - c[2 * nv + k])
+                taus[start + j, k] = pd + gw[out + k * L + j]
+    for i in range(rows):
+        for k in range(nv):
+            if not math.isfinite(taus[i, k]):
+                return nv * i + k
+    return -1
+
+
+@jit
+def run_lanes(
+    method, Y0, t_eval, atol, rtol, max_step, max_steps, C, keep, band,
+    out_y, out_tau, metrics, info, t_reached, first, stop,
+):  # fmt: skip
+    """Variants ``first`` … ``stop`` − 1 under PD plus gravity, LANE_COUNT at a time in lanes.
+
+    Arguments as ``run_many``'s (every law PD plus gravity; RK45 or DOP853). The stages
+    are evaluated in the work array of ``rhs_lanes``: states written into its first
+    rows, ẏ read from its rows from RHS_LANES_OUT on.
+    """
+    L = LANE_COUNT
+    n = Y0.shape[1]
+    nv = n // 2
+    T = t_eval.shape[0]
+    t0 = t_eval[0]
+    t_bound = t_eval[T - 1]
+    dop853 = method == METHOD_DOP853
+    if dop853:
+        n_stages, exponent, order, A = D8_NS, -1.0 / 8.0, 7.0, D8_A
+    else:
+        n_stages, exponent, order, A = 6, -1.0 / 5.0, 4.0, RK45_AB
+    dense = keep != KEEP_FINAL
+    Y = np.zeros((n, L))
+    Ynew = np.zeros((n, L))
+    K = np.zeros((16, n, L))
+    lanes_w = np.zeros(RHS_LANES_ROWS * L)
+    wy = lanes_w[: n * L].reshape((n, L))
+    CL = lanes_w[n * L : (n + 3 * nv) * L].reshape((3 * nv, L))
+    wo = lanes_w[RHS_LANES_OUT * L : (RHS_LANES_OUT + n) * L].reshape((n, L))
+    h = np.zeros(L)
+    t = np.zeros(L)
+    t_next = np.zeros(L)
+    h_abs = np.zeros(L)
+    attempts = np.zeros(L, dtype=np.int64)
+    evals = np.zeros(L, dtype=np.int64)
+    i_out = np.zeros(L, dtype=np.int64)
+    lane_b = np.full(L, -1, dtype=np.int64)
+    rejected = np.zeros(L, dtype=np.bool_)
+    accepted = np.zeros(L, dtype=np.bool_)
+    limiting = np.zeros(L, dtype=np.int64)
+    scratch = np.empty((L, T if keep == KEEP_METRICS else 1, n))
+    taus = np.empty((T if keep == KEEP_METRICS else 1, nv))
+    ws = (np.empty(nv), np.empty(3 * nv), np.empty((nv, nv)))
+    ycol = np.empty(n)
+    f = np.empty(n)
+    ytmp = np.empty(n)
+    err = np.empty(n)
+    scale = np.empty(n)
+    F = np.empty((7, n))
+    FL = np.zeros((7, n, L))
+    gw = np.zeros(GRAVITY_LANES_ROWS * L)
+    ERR = np.zeros((n, L))
+    e5s = np.zeros(L)
+    e3s = np.zeros(L)
+    rt = np.zeros(1)
+    rv = np.zeros((1, 1))
+    next_b = first
+    live = 0
+    for lane in range(L):
+        lane_b[lane] = -1
+    while True:
+        # Lanes without a variant take the next one: its first step, one lane at a time.
+        for lane in range(L):
+            while lane_b[lane] < 0 and next_b < stop:
+                b = next_b
+                next_b += 1
+                for i in range(n):
+                    ycol[i] = Y0[b, i]
+                status, k, ev, hh = first_step(
+                    t0, ycol, LAW_PD_GRAVITY, C[b], rt, rv, atol, rtol, order, t_bound - t0,
+                    max_step, f, ytmp, err, scale, ws,
+                )  # fmt: skip
+                if status != STATUS_OK:
+                    info[b, 0] = status
+                    info[b, 1] = k
+                    info[b, 2] = ev
+                    t_reached[b] = hh
+                    continue
+                lane_b[lane] = b
+                live += 1
+                for i in range(n):
+                    Y[i, lane] = ycol[i]
+                    K[0, i, lane] = f[i]
+                for i in range(3 * nv):
+                    CL[i, lane] = C[b, i]
+                t[lane] = t0
+                h_abs[lane] = hh
+                evals[lane] = ev
+                attempts[lane] = 0
+                i_out[lane] = 0
+                rejected[lane] = False
+                limiting[lane] = 0
+        if live == 0:
+            return
+        # Each lane's step: SciPy's bounds, then the stages of every lane at once.
+        for lane in range(L):
+            h[lane] = 0.0
+            b = lane_b[lane]
+            if b < 0:
+                continue
+            tl = t[lane]
+            min_step = 10.0 * abs(np.nextafter(tl, np.inf) - tl)
+            if h_abs[lane] > max_step:
+                h_abs[lane] = max_step
+            elif h_abs[lane] < min_step:
+                if rejected[lane]:
+                    info[b, 0] = STATUS_STEP_UNDERFLOW
+                else:
+                    h_abs[lane] = min_step
+            if attempts[lane] >= max_steps:
+                info[b, 0] = STATUS_MAX_STEPS
+            if info[b, 0] != STATUS_OK:
+                info[b, 1] = limiting[lane]
+                info[b, 2] = evals[lane]
+                t_reached[b] = tl
+                lane_b[lane] = -1
+                live -= 1
+                continue
+            t_new = tl + h_abs[lane]
+            if t_new - t_bound > 0.0:
+                t_new = t_bound
+            h[lane] = t_new - tl
+            h_abs[lane] = abs(h[lane])
+            t_next[lane] = t_new
+        for s in range(1, n_stages + 1):
+            combine_lanes(Y, K, A, s, h, wy)
+            rhs_lanes(lanes_w)
+            K[s, :, :] = wo
+        Ynew[:, :] = wy
+        # Each lane's error norm: accepted, or rejected with a smaller step.
+        error_lanes(dop853, n_stages, K, Y, Ynew, h, atol, rtol, ERR, e5s, e3s)
+        any_dense = False
+        for lane in range(L):
+            accepted[lane] = False
+            b = lane_b[lane]
+            if b < 0:
+                continue
+            evals[lane] += n_stages
+            attempts[lane] += 1
+            hl = h[lane]
+            e5 = e5s[lane]
+            e3 = e3s[lane]
+            if dop853:
+                if e5 == 0.0 and e3 == 0.0:
+                    error_norm = 0.0
+                else:
+                    error_norm = abs(hl) * e5 / math.sqrt((e5 + 0.01 * e3) * n)
+            else:
+                error_norm = math.sqrt(e5 / n)
+            k = -1
+            for i in range(n):
+                if not (math.isfinite(Ynew[i, lane]) and math.isfinite(K[n_stages, i, lane])):
+                    k = i
+                    break
+            if k >= 0 or not math.isfinite(error_norm):
+                if k < 0:
+                    for s in range(n_stages):
+                        for i in range(n):
+                            if not math.isfinite(K[s, i, lane]):
+                                k = i
+                                break
+                        if k >= 0:
+                            break
+                limiting[lane] = max(k, 0)
+                h_abs[lane] *= MIN_FACTOR
+                rejected[lane] = True
+                continue
+            worst = 0.0
+            for i in range(n):
+                if abs(ERR[i, lane]) > worst:
+                    worst = abs(ERR[i, lane])
+                    limiting[lane] = i
+            if error_norm < 1.0:
+                if error_norm == 0.0:
+                    factor = MAX_FACTOR
+                else:
+                    factor = min(MAX_FACTOR, SAFETY * error_norm**exponent)
+                if rejected[lane]:
+                    factor = min(1.0, factor)
+                h_abs[lane] *= factor
+                accepted[lane] = True
+                rejected[lane] = False
+                if dense and i_out[lane] < T and t_eval[i_out[lane]] <= t_next[lane]:
+                    any_dense = True
+            else:
+                h_abs[lane] *= max(MIN_FACTOR, SAFETY * error_norm**exponent)
+                rejected[lane] = True
+        if any_dense and dop853:
+            for s in range(n_stages + 1, 16):
+                combine_lanes(Y, K, D8_A, s, h, wy)
+                rhs_lanes(lanes_w)
+                K[s, :, :] = wo
+        if any_dense:
+            dense_lanes(dop853, n_stages, K, Y, Ynew, h, FL)
+        # Accepted lanes: dense output, then their new state; a finished one lets go.
+        for lane in range(L):
+            if not accepted[lane]:
+                continue
+            b = lane_b[lane]
+            tl = t[lane]
+            hl = h[lane]
+            t_new = t_next[lane]
+            if dense and i_out[lane] < T and t_eval[i_out[lane]] <= t_new:
+                ys = out_y[b] if keep == KEEP_TRAJECTORIES else scratch[lane]
+                if dop853:
+                    evals[lane] += 16 - (n_stages + 1)
+                for r in range(7):
+                    for i in range(n):
+                        F[r, i] = FL[r, i, lane]
+                end = samples_until(t_eval, i_out[lane], t_new)
+                for j in range(i_out[lane], end):
+                    x = (t_eval[j] - tl) / hl
+                    if dop853:
+                        w = 1.0 - x
+                        for i in range(n):
+                            ys[j, i] = (
+                                (
+                                    (
+                                        (
+                                            (((F[6, i] * x + F[5, i]) * w + F[4, i]) * x + F[3, i])
+                                            * w
+                                        )
+                                        + F[2, i]
+                                    )
+                                    * x
+                                    + F[1, i]
+                                )
+                                * w
+                                + F[0, i]
+                            ) * x + Y[i, lane]
+                    else:
+                        x2 = x * x
+                        x3 = x2 * x
+                        x4 = x3 * x
+                        for i in range(n):
+                            ys[j, i] = (
+                                hl * (F[0, i] * x + F[1, i] * x2 + F[2, i] * x3 + F[3, i] * x4)
+                                + Y[i, lane]
+                            )
+                i_out[lane] = end
+            for i in range(n):
+                Y[i, lane] = Ynew[i, lane]
+                K[0, i, lane] = K[n_stages, i, lane]
+            t[lane] = t_new
+            if t_new - t_bound < 0.0:
+                continue
+            # The variant is done: its efforts (and metrics) at the samples kept.
+            if keep == KEEP_FINAL:
+                ys = out_y[b]
+                for i in range(n):
+                    ys[0, i] = Y[i, lane]
+                rows = 1
+            else:
+                ys = out_y[b] if keep == KEEP_TRAJECTORIES else scratch[lane]
+                rows = i_out[lane]
+            tau_rows = out_tau[b] if keep != KEEP_METRICS else taus
+            bad = efforts_lanes(ys, rows, C[b], tau_rows, gw)
+            status = STATUS_OK
+            coordinate = -1
+            when = t_new
+            if bad >= 0:
+                status = STATUS_EFFORT_NONFINITE
+                coordinate = bad
+                when = t_eval[bad // nv] if ys.shape[0] == T else t_eval[T - 1]
+            if keep == KEEP_METRICS:
+                for i in range(n):
+                    out_y[b, 0, i] = ys[rows - 1, i]
+                for i in range(nv):
+                    out_tau[b, 0, i] = tau_rows[rows - 1, i]
+                if status == STATUS_OK:
+                    metrics_of(t_eval, ys, tau_rows, C[b, 2 * nv : 3 * nv], band, metrics[b])
+            info[b, 0] = status
+            info[b, 1] = coordinate
+            info[b, 2] = evals[lane]
+            t_reached[b] = when
+            lane_b[lane] = -1
+            live -= 1
