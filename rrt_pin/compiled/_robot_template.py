@@ -39,7 +39,7 @@ def forward(y, tau, out):  # generated: q̈ = M(q)⁻¹(τ − b(q, q̇)) into o
     raise NotImplementedError
 
 
-def forward_free(y, tau, out):  # generated: the same without gravity
+def rhs_pd(y, c, out):  # generated: ẏ under PD (c = kp, kd, qf) without gravity
     raise NotImplementedError
 
 
@@ -170,13 +170,12 @@ def rhs(t, y, law, c, rt, rv, out, tau, work, m):
     Under PD plus gravity, q̈ is the forward dynamics without gravity under the PD
     efforts alone (the law's G(q) and the robot's cancel exactly).
     """
-    nv = tau.shape[0]
-    for k in range(nv):
-        out[k] = y[nv + k]
     if law == LAW_PD_GRAVITY:
-        pd(y, c, tau)
-        forward_free(y, tau, out)
+        rhs_pd(y, c, out)
     else:
+        nv = tau.shape[0]
+        for k in range(nv):
+            out[k] = y[nv + k]
         efforts(t, y, law, c, rt, rv, tau, work, m)
         forward(y, tau, out)
 

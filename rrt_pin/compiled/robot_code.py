@@ -153,19 +153,46 @@ def _discard_unverified(record: Path, files: Any) -> None:
         f.unlink(missing_ok=True)
 
 
-def _on_state(gen: forward_source.GeneratedFunction, name: str, shift: int) -> str:
+def _on_state(
+    gen: forward_source.GeneratedFunction, name: str, shift: int, pd: bool = False
+) -> str:
     """``gen`` as ``name(y, [tau,] out)``: q[k] read from y[k], q̇[k] from y[nv + k].
 
     The state is read in place (no slices, whose reference counts cost more than a
-    few operations); ``shift`` moves the results' rows (q̈ into out[nv:] of ẏ).
+    few operations); ``shift`` moves the results' rows (q̈ into out[nv:] of ẏ). Each
+    angle's sine and cosine are the polynomial ones of :mod:`rrt_pin.compiled.rnea_vector`
+    (one reduction for both, no call) below their limit, libm's beyond it.
     """
     nv = gen.nv
-    lines = [
-        re.sub(r"\bv\[(\d+)\]", lambda m: f"y[{nv + int(m[1])}]", re.sub(r"\bq\[", "y[", line))
-        for line in gen.lines
-    ]
+    trig = re.compile(r"^(t\d+) = (sin|cos)\((t\d+)\)$")
+    body: list[str] = []
+    seen: set[str] = set()
+    for line in gen.lines:
+        if m := trig.match(line):
+            x = m[3]
+            if x not in seen:
+                seen.add(x)
+                body += [f"    if abs({x}) < {rnea_vector.SINCOS_LIMIT!r}:"]
+                body += [f"        {s}" for s in rnea_vector.sincos_lines(x, f"s{x}", f"c{x}", x)]
+                body += ["    else:", f"        s{x} = sin({x})", f"        c{x} = cos({x})"]
+            body.append(f"    {m[1]} = {'s' if m[2] == 'sin' else 'c'}{x}")
+            continue
+        line = re.sub(r"\bq\[", "y[", line)
+        line = re.sub(r"\bv\[(\d+)\]", lambda g: f"y[{nv + int(g[1])}]", line)
+        if pd:  # τ_k = −kd_k·q̇_k − kp_k·(q_k − qf_k), c = (kp, kd, qf)
+            line = re.sub(
+                r"\btau\[(\d+)\]",
+                lambda g: (
+                    f"(-c[{nv + int(g[1])}] * y[{nv + int(g[1])}] - c[{g[1]}] * "
+                    f"(y[{g[1]}] - c[{2 * nv + int(g[1])}]))"
+                ),
+                line,
+            )
+        body.append(f"    {line}")
     args = ["y", "tau"] if "tau" in gen.inputs else ["y"]
-    body = [f"    {line}" for line in lines]
+    if pd:
+        args = ["y", "c"]
+        body += [f"    out[{k}] = y[{nv + k}]" for k in range(nv)]
     for flat, x in enumerate(gen.outputs):
         index = str(flat + shift) if len(gen.shape) == 1 else ", ".join(map(str, divmod(flat, nv)))
         body.append(f"    out[{index}] = {x}")
@@ -237,10 +264,14 @@ def _lanes_source(gen: forward_source.GeneratedFunction, name: str) -> str:
     return "\n".join([*src, "", f"{tag}_ROWS = {len(row)}", f"{tag}_OUT = {row['out', 0]}", ""])
 
 
+def _flops(gen: forward_source.GeneratedFunction) -> int:
+    return gen.flops
+
+
 def module_source(model: pin.Model) -> tuple[str, int]:
     """(the module's source, flops of one forward-dynamics evaluation) for ``model``.
 
-    ``forward_free`` is the forward dynamics without gravity: under PD plus the robot's
+    ``rhs_pd`` is ẏ with the forward dynamics without gravity: under PD plus the robot's
     own G(q), τ − b = τ_PD − C(q, q̇)·q̇, so one evaluation without gravity serves the
     dynamics and the compensation (G is then computed at the output times only).
     """
@@ -249,15 +280,16 @@ def module_source(model: pin.Model) -> tuple[str, int]:
     free = pin.Model(model)
     free.gravity = pin.Motion.Zero()
     nv = int(model.nv)
-    fwd = forward_source.forward_source(model, "aba")
-    fwd_free = forward_source.forward_source(free, "aba")
-    # The lanes run the variant with fewer operations (on UR5 CRBA + LDLᵀ, 1,085 against
-    # ABA's 1,508; on Panda ABA): their rounding differs by ~1e-13 relative, far below
-    # any tolerance of an integration.
-    lanes_gen = min(fwd_free, forward_source.forward_source(free, "crba"), key=lambda g: g.flops)
+    # The variant with fewer operations (on UR5 CRBA + LDLᵀ, 1,077 against ABA's 1,490
+    # without gravity; on Panda ABA): their rounding differs by ~1e-13 relative, far
+    # below any tolerance of an integration.
+    fwd, fwd_free = (
+        min((forward_source.forward_source(m, v) for v in ("aba", "crba")), key=_flops)
+        for m in (model, free)
+    )
     parts = [
         _on_state(fwd, "forward", nv),
-        _on_state(fwd_free, "forward_free", nv),
+        _on_state(fwd_free, "rhs_pd", nv, pd=True),
         _on_state(forward_source.gravity_source(model), "gravity", 0),
         _on_state(forward_source.mass_matrix_source(model), "mass_matrix", 0),
         _on_state(forward_source.bias_source(model), "bias", 0),
@@ -289,7 +321,7 @@ def module_source(model: pin.Model) -> tuple[str, int]:
         body,
         "",
         f"LANE_COUNT = {LANES}",
-        _lanes_source(lanes_gen, "rhs_lanes"),
+        _lanes_source(fwd_free, "rhs_lanes"),
         _lanes_source(forward_source.gravity_source(model), "gravity_lanes"),
         _LANES.read_text(encoding="utf-8").partition(_LANES_MARK)[2],
     ]
