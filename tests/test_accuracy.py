@@ -18,7 +18,9 @@ from rrt_pin.compiled import available
 from rrt_pin.simulate import AccuracyWarning, methods, simulate, simulate_batch
 from rrt_pin.simulate.accuracy import ACCURACY, PROBLEMS, max_error, reference
 
-#: The bracket the estimate must keep: true/10 <= estimate <= 10·true.
+#: The bracket the estimate keeps at the defaults: 0.3·true <= estimate <= 3·true.
+LOW, HIGH = 0.3, 3.0
+#: The bracket away from the calibrated defaults (explicit tolerances, fixed steps).
 BRACKET = 10.0
 #: Below this the references themselves disagree (5e-12 over the 1,000 s problem between
 #: the compiled and scipy's DOP853, 5e-11 between odepack and DOP853 on light-joint3):
@@ -40,9 +42,19 @@ def ref(name: str) -> np.ndarray:
     return _REFS[name]
 
 
-def assert_brackets(estimate: float, error: float, what: str) -> None:
+def assert_brackets(estimate: float, error: float, what: str, low=1 / BRACKET, high=BRACKET):
     e, t = max(estimate, FLOOR), max(error, FLOOR)
-    assert t / BRACKET <= e <= BRACKET * t, f"{what}: estimate {estimate:.2e}, error {error:.2e}"
+    assert low * t <= e <= high * t, f"{what}: estimate {estimate:.2e}, error {error:.2e}"
+
+
+#: Problems where odepack's default estimate over-estimates by more than HIGH (4.4× on the
+#: fast oscillation, whose error sits near odepack's own floor there, 1.6e-10): held to
+#: LOW..BRACKET (never an under-estimate) here, and to LOW..HIGH by a strict xfail below.
+ODEPACK_OVER = {"fast-oscillation"}
+
+
+def assert_default_brackets(estimate: float, error: float, what: str, high=HIGH) -> None:
+    assert_brackets(estimate, error, what, LOW, high)
 
 
 def quiet_run(name: str, **kw):
@@ -82,11 +94,12 @@ COMPILED_PROBLEMS = [n for n, s in PROBLEMS.items() if "compiled" in s.backends]
 @pytest.mark.parametrize("name", COMPILED_PROBLEMS)
 def test_compiled_default_keeps_the_promise_and_its_estimate_brackets(name):
     run = PROBLEMS[name].run(backend="compiled")
-    assert run.method == "DOP853" and (run.rtol, run.atol) == (1e-10, 1e-12)
+    assert run.method == "DOP853"
+    assert (run.rtol, run.atol) == methods.tolerances("compiled", "DOP853", ACCURACY)
     error = max_error(run.q, ref(name))
     assert error <= ACCURACY
     assert run.estimate is not None and not run.estimate.exceeded
-    assert_brackets(run.error_estimate, error, f"{name} compiled default")
+    assert_default_brackets(run.error_estimate, error, f"{name} compiled default")
     old = quiet_run(name, backend="compiled", **OLD)
     assert_brackets(old.error_estimate, max_error(old.q, ref(name)), f"{name} compiled rtol 1e-9")
 
@@ -98,10 +111,18 @@ def test_pinocchio_default_keeps_the_promise_and_its_estimate_brackets(name):
     error = max_error(run.q, ref(name))
     assert error <= ACCURACY
     assert not run.estimate.exceeded
-    assert_brackets(run.error_estimate, error, f"{name} pinocchio default")
+    high = BRACKET if name in ODEPACK_OVER else HIGH
+    assert_default_brackets(run.error_estimate, error, f"{name} pinocchio default", high)
     per = np.abs(run.q - ref(name)).max(axis=0)
     assert run.error_estimate_q.shape == per.shape == (3,)
     assert run.error_estimate == pytest.approx(run.error_estimate_q.max())
+
+
+@pytest.mark.xfail(strict=True, reason="odepack over-estimates its fast-oscillation error 4.4×")
+@pytest.mark.parametrize("name", sorted(ODEPACK_OVER))
+def test_pinocchio_default_estimate_within_3x_where_it_over_estimates(name):
+    run = PROBLEMS[name].run()
+    assert_default_brackets(run.error_estimate, max_error(run.q, ref(name)), name)
 
 
 @pytest.mark.parametrize("name", ["slider-150s", "light-joint3", "fast-oscillation", "chapter"])
@@ -131,7 +152,9 @@ def test_batch_default_keeps_the_promise_on_pinocchio(names):
     for i, name in enumerate(names):
         error = max_error(batch.q[i], ref(name))
         assert error <= ACCURACY
-        assert_brackets(float(batch.estimate.variants[i].max()), error, f"batch {name}")
+        high = BRACKET if name in ODEPACK_OVER else HIGH
+        est = float(batch.estimate.variants[i].max())
+        assert_default_brackets(est, error, f"batch {name}", high)
         assert batch.variant(i).error_estimate == pytest.approx(batch.estimate.variants[i].max())
 
 
@@ -153,7 +176,7 @@ def test_batch_default_keeps_the_promise_compiled(tf):
     for i, name in enumerate(names):
         error = max_error(batch.q[i], ref(name))
         assert error <= ACCURACY
-        assert_brackets(float(batch.estimate.variants[i].max()), error, f"batch {name}")
+        assert_default_brackets(float(batch.estimate.variants[i].max()), error, f"batch {name}")
     assert batch.error_estimate == pytest.approx(batch.estimate.variants.max())
 
 

@@ -82,7 +82,9 @@ def test_result_contract(seed_run, seed_params, reference):
     r = seed_run
     assert isinstance(r, SimulationResult)
     assert r.method == "odepack" and r.backend == "pinocchio"
-    assert (r.rtol, r.atol, r.step) == (1e-12, 1e-14, None)  # odepack's defaults
+    from rrt_pin.simulate.methods import tolerances
+
+    assert (r.rtol, r.atol, r.step) == (*tolerances("pinocchio", "odepack"), None)  # calibrated
     assert r.q.shape == r.qd.shape == r.tau.shape == (1501, 3)
     np.testing.assert_array_equal(r.t, reference.t)
     np.testing.assert_array_equal(r.q[0], seed_params.q0)
@@ -169,7 +171,9 @@ def test_each_method_runs_and_converges(method, seed_model, seed_params, referen
     assert np.all(np.abs(r.q[-1] - np.array(seed_params.qf)) < CONVERGED)
     assert np.abs(r.q - reference.q).max() <= METHOD_ACCURACY[method]
     if method in ADAPTIVE_METHODS:
-        assert r.rtol == (1e-12 if method == "odepack" else 1e-10) and r.step is None
+        from rrt_pin.simulate.methods import tolerances
+
+        assert r.rtol == tolerances("pinocchio", method)[0] and r.step is None
     else:
         assert r.rtol is None and r.step == pytest.approx(0.01)
 
@@ -426,7 +430,9 @@ def test_compiled_backend_is_dispatched_lazily(monkeypatch, seed_model, seed_par
     # the backend's default method and the registry's default tolerances, named in the
     # result, then the error estimate's run at tolerances ten times tighter
     # a Robot that carries its Params is not checked again
-    assert calls[0] == (seed_params, "DOP853", 1e-10, 1e-12, None, None)
+    from rrt_pin.simulate.methods import tolerances
+
+    assert calls[0] == (seed_params, "DOP853", *tolerances("compiled", "DOP853"), None, None)
     assert calls[1][:2] == (seed_params, "DOP853") and len(calls) == 2
     assert calls[1][2:4] == pytest.approx((1e-11, 1e-13), rel=1e-12)
     assert r.error_estimate == 0.0  # the fake returned the same run twice

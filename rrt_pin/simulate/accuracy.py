@@ -1,24 +1,23 @@
 """Accuracy the user can rely on: the catalogue of hard problems and the global-error estimate.
 
-Two things live here, both about how far a simulated q(t) is from the exact one:
+Three things live here, all about how far a simulated q(t) is from the exact one:
 
 * :data:`PROBLEMS`, the accuracy catalogue: runs of the chapter's arm chosen to be
   hard for error-controlled integrators (light damping over long horizons, stiff
   gains, fast motions, small and large masses). Tests, ``scripts/bench/accuracy.py``
   and ``docs/benchmarks.md`` all read it; :func:`reference` integrates a problem at
   rtol 1e-13 to judge the defaults against.
-* :func:`estimate`, the estimate of the global error of a run that
-  :func:`rrt_pin.simulate.simulate` attaches to every result
-  (``result.error_estimate``): the same method rerun at a tolerance ten times
-  tighter (adaptive methods) or at half the step (fixed-step methods,
-  Richardson's formula with the method's order), and the largest difference
-  in q over the output times.
+* the estimate of the global error of a run that :func:`rrt_pin.simulate.simulate`
+  attaches to every result (``result.error_estimate``,
+  :mod:`rrt_pin.simulate.estimate`): a companion run of the same method at looser
+  tolerances and the method's measured rate of error ∝ tolᵖ (fixed-step methods:
+  twice or half the step, Richardson's formula);
+* :data:`ROBOT_PROBLEMS`: a UR5 and a Panda run under PD plus gravity, which the
+  calibration of the default tolerances (``scripts/bench/calibrate.py``) also keeps.
 
-Why a second run: error-controlled integrators bound the error of each step,
-not the error at the end; in lightly damped oscillations the phase error of
-every step adds up, so the global error depends on the problem, silently. The
-difference of two runs whose errors are proportional to the tolerance measures
-it: with e(tol) ≈ C·tol, |q(tol) − q(tol/10)| ≈ 0.9·e(tol).
+Why an estimate: error-controlled integrators bound the error of each step, not the
+error at the end; in lightly damped oscillations the phase error of every step adds
+up, so the global error depends on the problem, silently.
 
 Units: q errors in rad (revolute joints) or m (prismatic joints).
 """
@@ -33,6 +32,7 @@ import numpy as np
 from rrt_pin.core import backends
 from rrt_pin.core.grid import time_grid
 from rrt_pin.dynamics.trajectory import RestToRest
+from rrt_pin.robot import robots
 from rrt_pin.robot.params import Params
 from rrt_pin.robot.robots import chapter_arm
 from rrt_pin.simulate import control, simulate
@@ -46,12 +46,14 @@ __all__ = [
     "REFERENCE_ATOL",
     "REFERENCE_RTOL",
     "PROBLEMS",
+    "ROBOT_PROBLEMS",
     "Problem",
+    "RobotProblem",
     "reference",
 ]
 
-#: The global accuracy the defaults promise on every problem of :data:`PROBLEMS`:
-#: max |q − q_exact| over the output times [rad or m].
+#: The default accuracy asked for, which the default tolerances keep on every problem of
+#: :data:`PROBLEMS`: max |q − q_exact| over the output times [rad or m].
 ACCURACY = 1e-8
 #: Tolerances of the catalogue's references (relative; absolute [rad, m, rad/s, m/s]).
 REFERENCE_RTOL = 1e-13
@@ -103,11 +105,72 @@ class Problem:
         kp, kd = self.tracking
         return control.tracking_controller(robot, RestToRest(d.q0, d.qf, d.Tp), kp=kp, kd=kd)
 
+    def start(self, robot: Robot) -> tuple[np.ndarray, np.ndarray]:
+        """The initial state (q0 [rad or m], q̇0 [rad/s or m/s]): the chapter's."""
+        d = robot.defaults
+        return np.asarray(d.q0, dtype=float), np.asarray(d.qd0, dtype=float)
+
     def run(self, **options: Any) -> SimulationResult:
         """``simulate`` this problem (keyword options as :func:`rrt_pin.simulate.simulate`)."""
         robot = self.arm
-        d = robot.defaults
-        return simulate(robot, self.controller(robot), d.q0, d.qd0, self.times(), **options)
+        q0, qd0 = self.start(robot)
+        return simulate(robot, self.controller(robot), q0, qd0, self.times(), **options)
+
+
+@dataclass(frozen=True)
+class RobotProblem:
+    """A run of another robot under PD plus gravity compensation (the tolerances' calibration).
+
+    The gains are critically damped at 10 rad/s on the diagonal of M(qf):
+    kp_k = 100·M_kk(qf) [N·m/rad or N/m], kd_k = 20·M_kk(qf) [N·m·s/rad or N·s/m];
+    the run starts at rest, 0.3 rad (0.01 m for a slider) from qf.
+
+    Attributes:
+        name: short name (``ur5``, ``panda``).
+        summary: one line.
+        robot: the robot's name in :func:`rrt_pin.robot.robots.get` (needs
+            example-robot-data).
+        qf: the target (nv,) [rad or m].
+        tf: final time [s].
+        dt: output interval [s].
+    """
+
+    name: str
+    summary: str
+    robot: str
+    qf: tuple[float, ...]
+    tf: float = 5.0
+    dt: float = 0.01
+    backends: tuple[str, ...] = ("pinocchio", "compiled")
+
+    @property
+    def arm(self) -> Robot:
+        """The robot (raises MissingExtra without example-robot-data)."""
+        return robots.get(self.robot)
+
+    def times(self) -> np.ndarray:
+        """Output times 0 .. tf [s]."""
+        return time_grid(self.tf, self.dt)
+
+    def controller(self, robot: Robot | None = None) -> Any:
+        """PD plus gravity compensation to qf, gains from M(qf)."""
+        import pinocchio as pin
+
+        robot = self.arm if robot is None else robot
+        qf = np.array(self.qf)
+        m = np.diag(pin.crba(robot.model, robot.model.createData(), robot.configuration(qf)))
+        return control.pd_gravity_controller(robot, kp=100.0 * m, kd=20.0 * m, qf=qf)
+
+    def start(self, robot: Robot) -> tuple[np.ndarray, np.ndarray]:
+        """q0 = qf + 0.3 rad (0.01 m) [rad or m], at rest."""
+        offset = [0.01 if u == "m" else 0.3 for u in robot.coordinate_units]
+        return np.array(self.qf) + np.array(offset), np.zeros(robot.nv)
+
+    def run(self, **options: Any) -> SimulationResult:
+        """``simulate`` this problem (keyword options as :func:`rrt_pin.simulate.simulate`)."""
+        robot = self.arm
+        q0, qd0 = self.start(robot)
+        return simulate(robot, self.controller(robot), q0, qd0, self.times(), **options)
 
 
 def _problems(*problems: Problem) -> dict[str, Problem]:
@@ -174,6 +237,21 @@ PROBLEMS: dict[str, Problem] = _problems(
     ),
 )
 
+#: Two robots of example-robot-data, 5 s under PD plus gravity: the calibration of the
+#: default tolerances (:mod:`rrt_pin.simulate.calibration`) meets the accuracy on these too.
+ROBOT_PROBLEMS: dict[str, RobotProblem] = {
+    p.name: p
+    for p in (
+        RobotProblem("ur5", "UR5, 6 revolute joints", "ur5", (0.0, -1.2, 1.2, -1.0, -1.2, 0.0)),
+        RobotProblem(
+            "panda",
+            "Panda, 7 revolute joints and 2 finger sliders",
+            "panda",
+            (0.0, -0.5, 0.0, -2.0, 0.0, 1.5, 0.8, 0.02, 0.02),
+        ),
+    )
+}
+
 #: Old names of the catalogue and its entries (kept for one release; not in ``__all__``).
 SCENES = PROBLEMS
 Scene = Problem
@@ -192,7 +270,7 @@ class Reference:
     how: str
 
 
-def reference(problem: Problem, backend: str | None = None) -> Reference:
+def reference(problem: Problem | RobotProblem, backend: str | None = None) -> Reference:
     """The problem at rtol 1e-13, atol 1e-15 with DOP853 (order 8).
 
     Args:
@@ -220,12 +298,12 @@ def reference(problem: Problem, backend: str | None = None) -> Reference:
     from rrt_pin.simulate.reference import reference_run
 
     robot = problem.arm
-    d = robot.defaults
+    q0, qd0 = problem.start(robot)
     ref = reference_run(
         robot.model,
         problem.controller(robot),
-        d.q0,
-        d.qd0,
+        q0,
+        qd0,
         problem.times(),
         rtol=REFERENCE_RTOL,
         atol=REFERENCE_ATOL,

@@ -123,6 +123,7 @@ def simulate(
     jacobian: str = "analytic",
     params: Params | None = None,
     estimate_error: bool = True,
+    accuracy: float | None = None,
 ) -> SimulationResult:
     """Simulate a robot under ``controller`` from (q0, qd0), sampled at ``t_eval``.
 
@@ -141,10 +142,10 @@ def simulate(
         method: a method of :data:`rrt_pin.simulate.methods.METHODS` that the backend
             runs (default: the backend's, ``odepack`` on Pinocchio, ``DOP853``
             compiled; the result says which).
-        rtol: relative tolerance of the adaptive methods, in (0, 1) (default
-            the method's: 1e-12 for ``odepack``, 1e-10 for the others).
-        atol: absolute tolerance [rad, m, rad/s, m/s], in (0, 1) (default
-            1e-14 for ``odepack``, 1e-12 for the others).
+        rtol: relative tolerance of the adaptive methods, in (0, 1) (default:
+            chosen for ``accuracy``); given alone it sets atol to rtol/100 too.
+        atol: absolute tolerance [rad, m, rad/s, m/s], in (0, 1) (default:
+            chosen for ``accuracy``, rtol/100).
         backend: ``pinocchio`` (any robot) or ``compiled`` (the chapter's arm).
         step: longest step of the fixed-step methods [s]; default the shortest
             interval of ``t_eval``.
@@ -152,12 +153,17 @@ def simulate(
         params: the arm's parameters for the compiled backend (default: the
             robot's, or the controller's).
         estimate_error: also estimate the global error of q (``result.error_estimate``
-            [rad or m]) from a second run of the same method at tolerances ten times
-            tighter (half the step for fixed-step methods; see
-            :mod:`rrt_pin.simulate.estimate`), and warn (``AccuracyWarning``) when it
-            exceeds the accuracy asked for, max(1e-8, rtol, atol). The second run
-            costs about as much as the first (0.2–1.9 times on the accuracy
-            catalogue); False skips it.
+            [rad or m]) from a companion run of the same method at looser
+            tolerances, with the rate of error ∝ tolᵖ measured for the method
+            (twice or half the step for fixed-step methods, Richardson's formula;
+            see :mod:`rrt_pin.simulate.estimate`), and warn (``AccuracyWarning``)
+            when it exceeds the accuracy asked for. False skips it.
+        accuracy: the accuracy asked for, max |q − q_exact| over the output times
+            [rad or m], in (0, 1) (default 1e-8). An adaptive method's rtol and atol
+            are then the loosest that keep it on the calibration's problems, with a
+            measured safety factor (:func:`rrt_pin.simulate.methods.tolerances`);
+            ``rtol`` or ``atol`` given explicitly win. Without ``accuracy``, a run at
+            explicit tolerances asks for max(1e-8, rtol, atol).
 
     Returns:
         States and applied efforts at ``t_eval``, evaluation count and wall time
@@ -180,8 +186,9 @@ def simulate(
     )
     t = validate.times(t_eval)
     options = resolve(
-        t, backend=backend, method=method, rtol=rtol, atol=atol, step=step, jacobian=jacobian
-    )
+        t, backend=backend, method=method, rtol=rtol, atol=atol, step=step, jacobian=jacobian,
+        accuracy=accuracy,
+    )  # fmt: skip
     _same_plant(robot, params, options.backend)
     # the same checks on both backends; the law's results are checked (rrt_pin.simulate.control)
     checked = (
@@ -260,7 +267,10 @@ def _same_plant(robot: Robot, params: Any, backend: str) -> None:
 
 
 def _with_estimate(result: Any, options: Options, run: Any) -> Any:
-    """``result`` with its error estimate, warning when it exceeds the accuracy asked for."""
+    """``result`` with its error estimate (a companion run), warning when it exceeds the accuracy.
+
+    ``run(options, began)`` runs the same problem at other options.
+    """
     from dataclasses import replace
 
     from rrt_pin.simulate.estimate import attempt, warn_if_exceeded
@@ -343,6 +353,7 @@ def simulate_batch(
     params: Params | Sequence[Params] | None = None,
     estimate_error: bool = True,
     keep: str = "trajectories",
+    accuracy: float | None = None,
 ) -> BatchResult:
     """Simulate B variants of a robot at once; the same defaults as :func:`simulate`.
 
@@ -364,8 +375,10 @@ def simulate_batch(
         qd0s: initial velocities, shape (B, nv) [rad/s or m/s]; None for rest.
         t_eval: increasing output times [s].
         method: a method that runs in a batch on the backend (default: the backend's).
-        rtol: relative tolerance, in (0, 1) (default the method's, as :func:`simulate`).
-        atol: absolute tolerance [rad, m, rad/s, m/s], in (0, 1) (default the method's).
+        rtol: relative tolerance, in (0, 1) (default: chosen for ``accuracy``, as
+            :func:`simulate`).
+        atol: absolute tolerance [rad, m, rad/s, m/s], in (0, 1) (default: chosen
+            for ``accuracy``).
         backend: ``pinocchio`` or ``compiled``.
         step: longest step of the fixed-step methods [s].
         threads: threads of the batch, at most :func:`rrt_pin.core.cpus.max_threads`
@@ -381,8 +394,11 @@ def simulate_batch(
         efforts: also return the applied efforts at every output time.
         params: the arm's Params for the compiled backend: one, or one per variant.
         estimate_error: also estimate the global error of q, per variant and over
-            all (a second batch, states only; see :func:`simulate`); False skips it.
+            all (a companion batch, states only; see :func:`simulate`); False skips it.
             With ``keep="final"`` or ``"metrics"`` it estimates the final states' error.
+        accuracy: the accuracy asked for, max |q − q_exact| over the output times
+            [rad or m], in (0, 1) (default 1e-8): chooses the tolerances as
+            :func:`simulate` does.
         keep: what is kept of each variant, one of :data:`~rrt_pin.simulate.results.KEEPS`:
             ``"trajectories"`` (default), ``"final"`` (the last output time only,
             shapes (B, 1, nv)) or ``"metrics"`` (the same, and ``result.metrics``:
@@ -426,8 +442,9 @@ def simulate_batch(
         raise InputError(f"{len(controllers)} controllers for {B} initial states")
     t = validate.times(t_eval)
     options = resolve(
-        t, backend=backend, method=method, rtol=rtol, atol=atol, step=step, batch=True
-    )
+        t, backend=backend, method=method, rtol=rtol, atol=atol, step=step, batch=True,
+        accuracy=accuracy,
+    )  # fmt: skip
     keep = validate.choice("keep", keep, KEEPS)
     _same_plant(robot, params, options.backend)
     chosen = None if threads is None else _threads(threads)

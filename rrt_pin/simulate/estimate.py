@@ -1,20 +1,26 @@
-"""The estimate of a run's global error in q: the same method again, ten times tighter.
+"""The estimate of a run's global error in q: a cheap companion run and the error's rate.
 
 Error-controlled integrators bound the error each step makes, not the error at
 the end: in a lightly damped oscillation the phase error of every step adds up,
-so the global error of a run depends on the scene. :func:`estimate` measures
-it with a second run of the same method on the same backend:
+so the global error of a run depends on the scene. :func:`attempt` measures it
+with a companion run of the same method on the same backend:
 
-* adaptive methods: at rtol/10 and atol/10. If the error is proportional to the
-  tolerance, e(tol) ≈ C·tol, then |q(tol) − q(tol/10)| ≈ 0.9·e(tol), so
-  e(tol) ≈ |q(tol) − q(tol/10)| / 0.9 (DOP853 follows this model closely;
-  ODEPACK's LSODA less so, which the test on the catalogue bounds);
-* fixed-step methods of order p: at half the step, and Richardson's formula
-  e(h) ≈ |q(h) − q(h/2)| / (1 − 2⁻ᵖ).
+* adaptive methods: at k times the run's rtol and atol (looser, so cheaper). If the
+  error grows as a power of the tolerance, e(tol) ≈ C·tolᵖ, then
+  |q(tol) − q(k·tol)| ≈ (kᵖ − 1)·e(tol), so e(tol) ≈ |q(tol) − q(k·tol)| / (kᵖ − 1).
+  The rate p and the factor k of each method and backend are measured on the
+  accuracy catalogue by ``scripts/bench/calibrate.py``
+  (:data:`rrt_pin.simulate.calibration.COMPANIONS`): k is the loosest companion
+  that keeps the estimate within 0.3–3× of the true error there. A run too loose
+  for a looser companion (k·rtol above 1e-3) is compared with one ten times tighter
+  instead (the same formula with k = 1/10);
+* fixed-step methods of order p: at twice the step when each output interval
+  holds an even number of steps, else at half the step; Richardson's formula
+  e(h) ≈ |q(h) − q(2h)| / (2ᵖ − 1), or |q(h) − q(h/2)| / (1 − 2⁻ᵖ).
 
 The estimate is the max over the output times, per coordinate [rad or m].
-It costs the second run (its share for each method on the accuracy catalogue:
-docs/benchmarks.md; ``estimate_error=False`` skips it).
+Its cost is the companion run's (its share for each method on the accuracy
+catalogue: docs/benchmarks.md; ``estimate_error=False`` skips it).
 """
 
 from __future__ import annotations
@@ -29,6 +35,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from rrt_pin.core.errors import DivergenceError, InputError
+from rrt_pin.simulate import calibration
 from rrt_pin.simulate.methods import ACCURACY
 from rrt_pin.simulate.results import ErrorEstimate
 
@@ -37,18 +44,22 @@ if TYPE_CHECKING:
     from rrt_pin.simulate.results import BatchResult, SimulationResult
 
 __all__ = [
+    "LOOSEST",
     "TIGHTER",
     "AccuracyWarning",
     "EstimateWarning",
     "attempt",
+    "companion",
     "estimate",
     "requested_accuracy",
     "warn_if_exceeded",
 ]
 
-#: How much tighter the second run's tolerances are.
+#: How much tighter the companion's tolerances are when it cannot be looser.
 TIGHTER = 10.0
-#: The tightest relative tolerance a second run uses (100 machine epsilons, as SciPy).
+#: The loosest rtol a companion runs at (the calibration's loosest rung).
+LOOSEST = 1e-3
+#: The tightest relative tolerance a companion uses (100 machine epsilons, as SciPy).
 RTOL_FLOOR = 100 * float(np.finfo(float).eps)
 
 _logger = logging.getLogger("rrt_pin")
@@ -68,22 +79,56 @@ class EstimateWarning(AccuracyWarning):
 
 
 def requested_accuracy(rtol: float | None, atol: float | None) -> float:
-    """The global accuracy a run asks for: max(ACCURACY, rtol, atol) [rad or m].
+    """The accuracy a run at explicit tolerances asks for: max(ACCURACY, rtol, atol) [rad or m].
 
-    The defaults are chosen to keep :data:`rrt_pin.simulate.methods.ACCURACY` (1e-8) on the
-    accuracy catalogue; a run at looser tolerances asks for no better than them.
+    (Runs resolved by :func:`rrt_pin.simulate.options.resolve` carry theirs in
+    ``options.accuracy``.)
     """
     return max(ACCURACY, rtol or 0.0, atol or 0.0)
 
 
+def companion(options: Options, t: np.ndarray | None = None) -> tuple[Options, float] | None:
+    """The companion run's options and its ratio k to the run (tolerance or step), or None.
+
+    Args:
+        options: the run's.
+        t: its output times [s] (fixed-step methods: whether twice the step fits).
+
+    None when no companion is possible (an rtol at its floor that cannot be looser).
+    """
+    m = options.method
+    if m.adaptive:
+        rtol, atol = float(options.rtol), float(options.atol)  # type: ignore[arg-type]
+        k, _ = calibration.COMPANIONS.get((options.backend, m.name), (1.0 / TIGHTER, 1.0))
+        if k > 1.0 and rtol * k > LOOSEST:
+            k = 1.0 / TIGHTER
+        if k < 1.0:
+            tight = max(rtol * k, RTOL_FLOOR)
+            if tight >= rtol:
+                return None
+            k = tight / rtol
+        return replace(options, rtol=rtol * k, atol=atol * k), k
+    step = float(options.step)  # type: ignore[arg-type]
+    if t is not None and t.size >= 2:
+        with np.errstate(over="ignore"):
+            per = np.ceil(np.diff(t) / step * (1.0 - 1e-12))
+        if np.all(per % 2 == 0):
+            return replace(options, step=2.0 * step), 2.0
+    return replace(options, step=step / 2.0), 0.5
+
+
 def second_options(options: Options) -> Options | None:
-    """The options of the comparison run, or None when no tighter run is possible."""
-    if options.method.adaptive:
-        rtol = max(float(options.rtol) / TIGHTER, RTOL_FLOOR)  # type: ignore[arg-type]
-        if rtol >= float(options.rtol):  # type: ignore[arg-type]
-            return None
-        return replace(options, rtol=rtol, atol=float(options.atol) / TIGHTER)  # type: ignore[arg-type]
-    return replace(options, step=float(options.step) / 2.0)  # type: ignore[arg-type]
+    """The companion's options (see :func:`companion`), or None."""
+    found = companion(options)
+    return None if found is None else found[0]
+
+
+def rate(options: Options) -> float:
+    """The rate p of error ∝ tolᵖ (adaptive methods, measured) or stepᵖ (fixed-step: the order)."""
+    m = options.method
+    if m.adaptive:
+        return calibration.COMPANIONS.get((options.backend, m.name), (0.1, 1.0))[1]
+    return float(m.order or 1)
 
 
 def _how(options: Options) -> str:
@@ -108,7 +153,7 @@ def attempt(
     rerun: Callable[[Options], SimulationResult | BatchResult],
     stacklevel: int = 3,
 ) -> tuple[ErrorEstimate | None, str | None]:
-    """The estimated global error of ``result`` from ``rerun(second_options(options))``.
+    """The estimated global error of ``result`` from ``rerun`` of its companion (:func:`companion`).
 
     Args:
         result: the run (q of shape (N, nv), or (B, N, nv) for a batch).
@@ -124,11 +169,12 @@ def attempt(
         reason in ``result.estimate_failure``, e.g. ``"the comparison run (rk4 at
         step 0.005 s, Richardson (order 4)) failed: simulation diverged at …"``.
     """
-    tight = second_options(options)
-    if tight is None:
+    found = companion(options, np.asarray(result.t))
+    if found is None:
         why = f"rtol={options.rtol:.3g} cannot be tightened (it is at the method's floor)"
         _logger.info("no error estimate: %s", why)
         return None, why
+    tight, k = found
     start = time.perf_counter()
     try:
         other = rerun(tight)
@@ -138,21 +184,20 @@ def attempt(
         warnings.warn(f"no error estimate: {why}", EstimateWarning, stacklevel=stacklevel)
         return None, why
     wall_time = time.perf_counter() - start
-    method = options.method
-    if method.adaptive:
-        factor = 1.0 / (1.0 - 1.0 / TIGHTER)
+    factor = 1.0 / abs(k ** rate(options) - 1.0)
+    q, q2 = np.asarray(result.q), np.asarray(other.q)  # (N, nv) or (B, N, nv)
+    if q.shape[-2]:
+        diff = np.subtract(q, q2)
+        per = np.maximum(diff.max(axis=-2), -diff.min(axis=-2))
+        per *= factor
     else:
-        factor = 1.0 / (1.0 - 2.0 ** -(method.order or 1))
-    diff = np.abs(np.asarray(result.q) - np.asarray(other.q))  # (N, nv) or (B, N, nv)
-    per = (
-        factor * diff.max(axis=-2)
-        if diff.shape[-2]
-        else np.zeros(diff.shape[:-2] + diff.shape[-1:])
-    )
+        per = np.zeros(q.shape[:-2] + q.shape[-1:])
     batch = per.ndim == 2
     return ErrorEstimate(
         q=per.max(axis=0) if batch else per,
-        accuracy=requested_accuracy(options.rtol, options.atol),
+        accuracy=float(
+            getattr(options, "accuracy", requested_accuracy(options.rtol, options.atol))
+        ),
         how=_how(tight),
         n_evals=int(other.n_evals),
         wall_time=wall_time,

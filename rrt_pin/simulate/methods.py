@@ -1,7 +1,9 @@
 """The registry of integration methods: one line per method, everything else derives from it.
 
 The CLI's ``--method`` choices and help, the benchmark's plan, which backend
-runs what, batch support and default tolerances all read :data:`METHODS`.
+runs what and batch support all read :data:`METHODS`. The default tolerances
+follow the accuracy asked for (:func:`tolerances`, from the measured calibration
+:mod:`rrt_pin.simulate.calibration`).
 
 Adding an integrator is one function plus one line here:
 
@@ -19,7 +21,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from rrt_pin.core.errors import InputError
-from rrt_pin.simulate import codes
+from rrt_pin.simulate import calibration, codes
 
 __all__ = [
     "ACCURACY",
@@ -30,6 +32,7 @@ __all__ = [
     "Method",
     "get",
     "names",
+    "tolerances",
 ]
 
 #: Families of methods.
@@ -38,22 +41,18 @@ SCIPY = "scipy"
 FIXED_STEP = "fixed-step"
 SYMPLECTIC = "symplectic"
 
-#: The global accuracy the defaults keep: max |q − q_exact| over the output times
-#: [rad or m], on every problem of the accuracy catalogue (:data:`rrt_pin.simulate.accuracy.PROBLEMS`),
-#: with the default method of either backend, one run or a batch. A run whose
-#: estimated error (``result.error_estimate``) exceeds the larger of this and its
-#: tolerances says so.
+#: The default accuracy asked for: max |q − q_exact| over the output times [rad or m].
+#: The default tolerances of each method and backend are chosen to keep it on every
+#: problem of the calibration (:data:`rrt_pin.simulate.accuracy.PROBLEMS` and
+#: ``ROBOT_PROBLEMS``), one run or a batch (``accuracy=`` asks for another). A run
+#: whose estimated error (``result.error_estimate``) exceeds the accuracy asked for
+#: says so.
 ACCURACY = 1e-8
-#: Default relative tolerance of the adaptive methods (``odepack``: :data:`ODEPACK_RTOL`).
+#: Relative tolerance of an adaptive method the calibration does not cover.
 DEFAULT_RTOL = 1e-10
-#: Default absolute tolerance of the adaptive methods [rad, m, rad/s, m/s].
+#: Absolute tolerance of an adaptive method the calibration does not cover [rad, m,
+#: rad/s, m/s].
 DEFAULT_ATOL = 1e-12
-#: ``odepack``'s defaults, 100 times tighter: its global error is not proportional to
-#: the tolerance, and at 1e-10 it misses :data:`ACCURACY` on lightly damped scenes
-#: (4.5e-8 on the catalogue's ``slider-150s``); DOP853's stays within 5·rtol.
-ODEPACK_RTOL = 1e-12
-#: ``odepack``'s default absolute tolerance [rad, m, rad/s, m/s].
-ODEPACK_ATOL = 1e-14
 #: The smallest relative tolerance float64 lets an adaptive method honour: 100 machine
 #: epsilons (scipy's solve_ivp clips below it; ODEPACK refuses to start below ~1e-14;
 #: the compiled integrators share scipy's error control).
@@ -74,10 +73,13 @@ class Method:
         batch: backends whose ``simulate_batch`` runs it.
         code: its code in the compiled loop (:mod:`rrt_pin.simulate.codes`), or None.
         runner: ``module:function`` of a fixed-step method's step, or None.
-        rtol: default relative tolerance (adaptive methods), else None.
-        atol: default absolute tolerance [rad, m, rad/s, m/s] (adaptive methods), else None.
+        rtol: default relative tolerance at the default accuracy (adaptive methods,
+            on its first backend: :func:`tolerances` gives any accuracy's and
+            backend's), else None.
+        atol: the same, absolute [rad, m, rad/s, m/s], else None.
         order: order of a fixed-step method (its error shrinks as stepᵒʳᵈᵉʳ; the
-            error estimate halves the step and applies Richardson's formula), else None.
+            error estimate compares with twice or half the step and applies
+            Richardson's formula), else None.
         min_rtol: the smallest relative tolerance it can honour (adaptive methods,
             :data:`RTOL_FLOOR` unless given), else None. A tighter one is refused.
     """
@@ -98,14 +100,51 @@ class Method:
 
     def __post_init__(self) -> None:
         if self.adaptive and self.rtol is None:
-            object.__setattr__(self, "rtol", DEFAULT_RTOL)
-            object.__setattr__(self, "atol", DEFAULT_ATOL)
+            rtol, atol = tolerances(self.backends[0], self.name, ACCURACY)
+            object.__setattr__(self, "rtol", rtol)
+            object.__setattr__(self, "atol", atol)
         if self.adaptive and self.min_rtol is None:
             object.__setattr__(self, "min_rtol", RTOL_FLOOR)
 
     def runs_on(self, backend: str, batch: bool = False) -> bool:
         """Whether ``backend`` runs this method (in a batch when ``batch``)."""
         return backend in (self.batch if batch else self.backends)
+
+
+def tolerances(backend: str, method: str, accuracy: float = ACCURACY) -> tuple[float, float]:
+    """The default (rtol, atol [rad, m, rad/s, m/s]) of ``method`` on ``backend`` for ``accuracy``.
+
+    The loosest rung of the calibration (:data:`rrt_pin.simulate.calibration.WORST`)
+    whose worst error on the calibration's problems, times the measured safety
+    factor (:data:`rrt_pin.simulate.calibration.SAFETY`), is within ``accuracy``
+    [rad or m], as is every tighter rung's; its tightest rung when none is (the
+    run's error estimate then says whether the accuracy was met). atol = rtol / :data:`~rrt_pin.simulate.calibration.ATOL_RATIO`.
+    A method the calibration does not cover gets :data:`DEFAULT_RTOL`, :data:`DEFAULT_ATOL`.
+    A method that runs step for step on several backends gets the same (the tightest
+    of their choices), so that its backends give the same numbers.
+    """
+    entry = METHODS.get(method) if "METHODS" in globals() else None
+    if entry is not None and entry.code is not None and len(entry.backends) > 1:
+        chosen = [_tolerances(b, method, accuracy) for b in entry.backends]
+        known = [c for c in chosen if c is not None]
+        if known:
+            return min(known)
+    found = _tolerances(backend, method, accuracy)
+    return found if found is not None else (DEFAULT_RTOL, DEFAULT_ATOL)
+
+
+def _tolerances(backend: str, method: str, accuracy: float) -> tuple[float, float] | None:
+    """One backend's calibrated choice, or None."""
+    rungs = calibration.WORST.get((backend, method))
+    if not rungs:
+        return None
+    bound = accuracy / calibration.SAFETY
+    rtol = rungs[-1][0]
+    for r, worst, _ in reversed(rungs):  # tightest first
+        if worst > bound:
+            break
+        rtol = r
+    return rtol, rtol / calibration.ATOL_RATIO
 
 
 _BOTH = ("pinocchio", "compiled")
@@ -120,8 +159,6 @@ METHODS: dict[str, Method] = {
             "ODEPACK's LSODA (Adams up to order 12, BDF when stiff) through scipy's odeint",
             adaptive=True,
             batch=("pinocchio",),
-            rtol=ODEPACK_RTOL,
-            atol=ODEPACK_ATOL,
         ),
         Method(
             "RK45",

@@ -1,4 +1,10 @@
-"""A run's backend, method and tolerances, resolved from the registries and checked once."""
+"""A run's backend, method and tolerances, resolved from the registries and checked once.
+
+The tolerances of an adaptive method follow the accuracy asked for (``accuracy=``,
+default :data:`rrt_pin.simulate.methods.ACCURACY`, 1e-8 rad or m): the calibration's
+loosest setting that keeps it (:func:`rrt_pin.simulate.methods.tolerances`);
+``rtol`` and ``atol`` given explicitly win.
+"""
 
 from __future__ import annotations
 
@@ -40,6 +46,11 @@ class Options:
         atol: absolute tolerance [rad, m, rad/s, m/s] (adaptive methods), else None.
         step: longest step [s] (fixed-step methods), else None.
         jacobian: ``analytic`` or ``finite-difference``.
+        accuracy: the accuracy asked for, max |q − q_exact| over the output times
+            [rad or m], that the error estimate is judged against: ``accuracy=``
+            when given; else :data:`~rrt_pin.simulate.methods.ACCURACY` (1e-8), or
+            the looser of it and an explicit rtol or atol (a run at looser
+            tolerances asks for no better than them).
     """
 
     backend: str
@@ -48,6 +59,7 @@ class Options:
     atol: float | None
     step: float | None
     jacobian: str = "analytic"
+    accuracy: float = methods.ACCURACY
 
 
 def resolve(
@@ -60,21 +72,38 @@ def resolve(
     step: Any = None,
     jacobian: Any = "analytic",
     batch: bool = False,
+    accuracy: Any = None,
 ) -> Options:
-    """Check and complete a run's options: the backend's default method, the method's tolerances.
+    """Check and complete a run's options: the backend's default method, the tolerances.
 
-    ``rtol`` alone tightens the whole run: ``atol`` then keeps the method's default
-    ratio to it (``atol = rtol · default atol / default rtol``, i.e. rtol/100 [rad, m,
+    Without ``rtol`` and ``atol``, an adaptive method runs at the tolerances the
+    calibration gives for ``accuracy`` on its backend
+    (:func:`rrt_pin.simulate.methods.tolerances`). ``rtol`` alone sets the whole
+    run's: ``atol`` then keeps the calibration's ratio to it (rtol/100 [rad, m,
     rad/s, m/s]), so that it does not stay at its default and dominate once the
-    motion settles.
+    motion settles; ``atol`` alone keeps the calibrated rtol.
+
+    Args:
+        t: output times [s].
+        backend: the backend's name.
+        method: the method's name (None: the backend's default).
+        rtol: relative tolerance, in (0, 1), or None.
+        atol: absolute tolerance [rad, m, rad/s, m/s], in (0, 1), or None.
+        step: longest step of a fixed-step method [s], or None (the shortest interval).
+        jacobian: ``analytic`` or ``finite-difference``.
+        batch: for ``simulate_batch`` (the method must run in a batch).
+        accuracy: the accuracy asked for, max |q − q_exact| over the output times
+            [rad or m], in (0, 1); None for the default, 1e-8.
 
     Raises:
         InputError: an unknown backend or method, a method the backend does not
-            run (in a batch), a tolerance or step that is not a finite number in
-            range (a tolerance must lie in (0, 1)), or an rtol below the method's
-            floor (:attr:`~rrt_pin.simulate.methods.Method.min_rtol`, named).
+            run (in a batch), a tolerance, accuracy or step that is not a finite
+            number in range (a tolerance or accuracy must lie in (0, 1)), or an
+            rtol below the method's floor (:attr:`~rrt_pin.simulate.methods.Method.min_rtol`,
+            named).
     """
-    key = (backend, method, rtol, atol, step, jacobian, batch, type(rtol), type(atol), type(step))
+    key = (backend, method, rtol, atol, step, jacobian, batch, accuracy, type(rtol), type(atol),
+           type(step), type(accuracy))  # fmt: skip
     try:
         known = _RESOLVED.get(key)
     except TypeError:  # an unhashable value: resolved (and refused) below
@@ -82,7 +111,7 @@ def resolve(
     if known is not None:
         _check_grid(t, known)
         return known
-    options = _resolve(t, backend, method, rtol, atol, step, jacobian, batch)
+    options = _resolve(t, backend, method, rtol, atol, step, jacobian, batch, accuracy)
     _check_grid(t, options)
     if key is not None and (options.method.adaptive or step is not None):  # not from t
         if len(_RESOLVED) >= 64:
@@ -147,6 +176,7 @@ def _resolve(
     step: Any,
     jacobian: Any,
     batch: bool,
+    accuracy: Any = None,
 ) -> Options:
     b = backends.get(backend, "simulate")
     m = methods.get(method if method is not None else b.default_method, b.name, batch=batch)
@@ -154,6 +184,8 @@ def _resolve(
     r = validate.tolerance("rtol", rtol) if rtol is not None else None
     a = validate.tolerance("atol", atol, "rad, m, rad/s, m/s") if atol is not None else None
     s = validate.real("step", step, "s", positive=True) if step is not None else None
+    asked = validate.tolerance("accuracy", accuracy, "rad or m") if accuracy is not None else None
+    target = asked if asked is not None else methods.ACCURACY
     if m.adaptive:
         if r is not None and m.min_rtol is not None and r < m.min_rtol:
             raise InputError(
@@ -161,11 +193,16 @@ def _resolve(
                 "epsilons: no tighter relative error can be honoured); use rtol >= "
                 f"{m.min_rtol:.3g} (its default is {m.rtol:g})"
             )
+        given = r is not None or a is not None
+        chosen_r, chosen_a = methods.tolerances(b.name, m.name, target)
         if a is None:
-            a = m.atol if r is None else r * (m.atol / m.rtol)
-        return Options(b.name, m, r if r is not None else m.rtol, a, None, jacobian)
+            a = chosen_a if r is None else r * (chosen_a / chosen_r)
+        rtol_ = r if r is not None else chosen_r
+        if asked is None and given:
+            target = max(target, rtol_, a)
+        return Options(b.name, m, rtol_, a, None, jacobian, target)
     if s is None:
         s = float(np.diff(t).min())
     if s <= 0.0:  # pragma: no cover - validate.times refuses such grids
         raise InputError(f"step={s!r} must be > 0 [s]")
-    return Options(b.name, m, None, None, s, jacobian)
+    return Options(b.name, m, None, None, s, jacobian, target)

@@ -18,6 +18,7 @@ from rrt_pin.cli.commands._common import (
     add_output_arguments,
     add_param_arguments,
     add_robot_arguments,
+    finite_float,
     frames_from_args,
     params_from_args,
     positive_float,
@@ -71,9 +72,10 @@ and the columns are t, q_<joint>, qd_<joint>, tau_<joint> (joint names from the 
 rad, rad/s, N·m for revolute joints, m, m/s, N for prismatic ones). Gravity is
 (0, 0, -g) in the URDF's world frame.
 Methods (default: odepack on --backend pinocchio, DOP853 on compiled). Adaptive
-methods default to rtol {methods.DEFAULT_RTOL:g}, atol {methods.DEFAULT_ATOL:g}; odepack to rtol {methods.ODEPACK_RTOL:g}, atol {methods.ODEPACK_ATOL:g}.
-The defaults keep max |q - q_exact| <= {methods.ACCURACY:g} rad or m on every scene of the
-accuracy catalogue (docs/benchmarks.md):
+methods take the loosest rtol and atol (atol = rtol/100) that keep --accuracy
+(default {methods.ACCURACY:g} rad or m, max |q - q_exact| over the run) on every problem of
+the accuracy catalogue and a UR5 and a Panda run, with a measured safety factor
+(docs/benchmarks.md); --rtol/--atol given win:
 {_method_lines()}
 A summary always goes to stdout (to stderr when --csv - or --json - sends data
 there): each joint's final distance to qf, its 2 % settling time (after which
@@ -81,11 +83,20 @@ there): each joint's final distance to qf, its 2 % settling time (after which
 --json PATH writes it with the run's metadata. The states stay in memory (at most
 10^7 output samples); the table is written 65,536 rows at a time.
 
-Every run estimates the global error of q(t) from a second run of the same method
-at tolerances ten times tighter (half the step for fixed-step methods; it costs
-about as much as the first run): the summary reports it, and a run whose estimate exceeds
-the accuracy asked for, max({methods.ACCURACY:g}, rtol, atol) [rad or m], says so on stderr.
---no-error-estimate skips the second run."""
+Every run estimates the global error of q(t) from a companion run of the same method
+at looser tolerances and the method's measured rate of error against tolerance
+(twice or half the step for fixed-step methods, Richardson's formula): the summary
+reports it, and a run whose estimate exceeds the accuracy asked for (--accuracy; with
+--rtol/--atol and no --accuracy, max({methods.ACCURACY:g}, rtol, atol)) [rad or m] says so on
+stderr. --no-error-estimate skips the companion run."""
+
+
+def accuracy_value(text: str) -> float:
+    """Argparse type of ``--accuracy``: a finite number in (0, 1) [rad or m]."""
+    value = finite_float(text)
+    if not 0.0 < value < 1.0:
+        raise argparse.ArgumentTypeError(f"must lie in (0, 1) [rad or m]: {text!r}")
+    return value
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -119,14 +130,23 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--backend compiled: DOP853; see below)",
     )
     parser.add_argument(
+        "--accuracy",
+        type=accuracy_value,
+        default=None,
+        metavar="X",
+        help="the accuracy asked for, max |q - q_exact| over the run [rad or m], in (0, 1): "
+        "adaptive methods take the loosest calibrated --rtol/--atol that keep it, and the "
+        f"error estimate is judged against it (default {methods.ACCURACY:g})",
+    )
+    parser.add_argument(
         "--rtol",
         type=positive_float,
         default=None,
         metavar="X",
-        help="relative tolerance of the adaptive methods (default "
-        f"{methods.DEFAULT_RTOL:g}; odepack {methods.ODEPACK_RTOL:g}); given alone it sets "
-        "--atol to rtol/100 too (the defaults' ratio), so that it tightens the whole run; "
-        f"below {methods.RTOL_FLOOR:.3g} (100 float64 epsilons) it is refused",
+        help="relative tolerance of the adaptive methods (default: chosen for --accuracy, "
+        f"{methods.get('odepack').rtol:g} for odepack at {methods.ACCURACY:g}); given alone it "
+        "sets --atol to rtol/100 too (the defaults' ratio), so that it tightens the whole "
+        f"run; below {methods.RTOL_FLOOR:.3g} (100 float64 epsilons) it is refused",
     )
     parser.add_argument(
         "--atol",
@@ -134,7 +154,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=None,
         metavar="X",
         help="absolute tolerance of the adaptive methods [rad, m, rad/s, m/s] "
-        f"(default {methods.DEFAULT_ATOL:g}; odepack {methods.ODEPACK_ATOL:g})",
+        "(default: chosen for --accuracy, rtol/100)",
     )
     law = parser.add_argument_group(
         "the law (default: the robot's regulator, eq. (31) for the chapter's arm; at most one)"
@@ -177,8 +197,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--no-error-estimate",
         dest="error_estimate",
         action="store_false",
-        help="skip the second run that estimates the global error of q(t) [rad or m] "
-        "(typically half of the call's time)",
+        help="skip the companion run that estimates the global error of q(t) [rad or m]",
     )
     add_output_arguments(
         parser,
@@ -251,6 +270,13 @@ def run(args: argparse.Namespace) -> int:
 
     from rrt_pin.simulate import AccuracyWarning, simulate
     from rrt_pin.simulate.control import regulator
+    from rrt_pin.simulate.options import resolve
+
+    accuracy = getattr(args, "accuracy", None)
+    t = time_grid(tf, dt)
+    step = (args.step or args.dt) if fixed else None
+    chosen = resolve(t, backend=args.backend, method=method, rtol=args.rtol, atol=args.atol,
+                     step=step, accuracy=accuracy)  # fmt: skip
 
     d = robot.defaults
     passive = source is not None
@@ -269,13 +295,14 @@ def run(args: argparse.Namespace) -> int:
             law,
             q0,
             qd0,
-            time_grid(tf, dt),
+            t,
             method=method,
             rtol=args.rtol,
             atol=args.atol,
             backend=args.backend,
-            step=(args.step or args.dt) if fixed else None,
+            step=step,
             estimate_error=getattr(args, "error_estimate", True),
+            accuracy=accuracy,
         )
     from rrt_pin.core.text import duration
 
@@ -301,10 +328,13 @@ def run(args: argparse.Namespace) -> int:
 
         extra = frame_table(robot, result.q, result.qd, frames, frame_velocities)
     facts = summary(robot, result, law_name)
+    given = args.rtol is not None or args.atol is not None
+    facts["accuracy"] = chosen.accuracy
+    facts["tolerances"] = ("given" if given else "chosen for the accuracy") if not fixed else None
     meta = run_metadata(
         args, robot, params, command="simulate", backend=result.backend,
         method=result.method, rtol=result.rtol, atol=result.atol, step=result.step,
-        tf=tf, dt=dt, samples=int(result.t.size), columns=header, units=units,
+        accuracy=chosen.accuracy, tolerances=facts["tolerances"], tf=tf, dt=dt, samples=int(result.t.size), columns=header, units=units,
         regulator=law_name,
         kp=[float(x) for x in d.kp] if d.kp is not None and not passive else None,
         kd=[float(x) for x in d.kd] if d.kd is not None and not passive else None,
@@ -377,7 +407,7 @@ def _estimate_line(facts: dict) -> str:
     verdict = "exceeds" if est["exceeded"] else "within"
     return (
         f"estimated global error of q(t), max over t: {per} ({verdict} the accuracy asked "
-        f"for, {est['accuracy']:.2g} rad or m; second run: {est['how']}, "
+        f"for, {est['accuracy']:.2g} rad or m; companion run: {est['how']}, "
         f"{duration(est['wall_time'])})"
     )
 
@@ -479,6 +509,8 @@ def summary_text(facts: dict) -> str:
         if facts["rtol"]
         else f"step {facts['step']:g} s"
     )
+    if facts.get("tolerances") == "chosen for the accuracy":
+        tol += f", chosen for accuracy {facts['accuracy']:g} rad or m"
     lines = [
         f"simulated the {facts['robot']} under {facts['regulator']}: {facts['samples']} samples, "
         f"t = {facts['t0']:g} .. {facts['tf']:g} s, method {facts['method']} ({tol}), "
