@@ -53,7 +53,7 @@ def test_the_table_covers_the_default_and_explicit_runge_kutta_methods():
     needed = {("pinocchio", "odepack"), *((b, m) for b in ("pinocchio", "compiled")
                                            for m in ("RK45", "DOP853"))}  # fmt: skip
     assert needed <= set(calibration.WORST)
-    assert set(calibration.COMPANIONS) == set(calibration.WORST)
+    assert needed <= set(calibration.COMPANIONS) <= set(calibration.WORST)
     assert calibration.SAFETY >= 1.0 and calibration.ATOL_RATIO == 100.0
     for key, rungs in calibration.WORST.items():
         rtols = [r[0] for r in rungs]

@@ -172,7 +172,7 @@ def safety_factor(raw: dict, pairs) -> tuple[float, str]:
                 if worst[i] > acc:  # the ladder cannot reach it: not a generalisation test
                     continue
                 ratio = per[left][i] / acc
-                if ratio > best:
+                if math.isfinite(ratio) and ratio > best:  # a failed run: no generalisation test
                     best, where = ratio, f"{backend} {method}, {left} at {acc:g}"
     return best, where
 
@@ -272,7 +272,8 @@ def render(result: dict) -> str:
     for key, rows in result["table"].items():
         lines.append(f'    ("{key[0]}", "{key[1]}"): (')
         for r, e, name in rows:
-            lines.append(f'        ({r!r}, {e:.3g}, "{name}"),')  # the rtol measured, exactly
+            shown = f"{e:.3g}" if math.isfinite(e) else 'float("inf")'  # inf: a run failed
+            lines.append(f'        ({r!r}, {shown}, "{name}"),')  # the rtol measured, exactly
         lines.append("    ),")
     lines += [
         "}",
