@@ -1047,4 +1047,25 @@ CASES = (
         ("bench", "--config", "{tmp}/run_bench_quick.toml", "--out", "{tmp}/bench"),
         "[bench]: --quick = 'yes' must be true or false",
     ),
+    # simulate --accuracy
+    Case(
+        "simulate --accuracy 0",
+        ("simulate", "--accuracy", "0", "--csv", OUT),
+        "argument --accuracy: must lie in (0, 1) [rad or m]: '0'",
+    ),
+    Case(
+        "simulate --accuracy 1",
+        ("simulate", "--accuracy", "1", "--csv", OUT),
+        "argument --accuracy: must lie in (0, 1) [rad or m]: '1'",
+    ),
+    Case(
+        "simulate --accuracy nan",
+        ("simulate", "--accuracy", "nan", "--csv", OUT),
+        "argument --accuracy: must be finite: 'nan'",
+    ),
+    Case(
+        "simulate --accuracy abc",
+        ("simulate", "--accuracy", "abc", "--csv", OUT),
+        "argument --accuracy: not a number: 'abc'",
+    ),
 )

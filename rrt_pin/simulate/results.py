@@ -24,18 +24,18 @@ KEEPS = ("trajectories", "final", "metrics")
 
 @dataclass(frozen=True, eq=False)
 class ErrorEstimate:
-    """An estimate of a run's global error in q, from a second run.
+    """An estimate of a run's global error in q, from a companion run.
 
     See :mod:`rrt_pin.simulate.estimate` for how it is made.
 
     Attributes:
         q: per coordinate, max over the output times (and the variants of a
             batch) of the estimated |q − q_exact|, shape (nv,) [rad or m].
-        accuracy: the accuracy the run asked for [rad or m]: the larger of
-            :data:`rrt_pin.simulate.methods.ACCURACY` (1e-8) and its rtol and atol.
-        how: the second run, e.g. ``"odepack at rtol 1e-13, atol 1e-15"``.
-        n_evals: the second run's right-hand-side evaluations.
-        wall_time: the second run's duration [s] (not in the result's ``wall_time``).
+        accuracy: the accuracy the run asked for [rad or m] (``accuracy=``; with
+            explicit tolerances and none asked, the larger of 1e-8 and its rtol and atol).
+        how: the companion run, e.g. ``"odepack at rtol 1e-10, atol 1e-12"``.
+        n_evals: the companion run's right-hand-side evaluations.
+        wall_time: the companion run's duration [s] (not in the result's ``wall_time``).
         variants: a batch's estimate per variant, shape (B, nv) [rad or m]; else None.
     """
 
@@ -256,10 +256,17 @@ class BatchResult(_Run):
             peak_effort_time_<τ> [s], excursion_<q> [rad or m], control_energy
             [J]), each of shape (B,), from the samples at every output time;
             else None.
+        evaluations: dynamics evaluations of each variant (B,), where the backend
+            counts them apart (the compiled backend's generated integrators); else None.
+        failures: with ``failures="record"``, each variant's
+            :class:`~rrt_pin.core.errors.DivergenceError`, or None where it succeeded (its
+            states, efforts and metrics are NaN); else None.
     """
 
     keep: str = "trajectories"
     metrics: dict[str, np.ndarray] | None = None
+    evaluations: np.ndarray | None = None
+    failures: tuple[Any, ...] | None = None
 
     def __post_init__(self) -> None:
         super().__post_init__()

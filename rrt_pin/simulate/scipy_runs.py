@@ -178,8 +178,10 @@ def run_solve_ivp(
             return np.empty((0, y0.size)), f"{type(e).__name__}: {e}", False, 0
         except _TooMuchWork:
             return np.empty((0, y0.size)), "evaluation budget spent", False, 0
-    ok = sol.status == 0 and sol.y.shape[1] == t.size and bool(np.isfinite(sol.y).all())
-    return sol.y.T, sol.message, ok, int(sol.njev)
+    # a run that fails before the first output time leaves y an empty list
+    y = np.asarray(sol.y, dtype=float).reshape(y0.size, -1)
+    ok = sol.status == 0 and y.shape[1] == t.size and bool(np.isfinite(y).all())
+    return y.T, sol.message, ok, int(sol.njev)
 
 
 def _ARGUMENTS() -> dict[str, str]:  # noqa: N802 - the templates' fields

@@ -29,7 +29,7 @@ from rrt_pin.robot.robot import Robot
 from rrt_pin.robot.robots import chapter_arm
 from rrt_pin.simulate import codes, simulate, simulate_batch
 from rrt_pin.simulate.control import ChapterController, PDGravityController
-from rrt_pin.simulate.metrics import batch_metrics, column_names, metric_columns
+from rrt_pin.simulate.metrics import GROUPS, batch_metrics, column_names, metric_columns
 from rrt_pin.simulate.options import resolve
 from rrt_pin.sweeps.spec import Spec, spec_from_dict
 
@@ -303,8 +303,6 @@ def _urdf_simulate(p: Plan, values: dict, start: int, count: int, rows: list[int
             for k in _PREFIXES}  # fmt: skip
     bad = (cols["kp"] < 0).any(axis=1) | (cols["kd"] < 0).any(axis=1)
     why = ["a gain is negative" if b else None for b in bad]
-    q = np.full((count, p.t.size, n), np.nan)
-    qd, tau = q.copy(), q.copy()
     evals = np.full(count, np.nan)
     failures: list[DivergenceError | None] = [None] * count
     laws = [
@@ -314,6 +312,10 @@ def _urdf_simulate(p: Plan, values: dict, start: int, count: int, rows: list[int
     ]  # fmt: skip
     options = {"method": p.method, "rtol": p.rtol, "atol": p.atol, "step": p.step,
                "backend": p.backend, "estimate_error": False}  # fmt: skip
+    if p.backend == "compiled":
+        return _urdf_metrics(p, cols, laws, bad, why, evals, failures, rows, options)
+    q = np.full((count, p.t.size, n), np.nan)
+    qd, tau = q.copy(), q.copy()
     # efforts only where a metric (or a kept trajectory) needs them
     efforts = bool({"peak_effort", "control_energy"} & set(p.spec.metrics)) or bool(rows)
     edges = sorted({0, count, *range((-start) % BLOCK, count, BLOCK)})
@@ -340,6 +342,41 @@ def _urdf_simulate(p: Plan, values: dict, start: int, count: int, rows: list[int
     return {"columns": part["columns"], "keep": {k: (q[k], qd[k], tau[k]) for k in rows}}
 
 
+def _urdf_metrics(
+    p: Plan, cols: dict, laws: list, bad: np.ndarray, why: list, evals: np.ndarray,
+    failures: list, rows: list[int], options: dict,
+) -> dict:  # fmt: skip
+    """A URDF chunk on the compiled backend: each variant's metrics, its failure recorded.
+
+    ``simulate_batch(..., keep="metrics", failures="record")``: the variants side by side in
+    the generated integrators' lanes, metrics made as the samples are, no trajectory
+    kept; a variant's numbers do not depend on the others, so neither on the chunks.
+    The trajectories the spec keeps are run again alone.
+    """
+    robot, count = p.robot, len(laws)
+    idx = [i for i in range(count) if not bad[i]]
+    names = column_names(
+        [g for g in p.spec.metrics if g in GROUPS], robot.q_names, robot.effort_names
+    )
+    columns = {name: np.full(count, np.nan) for name in names}
+    if idx:
+        run = simulate_batch(robot, [laws[i] for i in idx], cols["q0"][idx], cols["qd0"][idx],
+                             p.t, keep="metrics", threads=1, failures="record", **options)  # fmt: skip
+        for name in names:
+            columns[name][idx] = run.metrics[name]
+        evals[idx] = run.evaluations
+        for j, i in enumerate(idx):
+            failures[i] = run.failures[j]
+    shape = (count, p.t.size, robot.nv)
+    q, qd, tau = np.full(shape, np.nan), np.full(shape, np.nan), np.full(shape, np.nan)
+    for k in rows:
+        if failures[k] is None and not bad[k]:
+            one = simulate(robot, laws[k], cols["q0"][k], cols["qd0"][k], p.t, **options)
+            q[k], qd[k], tau[k] = one.q, one.qd, one.tau
+    part = _finish(p, q, qd, tau, cols["qf"], evals, bad, why, failures, columns=columns)
+    return {"columns": part["columns"], "keep": {k: (q[k], qd[k], tau[k]) for k in rows}}
+
+
 def _finish(
     p: Plan,
     q: np.ndarray,
@@ -351,15 +388,18 @@ def _finish(
     why: list,
     failures: list,
     metrics: np.ndarray | None = None,
+    columns: dict[str, np.ndarray] | None = None,
 ) -> dict[str, Any]:
     """The block's columns: metrics, evaluations and failures.
 
-    The metrics come from ``metrics`` rows when the compiled loop made them, else
-    from the samples q, qd, tau.
+    The metrics are ``columns`` when given, else from ``metrics`` rows when the
+    compiled loop made them, else from the samples q, qd, tau.
     """
     robot = p.robot
     groups = p.spec.metrics
-    if metrics is not None:
+    if columns is not None:
+        columns = {name: col.copy() for name, col in columns.items()}
+    elif metrics is not None:
         columns = metric_columns(groups, metrics, robot.q_names, robot.effort_names)
         columns = {name: col.copy() for name, col in columns.items()}
     else:
