@@ -310,7 +310,7 @@ def bench(name: str, args: argparse.Namespace, t: np.ndarray) -> list[str]:
                   f"({h1 * 1e3:g} → {h2 * 1e3:g} ms): the model's law is rrt-pin's")  # fmt: skip
 
     # rrt-pin's tolerances (as robot_sim picks them)
-    rtols, errors = {}, {}
+    rtols, errors, evals = {}, {}, {}  # evals: dynamics evaluations a simulation
     for keep, rows in (("final", slice(-1, None)), ("metrics", slice(None))):
         side = f"rrt-pin {keep}"
         rtols[keep], errors[side] = loosest_rtol(lambda r: rrt(q0c, r, method="DOP853").q, refs,
@@ -326,7 +326,9 @@ def bench(name: str, args: argparse.Namespace, t: np.ndarray) -> list[str]:
         funcs[side] = lambda keep=keep: rrt(q0s, rtols[keep], keep=keep)
         setting[side] = (f'rrt-pin simulate_batch(keep="{keep}"), {B} variants, DOP853 '
                          f"rtol {rtols[keep]:.0e}", B)  # fmt: skip
-        out = funcs[side]().q[checked, -1]  # the batch's own final rows against the references
+        result = funcs[side]()
+        out = result.q[checked, -1]  # the batch's own final rows against the references
+        evals[side] = float(np.mean(result.evaluations)) if result.evaluations is not None else 0
         print(f"  rrt-pin {keep:<8} batch's final rows of variants {checked}: max |q error| "
               f"{np.abs(out - refs[1:, -1]).max():.1e}")  # fmt: skip
     for integrator, s in steps.items():
@@ -341,6 +343,7 @@ def bench(name: str, args: argparse.Namespace, t: np.ndarray) -> list[str]:
                 setting[key] = (f"mujoco.rollout, 1 thread, {Bm} variants, {integrator}, "
                                 f"step {dt * 1e3:g} ms", Bm)  # fmt: skip
                 errors[key] = next((f, a) for h, a, f in s.tried if h == dt)
+                evals[key] = (4 if integrator.upper() == "RK4" else 1) * round(t[-1] / dt)
             setting.setdefault(f"{key} meets", []).append(what)
 
     start = time.perf_counter()
@@ -359,8 +362,10 @@ def bench(name: str, args: argparse.Namespace, t: np.ndarray) -> list[str]:
         base = "rrt-pin final" if "final" in meets and "every" not in meets else "rrt-pin metrics"
         ratio = rate[base] / rate[side]
         print(f"  {side:<26} {rate[side]:10.1f} simulations/s/core ({count} variants), "
-              f"error {err}; target met: {meets}; {base} is {ratio:,.1f}x")  # fmt: skip
-        lines.append(f"| {name} | {label} | {meets} | {err} | {rate[side]:,.1f} | "
+              f"{evals[side]:,.0f} evaluations a simulation, error {err}; target met: {meets}; "
+              f"{base} is {ratio:,.1f}x")  # fmt: skip
+        lines.append(f"| {name} | {label} | {meets} | {err} | {evals[side]:,.0f} | "
+                     f"{rate[side]:,.1f} | "
                      f"{'—' if side.startswith('rrt-pin') else f'{ratio:,.1f}×'} |")  # fmt: skip
     for keep, what in (("final", "final"), ("metrics", "every output")):
         mj = [s for s in funcs if s.startswith("MuJoCo") and what in setting.get(f"{s} meets", [])]
@@ -399,8 +404,8 @@ def main(argv: list[str] | None = None) -> int:
         lines += bench(name, args, t)
     if args.markdown:
         print("\n| robot | side | meets the target over | max \\|q error\\| (final / every output) "
-              "| simulations/s/core | rrt-pin ÷ side |")  # fmt: skip
-        print("| --- | --- | --- | ---: | ---: | ---: |")
+              "| evaluations a simulation | simulations/s/core | rrt-pin ÷ side |")  # fmt: skip
+        print("| --- | --- | --- | ---: | ---: | ---: | ---: |")
         for line in lines:
             print(line)
     return 0
