@@ -212,7 +212,8 @@ def test_diverging_variants_are_rows_not_crashes(tmp_path):
     assert np.isnan(rows["final_error_q1"][1]) and np.isfinite(rows["final_error_q1"][0])
 
 
-def test_a_urdf_sweep_runs_on_pinocchio_batches(tmp_path):
+def test_a_urdf_sweep_gives_the_same_bits_in_any_chunks_and_workers(tmp_path):
+    """A URDF's variants run side by side in the compiled lanes: no chunk changes a bit."""
     from tests.support import robot_urdf
 
     spec = {
@@ -224,7 +225,7 @@ def test_a_urdf_sweep_runs_on_pinocchio_batches(tmp_path):
     a = sweep(spec, tmp_path / "a", workers=1, progress=False)
     assert a.chunks == 2  # chunks of 64 (a URDF sweep's block), whatever was asked
     b_spec = {**spec, "sweep": {**spec["sweep"], "chunk": 200}}
-    sweep(b_spec, tmp_path / "b", workers=1, progress=False)
+    sweep(b_spec, tmp_path / "b", workers=2, progress=False)
     ra, rb = _rows(tmp_path / "a"), _rows(tmp_path / "b")
     for name in ra:
         np.testing.assert_array_equal(ra[name], rb[name], err_msg=name)
@@ -242,6 +243,23 @@ def test_a_urdf_sweep_runs_on_pinocchio_batches(tmp_path):
     errors = np.abs(run.q[-1] - qf)
     assert abs(ra["final_error_q_shoulder_pan_joint"][35] - errors[0]) <= 1e-8
     assert abs(ra["final_error_q_wrist_3_joint"][35] - errors[5]) <= 1e-8
+
+
+def test_a_urdf_sweeps_diverging_variant_is_a_row(tmp_path):
+    """A variant that fails is recorded (time, coordinate, reason); the others are kept."""
+    spec = {
+        "sweep": {"robot": "ur5", "tf": 0.5, "dt": 0.05},
+        "base": {"q0": 0.0, "qf": [0.3, -0.4, 0.5, 0.0, 0.2, 0.1], "kp": 100.0, "kd": 20.0},
+        "vary": {"kp_1": [100.0, 1e300, 50.0]},
+        "keep": {"metrics": ["final_error", "diverged", "evaluations"]},
+    }
+    sweep(spec, tmp_path / "out", workers=1, progress=False)
+    rows = _rows(tmp_path / "out")
+    assert list(rows["diverged"]) == [False, True, False]
+    assert np.isnan(rows["final_error_q_shoulder_pan_joint"][1])
+    assert np.isfinite(rows["final_error_q_shoulder_pan_joint"][[0, 2]]).all()
+    assert rows["diverged_coordinate"][1] and np.isfinite(rows["diverged_time"][1])
+    assert (rows["evaluations"][[0, 2]] > 0).all()
 
 
 def test_a_robot_by_name_is_its_urdf(tmp_path):
