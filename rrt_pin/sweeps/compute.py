@@ -367,14 +367,15 @@ def _urdf_metrics(
         evals[idx] = run.evaluations
         for j, i in enumerate(idx):
             failures[i] = run.failures[j]
-    shape = (count, p.t.size, robot.nv)
-    q, qd, tau = np.full(shape, np.nan), np.full(shape, np.nan), np.full(shape, np.nan)
-    for k in rows:
+    kept = {}
+    for k in rows:  # only these: a chunk's trajectories would be (count, T, nv) each
+        kept[k] = tuple(np.full((p.t.size, robot.nv), np.nan) for _ in range(3))
         if failures[k] is None and not bad[k]:
             one = simulate(robot, laws[k], cols["q0"][k], cols["qd0"][k], p.t, **options)
-            q[k], qd[k], tau[k] = one.q, one.qd, one.tau
-    part = _finish(p, q, qd, tau, cols["qf"], evals, bad, why, failures, columns=columns)
-    return {"columns": part["columns"], "keep": {k: (q[k], qd[k], tau[k]) for k in rows}}
+            kept[k] = (one.q, one.qd, one.tau)
+    none = np.empty((count, 0, robot.nv))  # the columns are given: no samples needed
+    part = _finish(p, none, none, none, cols["qf"], evals, bad, why, failures, columns=columns)
+    return {"columns": part["columns"], "keep": kept}
 
 
 def _finish(
