@@ -192,3 +192,64 @@ def test_failures_recorded_on_the_pinocchio_backend_one_variant_at_a_time(tree):
         np.testing.assert_allclose(run.q[i, 0], one.q[-1], rtol=0, atol=1e-8)
     with pytest.raises(InputError, match="failures"):
         rrt_pin.simulate_batch(tree, laws, q0s, None, T, failures="ignore")
+
+
+# --- the physical model (limits, damping, friction) in the compiled integrators ----------
+def _physical_reference(robot, law, p, q0, t):
+    """SciPy's DOP853 over pin.aba under applied_efforts (the model's numpy definition)."""
+    import pinocchio as pin
+    from scipy.integrate import solve_ivp
+
+    from rrt_pin.robot.limits import applied_efforts
+
+    model, data, nv = robot.model, robot.model.createData(), robot.nv
+
+    def f(_t, y):
+        q, v = y[:nv], y[nv:]
+        tau = applied_efforts(law.efforts(0.0, q, v), q, v, p)
+        return np.concatenate([v, pin.aba(model, data, robot.configuration(q), v, tau)])
+
+    y0 = np.concatenate([q0, np.zeros(nv)])
+    s = solve_ivp(f, (t[0], t[-1]), y0, method="DOP853", t_eval=t, rtol=1e-12, atol=1e-14)
+    return s.y[:nv].T
+
+
+@pytest.fixture(scope="module")
+def ur5_physics(ur5):
+    import dataclasses
+
+    import pinocchio as pin
+
+    from rrt_pin.robot.limits import physical_model
+
+    q0 = np.array([0.0, -1.0, 2.9, 0.3, 0.5, 0.0])
+    qf = np.array([0.5, -1.5, 3.6, 0.0, 0.0, 0.0])  # the elbow's target beyond its π limit
+    law = pd_gravity_controller(ur5, kp=[400.0, 400.0, 400.0, 40.0, 40.0, 40.0], kd=40.0, qf=qf)
+    p = physical_model(ur5)
+    p = dataclasses.replace(p, damping=np.full(6, 0.5), friction=np.full(6, 0.8))
+    M = pin.crba(ur5.model, ur5.model.createData(), q0)
+    p = p.at(np.diag(M))
+    t = np.linspace(0.0, 1.0, 201)
+    return law, p, q0, t, _physical_reference(ur5, law, p, q0, t)
+
+
+def test_the_compiled_runs_apply_limits_damping_and_friction(ur5, ur5_physics):
+    from rrt_pin.compiled import robot_runs
+    from rrt_pin.robot.limits import applied_efforts
+    from rrt_pin.simulate.options import resolve
+
+    law, p, q0, t, reference = ur5_physics
+    options = resolve(t, backend="compiled", method="DOP853", rtol=1e-12, atol=1e-14)
+    one = robot_runs.run_one(ur5, law, q0, np.zeros(6), t, options, physical=p)
+    assert np.abs(one.q - reference).max() < 1e-8
+    assert one.q[:, 2].max() > np.pi and one.q[:, 2].max() < np.pi + 0.02  # held at the limit
+    demanded = np.array([law.efforts(0.0, q, v) for q, v in zip(one.q, one.qd, strict=True)])
+    assert np.abs(demanded[:, 0]).max() > 150.0  # the law asks for more than the limit …
+    np.testing.assert_allclose(one.tau, np.clip(demanded, -p.effort, p.effort), rtol=1e-12)
+    free = robot_runs.run_one(ur5, law, q0, np.zeros(6), t, options)  # … and without the model
+    assert free.q[:, 2].max() > np.pi + 0.1
+    # the same in the lanes of a batch, with the variants beside it
+    q0s = np.vstack([q0, q0 + 0.01, q0 - 0.01])
+    batch = robot_runs.run_batch(ur5, [law] * 3, q0s, np.zeros((3, 6)), t, options, physical=p)
+    assert np.abs(batch.q[0] - reference).max() < 1e-8
+    assert np.abs(applied_efforts(demanded, one.q, one.qd, p) - demanded).max() > 1.0

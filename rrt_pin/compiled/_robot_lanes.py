@@ -31,7 +31,13 @@ def gravity_lanes(w):  # generated: G(q) of LANE_COUNT states, in place in w
     raise NotImplementedError
 
 
+def fwd_lanes(w):  # generated: ẏ of LANE_COUNT states under the efforts in rows n…n+nv−1
+    raise NotImplementedError
+
+
 LANE_COUNT = RHS_LANES_ROWS = RHS_LANES_OUT = GRAVITY_LANES_ROWS = GRAVITY_LANES_OUT = 0
+FWD_LANES_ROWS = FWD_LANES_OUT = 0
+FRICTION_VELOCITY = 1e-3
 
 
 first_step = adaptive = efforts_at = metrics_of = samples_until = rhs_lanes
@@ -139,7 +145,46 @@ def dense_lanes(dop853, n_stages, K, Y, Ynew, h, F):
 
 
 @jit
-def efforts_lanes(ys, rows, c, taus, gw):
+def stage_lanes(phys, Y, K, A, s, h, lanes_w, wy, wo, wf, wfy, wft, wfo, gw, gy, gout, CL, P):
+    """Stage s of every lane: its state into the work rows, ẏ into K[s]; the state's rows.
+
+    Without a physical model (phys[0] == 0), ``rhs_lanes`` (PD with the gravity folded);
+    else G(q) by ``gravity_lanes``, the PD-plus-G efforts saturated at the effort limits
+    plus damping, friction and the compliant position limits (``passive``'s terms, in its
+    order), then ``fwd_lanes`` with gravity.
+    """
+    if phys[0] == 0:
+        combine_lanes(Y, K, A, s, h, wy)
+        rhs_lanes(lanes_w)
+        K[s, :, :] = wo
+        return wy
+    combine_lanes(Y, K, A, s, h, wfy)
+    gy[:, :] = wfy
+    gravity_lanes(gw)
+    nv = Y.shape[0] // 2
+    for k in range(nv):
+        lo, hi, e, d, fr, kk, bb = P[0, k], P[1, k], P[2, k], P[3, k], P[4, k], P[5, k], P[6, k]
+        for lane in range(LANE_COUNT):
+            q = wfy[k, lane]
+            v = wfy[nv + k, lane]
+            t = (-CL[nv + k, lane] * v - CL[k, lane] * (q - CL[2 * nv + k, lane])) + gout[k, lane]
+            if t > e:
+                t = e
+            elif t < -e:
+                t = -e
+            f = -d * v - fr * math.tanh(v / FRICTION_VELOCITY)
+            if q < lo:
+                f += max(0.0, kk * (lo - q) - bb * v)
+            elif q > hi:
+                f += min(0.0, kk * (hi - q) - bb * v)
+            wft[k, lane] = t + f
+    fwd_lanes(wf)
+    K[s, :, :] = wfo
+    return wfy
+
+
+@jit
+def efforts_lanes(ys, rows, c, taus, gw, P, phys):
     """PD plus G(q) at the first ``rows`` states ys (…, n) into taus, LANE_COUNT at a time.
 
     ``gw``: the work array of ``gravity_lanes``. Returns -1, or nv·i + k of the first
@@ -159,7 +204,11 @@ def efforts_lanes(ys, rows, c, taus, gw):
             y = ys[start + j]
             for k in range(nv):
                 pd = -c[nv + k] * y[nv + k] - c[k] * (y[k] - c[2 * nv + k])
-                taus[start + j, k] = pd + gw[out + k * L + j]
+                t = pd + gw[out + k * L + j]
+                if phys[0] != 0:
+                    e = P[2, k]
+                    t = e if t > e else (-e if t < -e else t)
+                taus[start + j, k] = t
     for i in range(rows):
         for k in range(nv):
             if not math.isfinite(taus[i, k]):
@@ -170,11 +219,12 @@ def efforts_lanes(ys, rows, c, taus, gw):
 @jit
 def run_lanes(
     method, Y0, t_eval, atol, rtol, max_step, max_steps, C, keep, band,
-    out_y, out_tau, metrics, info, t_reached, first, stop,
+    out_y, out_tau, metrics, info, t_reached, first, stop, P, phys,
 ):  # fmt: skip
     """Variants ``first`` … ``stop`` − 1 under PD plus gravity, LANE_COUNT at a time in lanes.
 
-    Arguments as ``run_many``'s (every law PD plus gravity; RK45 or DOP853). The stages
+    Arguments as ``run_many``'s (every law PD plus gravity; RK45 or DOP853; P and phys
+    the physical model, applied when phys[0] != 0). The stages
     are evaluated in the work array of ``rhs_lanes``: states written into its first
     rows, ẏ read from its rows from RHS_LANES_OUT on.
     """
@@ -210,7 +260,7 @@ def run_lanes(
     limiting = np.zeros(L, dtype=np.int64)
     scratch = np.empty((L, T if keep == KEEP_METRICS else 1, n))
     taus = np.empty((T if keep == KEEP_METRICS else 1, nv))
-    ws = (np.empty(nv), np.empty(3 * nv), np.empty((nv, nv)))
+    ws = (np.empty(nv), np.empty(3 * nv), np.empty((nv, nv)), P, phys)
     ycol = np.empty(n)
     f = np.empty(n)
     ytmp = np.empty(n)
@@ -219,6 +269,12 @@ def run_lanes(
     F = np.empty((7, n))
     FL = np.zeros((7, n, L))
     gw = np.zeros(GRAVITY_LANES_ROWS * L)
+    gy = gw[: n * L].reshape((n, L))
+    gout = gw[GRAVITY_LANES_OUT * L : (GRAVITY_LANES_OUT + nv) * L].reshape((nv, L))
+    wf = np.zeros(FWD_LANES_ROWS * L)
+    wfy = wf[: n * L].reshape((n, L))
+    wft = wf[n * L : (n + nv) * L].reshape((nv, L))
+    wfo = wf[FWD_LANES_OUT * L : (FWD_LANES_OUT + n) * L].reshape((n, L))
     ERR = np.zeros((n, L))
     e5s = np.zeros(L)
     e3s = np.zeros(L)
@@ -293,10 +349,10 @@ def run_lanes(
             h_abs[lane] = abs(h[lane])
             t_next[lane] = t_new
         for s in range(1, n_stages + 1):
-            combine_lanes(Y, K, A, s, h, wy)
-            rhs_lanes(lanes_w)
-            K[s, :, :] = wo
-        Ynew[:, :] = wy
+            target = stage_lanes(
+                phys, Y, K, A, s, h, lanes_w, wy, wo, wf, wfy, wft, wfo, gw, gy, gout, CL, P
+            )
+        Ynew[:, :] = target
         # Each lane's error norm: accepted, or rejected with a smaller step.
         error_lanes(dop853, n_stages, K, Y, Ynew, h, atol, rtol, ERR, e5s, e3s)
         any_dense = False
@@ -357,9 +413,10 @@ def run_lanes(
                 rejected[lane] = True
         if any_dense and dop853:
             for s in range(n_stages + 1, 16):
-                combine_lanes(Y, K, D8_A, s, h, wy)
-                rhs_lanes(lanes_w)
-                K[s, :, :] = wo
+                stage_lanes(
+                    phys, Y, K, D8_A, s, h, lanes_w, wy, wo, wf, wfy, wft, wfo, gw, gy, gout,
+                    CL, P,
+                )  # fmt: skip
         if any_dense:
             dense_lanes(dop853, n_stages, K, Y, Ynew, h, FL)
         # Accepted lanes: dense output, then their new state; a finished one lets go.
@@ -424,7 +481,7 @@ def run_lanes(
                 ys = out_y[b] if keep == KEEP_TRAJECTORIES else scratch[lane]
                 rows = i_out[lane]
             tau_rows = out_tau[b] if keep != KEEP_METRICS else taus
-            bad = efforts_lanes(ys, rows, C[b], tau_rows, gw)
+            bad = efforts_lanes(ys, rows, C[b], tau_rows, gw, P, phys)
             status = STATUS_OK
             coordinate = -1
             when = t_new

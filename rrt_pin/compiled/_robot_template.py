@@ -56,6 +56,7 @@ def bias(y, out):  # generated: b(q, q̇)
 
 
 LAW_NONE, LAW_PD_GRAVITY, LAW_TRACKING, LAW_OPEN_LOOP = 0, 1, 2, 3
+FRICTION_VELOCITY = 1e-3
 KEEP_TRAJECTORIES, KEEP_FINAL, KEEP_METRICS = 0, 1, 2
 METHOD_DOP853, METHOD_RK4, METHOD_SYMPLECTIC_EULER, FIXED_STEP_FROM = 1, 11, 10, 10
 STATUS_OK, STATUS_NONFINITE, STATUS_STEP_UNDERFLOW = 0, 1, 2
@@ -164,19 +165,54 @@ def efforts(t, y, law, c, rt, rv, tau, work, m):
 
 
 @jit
-def rhs(t, y, law, c, rt, rv, out, tau, work, m):
+def saturate(tau, P):
+    """The law's efforts ``tau`` clipped at the effort limits P[2] (NaN stays NaN)."""
+    for k in range(tau.shape[0]):
+        e = P[2, k]
+        if tau[k] > e:
+            tau[k] = e
+        elif tau[k] < -e:
+            tau[k] = -e
+
+
+@jit
+def passive(y, P, k):
+    """Joint k's damping, friction and compliant position-limit efforts at the state y.
+
+    The terms of :func:`rrt_pin.robot.limits.applied_efforts` beyond the saturated law.
+    """
+    nv = P.shape[1]
+    q = y[k]
+    v = y[nv + k]
+    f = -P[3, k] * v - P[4, k] * math.tanh(v / FRICTION_VELOCITY)
+    if q < P[0, k]:
+        f += max(0.0, P[5, k] * (P[0, k] - q) - P[6, k] * v)
+    elif q > P[1, k]:
+        f += min(0.0, P[5, k] * (P[1, k] - q) - P[6, k] * v)
+    return f
+
+
+@jit
+def rhs(t, y, law, c, rt, rv, out, ws):
     """ẏ = (q̇, q̈) of the closed loop at (t, y) into ``out``.
 
-    Under PD plus gravity, q̈ is the forward dynamics without gravity under the PD
-    efforts alone (the law's G(q) and the robot's cancel exactly).
+    Under PD plus gravity with no physical model applied (``ws[4][0] == 0``), q̈ is the
+    forward dynamics without gravity under the PD efforts alone (the law's G(q) and the
+    robot's cancel exactly). Else the joints get the law's efforts saturated at the effort
+    limits plus damping, friction and the compliant position limits (P = ws[3]).
     """
-    if law == LAW_PD_GRAVITY:
+    tau, work, m, P, phys = ws
+    if law == LAW_PD_GRAVITY and phys[0] == 0:
         rhs_pd(y, c, out)
     else:
         nv = tau.shape[0]
         for k in range(nv):
             out[k] = y[nv + k]
         efforts(t, y, law, c, rt, rv, tau, work, m)
+        if phys[0] != 0:
+            saturate(tau, P)
+            for k in range(nv):
+                tau[k] = tau[k] + passive(y, P, k)
         forward(y, tau, out)
 
 
@@ -232,9 +268,9 @@ def first_step(
     t, y, law, c, rt, rv, atol, rtol, order, interval, max_step, f, ytmp, err, scale, ws
 ):
     """f(t, y) into ``f``, then SciPy's ``select_initial_step``: (status, coordinate, evals, h)."""
-    tau, work, m = ws
+    tau, work, m, P, phys = ws
     n = y.shape[0]
-    rhs(t, y, law, c, rt, rv, f, tau, work, m)
+    rhs(t, y, law, c, rt, rv, f, ws)
     k = first_nonfinite(f)
     if k >= 0:
         return STATUS_NONFINITE, k, 1, t
@@ -249,7 +285,7 @@ def first_step(
     h0 = min(h0, interval)
     for i in range(n):
         ytmp[i] = y[i] + h0 * f[i]
-    rhs(t + h0, ytmp, law, c, rt, rv, err, tau, work, m)
+    rhs(t + h0, ytmp, law, c, rt, rv, err, ws)
     k = first_nonfinite(err)
     if k >= 0:
         return STATUS_NONFINITE, k, 2, t + h0
@@ -276,7 +312,7 @@ def adaptive(method, y0, t_eval, atol, rtol, max_step, max_steps, law, c, rt, rv
         n_stages, exponent, order, A, Cs = D8_NS, -1.0 / 8.0, 7.0, D8_A, D8_C
     else:
         n_stages, exponent, order, A, Cs = 6, -1.0 / 5.0, 4.0, RK45_AB, RK45_C
-    tau, work, m = ws
+    tau, work, m, P, phys = ws
     n_out = t_eval.shape[0]
     K = np.empty((16, n))
     F = np.empty((7, n))
@@ -322,7 +358,7 @@ def adaptive(method, y0, t_eval, atol, rtol, max_step, max_steps, law, c, rt, rv
             for s in range(1, n_stages + 1):
                 target = y_new if s == n_stages else ytmp
                 combine(y, K, A, s, h, target)
-                rhs(t + Cs[s] * h, target, law, c, rt, rv, K[s], tau, work, m)
+                rhs(t + Cs[s] * h, target, law, c, rt, rv, K[s], ws)
             n_evals += n_stages
             for i in range(n):
                 scale[i] = atol[i] + max(abs(y[i]), abs(y_new[i])) * rtol
@@ -391,7 +427,7 @@ def adaptive(method, y0, t_eval, atol, rtol, max_step, max_steps, law, c, rt, rv
             if dop853:
                 for s in range(n_stages + 1, 16):
                     combine(y, K, D8_A, s, h, ytmp)
-                    rhs(t + D8_C[s] * h, ytmp, law, c, rt, rv, K[s], tau, work, m)
+                    rhs(t + D8_C[s] * h, ytmp, law, c, rt, rv, K[s], ws)
                 n_evals += 16 - (n_stages + 1)
                 for i in range(n):
                     dy = y_new[i] - y[i]
@@ -464,7 +500,7 @@ def fixed(method, y0, t_eval, dt, max_steps, law, c, rt, rv, dense, out_y, ws):
     """
     n = y0.shape[0]
     nv = n // 2
-    tau, work, m = ws
+    tau, work, m, P, phys = ws
     n_out = t_eval.shape[0]
     y = y0.copy()
     k = np.empty((4, n))
@@ -496,12 +532,12 @@ def fixed(method, y0, t_eval, dt, max_steps, law, c, rt, rv, dense, out_y, ws):
                         ch = RK4_C[s] * h
                         for i in range(n):
                             ytmp[i] = y[i] + ch * k[s - 1, i]
-                    rhs(t + RK4_C[s] * h, ytmp, law, c, rt, rv, k[s], tau, work, m)
+                    rhs(t + RK4_C[s] * h, ytmp, law, c, rt, rv, k[s], ws)
                     n_evals += 1
                 for i in range(n):
                     y[i] += h / 6.0 * (k[0, i] + 2.0 * k[1, i] + 2.0 * k[2, i] + k[3, i])
             elif method == METHOD_SYMPLECTIC_EULER:
-                rhs(t, y, law, c, rt, rv, acc, tau, work, m)
+                rhs(t, y, law, c, rt, rv, acc, ws)
                 n_evals += 1
                 for i in range(nv):
                     y[nv + i] += h * acc[nv + i]
@@ -515,9 +551,9 @@ def fixed(method, y0, t_eval, dt, max_steps, law, c, rt, rv, dense, out_y, ws):
                             ytmp[nv + i] = y[nv + i]
                         continue
                     if it > 0:
-                        rhs(t + h, ytmp, law, c, rt, rv, acc, tau, work, m)
+                        rhs(t + h, ytmp, law, c, rt, rv, acc, ws)
                     else:
-                        rhs(t, y, law, c, rt, rv, acc, tau, work, m)
+                        rhs(t, y, law, c, rt, rv, acc, ws)
                     n_evals += 1
                     if it == 0:
                         for i in range(nv):
@@ -565,12 +601,14 @@ def efforts_at(t_eval, rows, law, c, rt, rv, ys, taus, ws):
     ``t_eval`` gives each row's time (its last entry when ys holds the final state
     only). Returns -1, or nv·i + k of the first non-finite effort.
     """
-    tau, work, m = ws
+    tau, work, m, P, phys = ws
     nv = taus.shape[1]
     last = t_eval.shape[0] - 1
     for i in range(rows):
         t = t_eval[i] if ys.shape[0] == t_eval.shape[0] else t_eval[last]
         efforts(t, ys[i], law, c, rt, rv, taus[i], work, m)
+        if phys[0] != 0:
+            saturate(taus[i], P)
         for k in range(nv):
             if not math.isfinite(taus[i, k]):
                 return nv * i + k
@@ -632,7 +670,7 @@ def metrics_of(t_eval, ys, taus, qf, band, row):
 @jit
 def run_many(
     method, Y0, t_eval, dt, atol, rtol, max_step, max_steps, laws, C, rt, rv, keep, band,
-    out_y, out_tau, metrics, info, t_reached, first, stop,
+    out_y, out_tau, metrics, info, t_reached, first, stop, P, phys,
 ):  # fmt: skip
     """Variants ``first`` … ``stop`` − 1, one after the other, each with its own step control.
 
@@ -660,11 +698,13 @@ def run_many(
         t_reached: the time each reached, or failed at (B,) [s].
         first: the first variant.
         stop: one past the last.
+        P: the physical model (8, nv), as ``rrt_pin.robot.limits.Physical.as_array``.
+        phys: (1,) int: 1 to apply it, 0 for the law alone.
     """
     n = Y0.shape[1]
     nv = n // 2
     T = t_eval.shape[0]
-    ws = (np.empty(nv), np.empty(3 * nv), np.empty((nv, nv)))
+    ws = (np.empty(nv), np.empty(3 * nv), np.empty((nv, nv)), P, phys)
     dense = keep != KEEP_FINAL
     scratch_y = np.empty((T if keep == KEEP_METRICS else 1, n))
     scratch_tau = np.empty((T if keep == KEEP_METRICS else 1, nv))

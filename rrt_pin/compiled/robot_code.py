@@ -30,6 +30,7 @@ from rrt_pin.core._logging import note
 from rrt_pin.core.identity import IdentityCache
 from rrt_pin.dynamics import forward_source
 from rrt_pin.dynamics.rnea_source import check_supported
+from rrt_pin.robot import limits
 from rrt_pin.simulate import codes
 
 if TYPE_CHECKING:
@@ -199,7 +200,7 @@ def _on_state(
     return "\n".join(["@jit", f"def {name}({', '.join(args)}, out):", *body, ""])
 
 
-def _lanes_source(gen: forward_source.GeneratedFunction, name: str) -> str:
+def _lanes_source(gen: forward_source.GeneratedFunction, name: str, tau_rows: bool = False) -> str:
     """``name(w)``: ``gen`` of :data:`LANES` states at once, one lane each, in place in ``w``.
 
     ``w`` is one flat work array of rows of :data:`LANES` values (constant offsets, no
@@ -208,7 +209,8 @@ def _lanes_source(gen: forward_source.GeneratedFunction, name: str) -> str:
     each angle, the largest |angle|, then the results: for the forward dynamics (``gen``
     without gravity, under the PD efforts from those rows) the n rows of ẏ, else gen's
     nv rows. The sines and cosines are the polynomial ones; a lane with an angle at or
-    beyond their limit (or not finite) gets NaN.
+    beyond their limit (or not finite) gets NaN. With ``tau_rows``, the efforts are read
+    from rows n … n + nv − 1 (where (kp, kd, qf) would be) instead of the PD law.
     """
     nv, L = gen.nv, LANES
     n = 2 * nv
@@ -250,7 +252,10 @@ def _lanes_source(gen: forward_source.GeneratedFunction, name: str) -> str:
             continue
         line = re.sub(r"\bq\[(\d+)\]", lambda g: at("y", int(g[1])), line)
         line = re.sub(r"\bv\[(\d+)\]", lambda g: at("y", nv + int(g[1])), line)
-        line = re.sub(r"\btau\[(\d+)\]", lambda g: pd(int(g[1])), line)
+        if tau_rows:
+            line = re.sub(r"\btau\[(\d+)\]", lambda g: at("c", int(g[1])), line)
+        else:
+            line = re.sub(r"\btau\[(\d+)\]", lambda g: pd(int(g[1])), line)
         src.append(f"        {line}")
     limit = repr(rnea_vector.SINCOS_LIMIT)
     shift = nv if forward else 0
@@ -315,6 +320,7 @@ def module_source(model: pin.Model) -> tuple[str, int]:
         "",
         "",
         *(f"{c} = {getattr(codes, c)}" for c in _CODES),
+        f"FRICTION_VELOCITY = {limits.FRICTION_VELOCITY!r}",
         "",
         "",
         *(part + "\n" for part in parts),
@@ -322,6 +328,7 @@ def module_source(model: pin.Model) -> tuple[str, int]:
         "",
         f"LANE_COUNT = {LANES}",
         _lanes_source(fwd_free, "rhs_lanes"),
+        _lanes_source(fwd, "fwd_lanes", tau_rows=True),
         _lanes_source(forward_source.gravity_source(model), "gravity_lanes"),
         _LANES.read_text(encoding="utf-8").partition(_LANES_MARK)[2],
     ]
@@ -335,7 +342,7 @@ def _many_signature(numba: Any) -> Any:
     ri1 = numba.types.Array(i8, 1, "C", readonly=True)
     return numba.types.void(
         i8, r2, r1, f8, r1, f8, f8, i8, ri1, r2, r1, r2, i8, f8,
-        f8[:, :, ::1], f8[:, :, ::1], f8[:, ::1], i8[:, ::1], f8[::1], i8, i8,
+        f8[:, :, ::1], f8[:, :, ::1], f8[:, ::1], i8[:, ::1], f8[::1], i8, i8, r2, ri1,
     )  # fmt: skip
 
 
@@ -343,9 +350,10 @@ def _lanes_signature(numba: Any) -> Any:
     i8, f8 = numba.int64, numba.float64
     r1 = numba.types.Array(f8, 1, "C", readonly=True)
     r2 = numba.types.Array(f8, 2, "C", readonly=True)
+    ri1 = numba.types.Array(i8, 1, "C", readonly=True)
     return numba.types.void(
         i8, r2, r1, r1, f8, f8, i8, r2, i8, f8,
-        f8[:, :, ::1], f8[:, :, ::1], f8[:, ::1], i8[:, ::1], f8[::1], i8, i8,
+        f8[:, :, ::1], f8[:, :, ::1], f8[:, ::1], i8[:, ::1], f8[::1], i8, i8, r2, ri1,
     )  # fmt: skip
 
 

@@ -32,6 +32,7 @@ from rrt_pin.compiled.lanes import MAX_STEPS, _in_slices, _raise_status, _thread
 from rrt_pin.core import cpus
 from rrt_pin.core.errors import DivergenceError, InputError
 from rrt_pin.dynamics.trajectory import Trajectory
+from rrt_pin.robot.limits import Physical
 from rrt_pin.robot.robot import Robot
 from rrt_pin.simulate import codes
 from rrt_pin.simulate.control import OpenLoop, PDGravityController, TrackingController
@@ -141,10 +142,18 @@ def _run(
     threads: int,
     band: float,
     max_steps: int,
+    physical: Physical | None = None,
 ) -> tuple[np.ndarray, ...]:
     code = robot_code.integrators_for(robot.model, robot.name)
+    nv = robot.nv
+    if physical is not None and physical.active:
+        if physical.nv != nv:
+            raise InputError(f"the physical model has {physical.nv} coordinates, the robot {nv}")
+        P, phys = physical.as_array(), np.ones(1, dtype=np.int64)
+    else:
+        P, phys = np.zeros((8, nv)), np.zeros(1, dtype=np.int64)
     laws, C, (rt, rv) = _laws(robot, controllers)
-    count, n, nv = Y0.shape[0], Y0.shape[1], robot.nv
+    count, n = Y0.shape[0], Y0.shape[1]
     keep_code = _KEEP[keep]
     rows = t.size if keep == "trajectories" else 1
     out_y = np.empty((count, rows, n))
@@ -165,7 +174,7 @@ def _run(
         )  # fmt: skip
 
         def run(a: int, b: int) -> None:
-            lanes(*args, a, b)
+            lanes(*args, a, b, P, phys)
     else:
         many = code.run_many
         args = (
@@ -174,7 +183,7 @@ def _run(
         )  # fmt: skip
 
         def run(a: int, b: int) -> None:
-            many(*args, a, b)
+            many(*args, a, b, P, phys)
 
     used = _in_slices(run, count, threads)
     return out_y, out_tau, metrics, info, reached, np.int64(used)
@@ -214,6 +223,7 @@ def run_one(
     options: Options,
     start: float | None = None,
     max_steps: int = MAX_STEPS,
+    physical: Physical | None = None,
 ) -> SimulationResult:
     """One run of ``robot`` on inputs already checked by :func:`rrt_pin.simulate.simulate`.
 
@@ -226,6 +236,10 @@ def run_one(
         options: as :func:`rrt_pin.simulate.options.resolve` returns them for this backend.
         start: ``time.perf_counter()`` when the caller's call began (for ``wall_time``).
         max_steps: step budget (accepted and rejected steps).
+        physical: the limits and losses the joints get beyond the law
+            (:func:`rrt_pin.robot.limits.physical_model`, with ``.at(...)``); None or an
+            inactive one: the law's efforts alone. The efforts returned are the law's,
+            saturated at the effort limits.
 
     Raises:
         InputError: a law that does not run compiled.
@@ -235,8 +249,9 @@ def run_one(
     start = time.perf_counter() if start is None else start
     Y0 = np.concatenate([q0, qd0])[None, :]
     y, tau, _, info, reached, _ = _run(
-        robot, [controller], Y0, t, options, "trajectories", 1, SETTLING_BAND, max_steps
-    )
+        robot, [controller], Y0, t, options, "trajectories", 1, SETTLING_BAND, max_steps,
+        physical,
+    )  # fmt: skip
     _raise(info, reached, tau, robot, options, max_steps, False)
     nv = robot.nv
     return SimulationResult(
@@ -272,6 +287,7 @@ def run_batch(
     max_steps: int = MAX_STEPS,
     start: float | None = None,
     failures: str = "raise",
+    physical: Physical | None = None,
 ) -> BatchResult:
     """B variants of ``robot`` (laws and initial states), on inputs already checked.
 
@@ -293,6 +309,7 @@ def run_batch(
         start: ``time.perf_counter()`` when the caller's call began.
         failures: ``"raise"`` the first variant's failure, or ``"record"`` each in
             ``result.failures`` (its rows NaN) and go on.
+        physical: as :func:`run_one`'s, shared by the variants.
 
     Raises:
         InputError: a law that does not run compiled; metrics without PD laws.
@@ -313,7 +330,7 @@ def run_batch(
         threads = _threads_that_fit(threads, count)
     Y0 = np.ascontiguousarray(np.concatenate([q0s, qd0s], axis=1))
     y, tau, rows, info, reached, used = _run(
-        robot, controllers, Y0, t, options, keep, threads, band, max_steps
+        robot, controllers, Y0, t, options, keep, threads, band, max_steps, physical
     )
     recorded = None
     if failures == "record":
