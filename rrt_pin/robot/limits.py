@@ -24,11 +24,13 @@ Units: SI (rad or m, N·m or N, N·m·s/rad or N·s/m).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
 
+from rrt_pin.core import text
 from rrt_pin.core.errors import InputError
 
 if TYPE_CHECKING:
@@ -40,17 +42,32 @@ __all__ = [
     "FRICTION_VELOCITY",
     "LIMIT_DAMPING_RATIO",
     "LIMIT_OMEGA",
+    "LimitWarning",
+    "MAX_STEP_OMEGA",
     "Physical",
     "applied_efforts",
+    "applied_jacobian",
+    "applier",
+    "check_step",
+    "inactive",
+    "joint_names",
+    "outside_limits",
     "physical_model",
+    "saturated",
 ]
 
 #: The velocity below which Coulomb friction fades linearly-ish to zero: τ = −f·tanh(q̇/v) [rad/s or m/s].
 FRICTION_VELOCITY = 1e-3
-#: The natural frequency of the compliant position limits [rad/s] (a 5 ms time constant).
+#: The natural frequency of the compliant position limits [rad/s] (time constant 1/ω).
 LIMIT_OMEGA = 200.0
 #: Their damping ratio (critical: no bounce).
 LIMIT_DAMPING_RATIO = 1.0
+#: The longest fixed step a run with position limits may take, as h·ω (h ≤ 0.5/ω).
+MAX_STEP_OMEGA = 0.5
+
+
+class LimitWarning(UserWarning):
+    """A run starts or aims outside a joint's position limits (given in degrees?)."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -118,6 +135,34 @@ class Physical:
         b = np.where(limited, 2.0 * LIMIT_DAMPING_RATIO * m * LIMIT_OMEGA, 0.0)
         return replace(self, stiffness=k, limit_damping=b)
 
+    def parameters(self) -> dict:
+        """The model's parameters and values for a run's metadata (JSON-ready; inf: None)."""
+
+        def values(a: np.ndarray) -> list[float | None]:
+            return [float(x) if np.isfinite(x) else None for x in a]
+
+        return {
+            "applied": self.active,
+            "position_limits": "compliant: a spring-damper outside [lower, upper] that only "
+            "pushes back, k = M_kk·omega², b = 2·zeta·M_kk·omega (M_kk at the run's start)",
+            "omega": LIMIT_OMEGA,
+            "omega_unit": "rad/s",
+            "damping_ratio": LIMIT_DAMPING_RATIO,
+            "friction": "Coulomb, regularised: -f·tanh(qd / v)",
+            "friction_velocity": FRICTION_VELOCITY,
+            "friction_velocity_unit": "rad/s or m/s",
+            "velocity_limits": "reported, not enforced",
+            "lower": values(self.lower),
+            "upper": values(self.upper),
+            "effort": values(self.effort),
+            "velocity": values(self.velocity),
+            "damping": [float(x) for x in self.damping],
+            "friction_coefficient": [float(x) for x in self.friction],
+            "stiffness": [float(x) for x in self.stiffness],
+            "limit_damping": [float(x) for x in self.limit_damping],
+            "not_given": list(self.not_given),
+        }
+
     def as_array(self) -> np.ndarray:
         """(8, nv): lower, upper, effort, damping, friction, stiffness, limit damping, velocity.
 
@@ -164,13 +209,19 @@ def physical_model(
         losses: apply the URDF's ``<dynamics damping friction>``.
         model: the model to read (default ``robot.model``).
 
+    Returns:
+        The model (stiffness not set yet: :meth:`Physical.at`); the chapter's arm gets an
+        inactive one (:func:`inactive`): its URDF states no binding limit.
+
     Raises:
         InputError: a limit with lower > upper, a negative damping, friction, effort or
             velocity limit, or a NaN (the joint named).
     """
-    m = robot.model if model is None else model
     nv = robot.nv
-    names = [j.name for j in robot.joints for _ in range(j.nv)]
+    if robot.is_chapter_arm:  # its URDF's limits (±4π rad, ±110 m, 1e9 N·m) never bind
+        return inactive(nv)
+    m = robot.model if model is None else model
+    names = joint_names(robot)
     lower, upper = np.full(nv, -np.inf), np.full(nv, np.inf)
     not_given = []
     for j in robot.joints:
@@ -223,3 +274,110 @@ def applied_efforts(tau_law: np.ndarray, q: np.ndarray, qd: np.ndarray, p: Physi
     below = np.where(q < p.lower, below, 0.0)
     above = np.where(q > p.upper, above, 0.0)
     return tau + below + above
+
+
+def inactive(nv: int) -> Physical:
+    """A model that applies nothing to ``nv`` coordinates (a run is its law's alone)."""
+    return Physical(np.full(nv, -np.inf), np.full(nv, np.inf), np.full(nv, np.inf),
+                    np.full(nv, np.inf), np.zeros(nv), np.zeros(nv))  # fmt: skip
+
+
+def joint_names(robot: Robot) -> list[str]:
+    """The joint of each coordinate (nv,)."""
+    return [j.name for j in robot.joints for _ in range(j.nv)]
+
+
+def saturated(tau_law: np.ndarray, p: Physical) -> np.ndarray:
+    """The law's efforts after saturation, what the actuators apply [N·m or N] (…, nv)."""
+    return np.clip(tau_law, -p.effort, p.effort)
+
+
+def applied_jacobian(
+    tau_law: np.ndarray,
+    dtau_dq: np.ndarray,
+    dtau_dv: np.ndarray,
+    q: np.ndarray,
+    qd: np.ndarray,
+    p: Physical,
+) -> tuple[np.ndarray, np.ndarray]:
+    """∂/∂q and ∂/∂q̇ of :func:`applied_efforts` (nv, nv), given the law's and its derivatives.
+
+    Saturated efforts have no derivative; friction's is f/v·(1 − tanh²); a position
+    limit's −k and −b where it pushes.
+    """
+    free = (np.abs(tau_law) < p.effort)[:, None]
+    dq = np.where(free, dtau_dq, 0.0)
+    dv = np.where(free, dtau_dv, 0.0)
+    th = np.tanh(qd / FRICTION_VELOCITY)
+    dv_diag = -p.damping - p.friction / FRICTION_VELOCITY * (1.0 - th * th)
+    with np.errstate(invalid="ignore"):
+        below = (q < p.lower) & (p.stiffness * (p.lower - q) - p.limit_damping * qd > 0.0)
+        above = (q > p.upper) & (p.stiffness * (p.upper - q) - p.limit_damping * qd < 0.0)
+    pushing = below | above
+    dq_diag = np.where(pushing, -p.stiffness, 0.0)
+    dv_diag = dv_diag + np.where(pushing, -p.limit_damping, 0.0)
+    return dq + np.diag(dq_diag), dv + np.diag(dv_diag)
+
+
+def check_step(step: float | None, p: Physical, names: list[str]) -> None:
+    """Refuse a fixed step too long for the position limits' stiffness (h·ω > 0.5).
+
+    Raises:
+        InputError: naming the step, the first limited joint and the longest step allowed.
+    """
+    if step is None or not p.has_positions or step * LIMIT_OMEGA <= MAX_STEP_OMEGA:
+        return
+    k = int(np.flatnonzero(np.isfinite(p.lower) | np.isfinite(p.upper))[0])
+    longest = MAX_STEP_OMEGA / LIMIT_OMEGA
+    off = "--no-position-limits" if text.argument("x") == "--x" else "position_limits=False"
+    raise InputError(
+        f"{text.argument('step')}={step:g} s is too long for the position limit of joint {names[k]!r} "
+        f"(compliant, omega = {LIMIT_OMEGA:g} rad/s: h·omega = {step * LIMIT_OMEGA:.3g} > "
+        f"{MAX_STEP_OMEGA:g}); the longest step allowed is {longest:g} s (or "
+        f"{off})"
+    )
+
+
+def outside_limits(
+    q: np.ndarray, p: Physical, names: list[str]
+) -> list[tuple[str, float, float, float]]:
+    """The coordinates of ``q`` outside their position limits: (joint, value, lower, upper)."""
+    q = np.asarray(q, dtype=float)
+    out = []
+    for k in np.flatnonzero((q < p.lower) | (q > p.upper)):
+        out.append((names[k], float(q[k]), float(p.lower[k]), float(p.upper[k])))
+    return out
+
+
+def applier(p: Physical) -> Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]:
+    """:func:`applied_efforts` for one model, as f(τ_law, q, q̇): the same values, faster.
+
+    Terms the model does not have (no effort limit, no damping, no friction, no
+    position limit) are left out, and a position limit's spring is only computed when
+    some coordinate is past one. States of shape (…, nv).
+    """
+    clip = bool(np.isfinite(p.effort).any())
+    damp = bool((p.damping > 0).any())
+    rub = bool((p.friction > 0).any())
+    stops = p.has_positions
+    lo, hi, e, d, f, k, b = (p.lower, p.upper, p.effort, p.damping, p.friction, p.stiffness,
+                             p.limit_damping)  # fmt: skip
+    minus_e = -e
+    v = FRICTION_VELOCITY
+    clip_, tanh, where, maximum, minimum = np.clip, np.tanh, np.where, np.maximum, np.minimum
+
+    def apply(tau_law: np.ndarray, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
+        tau = clip_(tau_law, minus_e, e) if clip else tau_law
+        if damp:
+            tau = tau - d * qd
+        if rub:
+            tau = tau - f * tanh(qd / v)
+        if stops:
+            below, above = q < lo, q > hi
+            if below.any():
+                tau = tau + where(below, maximum(0.0, k * (lo - q) - b * qd), 0.0)
+            if above.any():
+                tau = tau + where(above, minimum(0.0, k * (hi - q) - b * qd), 0.0)
+        return tau
+
+    return apply

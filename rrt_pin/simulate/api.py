@@ -19,8 +19,9 @@ from rrt_pin.simulate import methods
 from rrt_pin.simulate.control import Controller, as_controller
 from rrt_pin.simulate.energy import check_energy, check_energy_batch
 from rrt_pin.simulate.failures import FAILURES, one_at_a_time
-from rrt_pin.simulate.metrics import GROUPS, batch_metrics
+from rrt_pin.simulate.kept import reduced, targets
 from rrt_pin.simulate.options import Options, resolve
+from rrt_pin.simulate.physical_runs import batch_limits, energy_law, run_physics, with_limits
 from rrt_pin.simulate.results import KEEPS
 
 if TYPE_CHECKING:
@@ -126,6 +127,9 @@ def simulate(
     params: Params | None = None,
     estimate_error: bool = True,
     accuracy: float | None = None,
+    effort_limits: bool = True,
+    position_limits: bool = True,
+    losses: bool = True,
 ) -> SimulationResult:
     """Simulate a robot under ``controller`` from (q0, qd0), sampled at ``t_eval``.
 
@@ -166,13 +170,22 @@ def simulate(
             measured safety factor (:func:`rrt_pin.simulate.methods.tolerances`);
             ``rtol`` or ``atol`` given explicitly win. Without ``accuracy``, a run at
             explicit tolerances asks for max(1e-8, rtol, atol).
+        effort_limits: saturate the law's efforts at the URDF's ``<limit effort>`` [N·m or N].
+        position_limits: compliant limits at the URDF's ``<limit lower upper>`` [rad or m]:
+            past one, a spring–damper that only pushes back, k = M_kk·ω², b = 2·M_kk·ω,
+            ω = 200 rad/s (M_kk from M(q0); a fixed step must be ≤ 0.5/ω).
+        losses: the URDF's ``<dynamics damping friction>``: −d·q̇ and Coulomb friction
+            −f·tanh(q̇ / 1e-3 rad/s or m/s) [N·m or N]. The three apply to URDF robots
+            (the chapter's arm states no binding limit; :mod:`rrt_pin.robot.limits`).
 
     Returns:
-        States and applied efforts at ``t_eval``, evaluation count and wall time
-        (of the first run), and the error estimate.
+        States and the actuators' efforts at ``t_eval``, evaluation count and wall time
+        (of the first run), the error estimate, and ``limits``: what the run crossed
+        at its output samples (:class:`~rrt_pin.simulate.crossings.LimitEvent`).
 
     Raises:
-        InputError: a bad robot, controller, state, time grid or option (named).
+        InputError: a bad robot, controller, state, time grid or option (named); a
+            fixed step too long for the position limits.
         DivergenceError: the state became non-finite or the integrator failed.
     """
     if t_eval is None:
@@ -196,6 +209,9 @@ def simulate(
     checked = (
         None if controller is None else as_controller(controller, robot.nv, robot.effort_names)
     )
+    rp = run_physics(robot, q0[None], [checked], options, effort_limits=effort_limits,
+                     position_limits=position_limits, losses=losses)  # fmt: skip
+    physical = {} if rp.applied is None else {"physical": rp.applied}
     plant = None  # the arm's parameters of a compiled run (the energy rule's M(q))
     if options.backend == "compiled" and _generated(robot, params, [controller]):
         runs = _compiled("simulate_generated")
@@ -203,7 +219,7 @@ def simulate(
         start = time.perf_counter()
 
         def run(o: Options, began: float) -> SimulationResult:
-            return runs.run_one(robot, controller, q0, qd0, t, o, began)
+            return runs.run_one(robot, controller, q0, qd0, t, o, began, **physical)
     elif options.backend == "compiled":
         integrate = _compiled()
         p = plant = _params_for(robot, params, [controller])
@@ -218,10 +234,10 @@ def simulate(
         law = _passive(robot) if checked is None else checked
 
         def run(o: Options, began: float) -> SimulationResult:
-            return run_one(robot, law, q0, qd0, t, o, began)
+            return run_one(robot, law, q0, qd0, t, o, began, rp.applied)
 
-    result = _with_units(run(options, start), robot)
-    check_energy(result, robot, checked, plant)
+    result = with_limits(_with_units(run(options, start), robot), rp, checked)
+    check_energy(result, robot, energy_law(checked, result.limits, rp), plant)
     return _with_estimate(result, options, run) if estimate_error else result
 
 
@@ -357,6 +373,9 @@ def simulate_batch(
     keep: str = "trajectories",
     accuracy: float | None = None,
     failures: str = "raise",
+    effort_limits: bool = True,
+    position_limits: bool = True,
+    losses: bool = True,
 ) -> BatchResult:
     """Simulate B variants of a robot at once; the same defaults as :func:`simulate`.
 
@@ -415,9 +434,16 @@ def simulate_batch(
             ``result.failures`` (None where it succeeded; its rows and metrics NaN) and
             run the others (:mod:`rrt_pin.simulate.failures`); the error estimate is then
             skipped if a variant failed.
+        effort_limits: saturate the laws' efforts at the URDF's effort limits (as
+            :func:`simulate`).
+        position_limits: the URDF's compliant position limits (as :func:`simulate`;
+            the limits' stiffness from M at the first variant's q0).
+        losses: the URDF's damping and Coulomb friction (as :func:`simulate`).
 
     Returns:
-        States (B, T, nv) and efforts; ``result.variant(i)`` is one run.
+        States (B, T, nv) and efforts; ``result.variant(i)`` is one run;
+        ``result.limits`` each variant's limit events (None: a compiled batch that
+        kept no trajectories).
 
     Raises:
         InputError: bad shapes, values, controllers or options; an unknown ``keep``;
@@ -465,16 +491,19 @@ def simulate_batch(
             laws.append(_passive(robot) if law is None else law)
         except InputError as e:
             raise InputError(f"controllers[{i}]: {e}") from e
+    rp = run_physics(robot, q0s, laws, options, effort_limits=effort_limits,
+                     position_limits=position_limits, losses=losses, name="q0s")  # fmt: skip
+    physical = {} if rp.applied is None else {"physical": rp.applied}
     generated = options.backend == "compiled" and _generated(robot, params, controllers)
     if generated:
         runs = _compiled("simulate_generated")
         _compiled("integrators_generated")(robot.model, robot.name)  # not simulation time
         start = time.perf_counter()
 
-        def run(o: Options, began: float, tau: bool, kept: str) -> BatchResult:
+        def run(o: Options, began: float, tau: bool, kept: str, main: bool = True) -> BatchResult:
             return runs.run_batch(
                 robot, controllers, q0s, qd0s, t, o, tau, keep=kept, threads=chosen,
-                start=began, failures=failures,
+                start=began, failures=failures, **physical,
             )  # fmt: skip
     elif options.backend == "compiled":
         integrate = _compiled()
@@ -483,7 +512,7 @@ def simulate_batch(
         else:
             plants = _params_for(robot, params, controllers)
 
-        def run(o: Options, began: float, tau: bool, kept: str) -> BatchResult:
+        def run(o: Options, began: float, tau: bool, kept: str, main: bool = True) -> BatchResult:
             return integrate.run_batch(
                 plants, controllers, q0s, qd0s, t, o, tau, keep=kept, threads=chosen,
                 start=began,
@@ -491,12 +520,16 @@ def simulate_batch(
     else:
         from rrt_pin.simulate.pinocchio_backend import run_batch
 
-        targets = _targets(laws) if keep == "metrics" else None
+        qf = targets(laws) if keep == "metrics" else None
         chosen = _pool_threads(robot, chosen)
 
-        def run(o: Options, began: float, tau: bool, kept: str) -> BatchResult:
-            full = run_batch(robot, laws, q0s, qd0s, t, o, chosen, tau or kept == "metrics", began)
-            return _reduced(full, kept, targets, tau)
+        def measured(full: BatchResult) -> Any:
+            return batch_limits(full.t, full.q, full.qd, full.tau, laws, rp)
+
+        def run(o: Options, began: float, tau: bool, kept: str, main: bool = True) -> BatchResult:
+            wants = tau or kept == "metrics" or (main and rp.needs_demand)
+            full = run_batch(robot, laws, q0s, qd0s, t, o, chosen, wants, began, rp.applied)
+            return reduced(full, kept, qf, tau, measured if main else None)
 
     if failures == "record" and not generated:
         try:
@@ -508,7 +541,8 @@ def simulate_batch(
                     robot, [controllers[i]], q0s[i : i + 1], qd0s[i : i + 1], t,
                     method=options.method.name, rtol=rtol, atol=atol, backend=options.backend,
                     step=step, threads=1, efforts=efforts, estimate_error=False, keep=keep,
-                    accuracy=accuracy,
+                    accuracy=accuracy, effort_limits=effort_limits,
+                    position_limits=position_limits, losses=losses,
                     params=params[i] if isinstance(params, list) else params,
                 )  # fmt: skip
 
@@ -517,17 +551,24 @@ def simulate_batch(
             result = dataclasses.replace(result, failures=(None,) * B)
     else:
         result = run(options, start, efforts, keep)
+    if keep == "trajectories" and not result.limits and rp.measures:
+        result = dataclasses.replace(
+            result, limits=batch_limits(t, result.q, result.qd, result.tau, laws, rp)
+        )
     result = _with_units(result, robot)
     if result.failures is not None and any(f is not None for f in result.failures):
         why = "a variant failed" if estimate_error else None
         return dataclasses.replace(result, estimate_failure=why)
     if not isinstance(params, list):  # variants with parameters of their own: not checked
-        given = [None if c is None else law for c, law in zip(controllers, laws, strict=True)]
+        given = [
+            None if c is None else energy_law(law, events, rp)
+            for c, law, events in zip(controllers, laws, result.limits or [()] * B, strict=True)
+        ]
         check_energy_batch(result, robot, given, q0s, qd0s)
     if not estimate_error:
         return result
     second = "trajectories" if keep == "trajectories" else "final"
-    return _with_estimate(result, options, lambda o, began: run(o, began, False, second))
+    return _with_estimate(result, options, lambda o, began: run(o, began, False, second, False))
 
 
 def _threads(threads: Any) -> int:
@@ -557,37 +598,3 @@ def _pool_threads(robot: Robot, chosen: int | None) -> int | None:
         name=None if chosen is None else "threads",
     )
     return chosen if fit == wanted else fit
-
-
-def _targets(laws: Sequence[Any]) -> np.ndarray:
-    """Each law's target qf (B, nv), for ``keep="metrics"``."""
-    targets = [getattr(law, "qf", None) for law in laws]
-    if any(qf is None for qf in targets):
-        raise InputError(
-            "keep='metrics' measures each variant against its controller's target qf: "
-            "every controller needs one (or keep='final')"
-        )
-    return np.array(targets, dtype=float)
-
-
-def _reduced(full: BatchResult, keep: str, qf: np.ndarray | None, efforts: bool) -> BatchResult:
-    """A batch with every output time reduced to what ``keep`` asks for."""
-    from dataclasses import replace
-
-    if keep == "trajectories":
-        return full
-    metrics = None
-    if keep == "metrics":
-        with np.errstate(invalid="ignore"):
-            metrics = batch_metrics(
-                GROUPS, full.t, full.q, full.qd, full.tau, qf, full.q_names, full.tau_names
-            )
-    return replace(
-        full,
-        t=full.t[-1:],
-        q=full.q[:, -1:],
-        qd=full.qd[:, -1:],
-        tau=full.tau[:, -1:] if efforts and full.tau is not None else None,
-        keep=keep,
-        metrics=metrics,
-    )

@@ -6,6 +6,11 @@ ABA(q, q̇, τ_PD + G(q)) = ABA₀(q, q̇, τ_PD) with ABA₀ on a copy of the m
 without gravity: one Pinocchio call per evaluation and no gravity terms. The
 efforts reported are always the controller's full output at the output times.
 
+With a robot's physical model (:class:`~rrt_pin.robot.limits.Physical`, active), the
+joints get :func:`~rrt_pin.robot.limits.applied_efforts` of the law's efforts
+(saturated, minus damping and friction, plus the compliant position limits) and
+gravity is not folded (saturation needs the law's whole effort).
+
 Joint coordinates (angles for continuous joints) are mapped to Pinocchio's
 configuration by the robot (:meth:`rrt_pin.robot.robot.Robot.configuration`), which
 is the identity when every joint has one configuration entry.
@@ -23,6 +28,7 @@ from rrt_pin.core import cpus
 from rrt_pin.core.memory import check_data
 
 if TYPE_CHECKING:
+    from rrt_pin.robot.limits import Physical
     from rrt_pin.robot.robot import Robot
     from rrt_pin.simulate.control import Controller
 
@@ -40,13 +46,19 @@ def _without_gravity(model):  # noqa: ANN001, ANN202
 class ClosedLoop:
     """Accelerations of one run, and their Jacobian."""
 
-    def __init__(self, robot: Robot, controller: Controller) -> None:
+    def __init__(
+        self, robot: Robot, controller: Controller, physical: Physical | None = None
+    ) -> None:
+        from rrt_pin.robot.limits import applier
+
         self.robot = robot
         self.n = robot.nv
         self.controller = controller
+        self.physical = physical
+        self.apply = None if physical is None else applier(physical)
         self.plain = not robot.has_continuous_joints
         feedback = controller.feedback()
-        self.folded = feedback is not None and feedback.exact_for(robot)
+        self.folded = feedback is not None and feedback.exact_for(robot) and physical is None
         if self.folded:
             self.model = _without_gravity(robot.model)
             self.kp, self.kd, self.qf = feedback.kp, feedback.kd, feedback.qf
@@ -65,7 +77,18 @@ class ClosedLoop:
             kp, kd, qf = self.kp, self.kd, self.qf
             return lambda t, q, v: aba(model, data, to_q(q), v, -kd * v - kp * (q - qf))
         efforts = self.controller.efforts
+        if self.apply is not None:
+            apply = self.apply
+            return lambda t, q, v: aba(model, data, to_q(q), v, apply(efforts(t, q, v), q, v))
         return lambda t, q, v: aba(model, data, to_q(q), v, efforts(t, q, v))
+
+    def applied(self) -> Callable[[float, np.ndarray, np.ndarray], np.ndarray]:
+        """τ(t, q, q̇) the joints get: the law's, through the physical model if any."""
+        efforts = self.controller.efforts
+        if self.apply is None:
+            return efforts
+        apply = self.apply
+        return lambda t, q, v: apply(efforts(t, q, v), q, v)
 
     def odeint_rhs(self) -> Callable[[np.ndarray, float], np.ndarray]:
         """The f(y, t) of odeint, inlined; odeint copies the result, so one buffer serves all calls."""
@@ -117,6 +140,11 @@ class ClosedLoop:
         else:
             tau = self.controller.efforts(t, q, v)
             dtau_dq, dtau_dv = self.controller.jacobian(t, q, v)  # type: ignore[misc]
+            if self.physical is not None:
+                from rrt_pin.robot.limits import applied_jacobian
+
+                dtau_dq, dtau_dv = applied_jacobian(tau, dtau_dq, dtau_dv, q, v, self.physical)
+                tau = self.apply(tau, q, v)  # type: ignore[misc]
         x = self.robot.configuration(q)
         da_dq, da_dv, minv = pin.computeABADerivatives(self.model, self.data, x, v, tau)
         J = np.zeros((2 * n, 2 * n))
@@ -174,10 +202,17 @@ class BatchLoop:
     """
 
     def __init__(
-        self, robot: Robot, controllers: Sequence[Controller], threads: int | None
+        self,
+        robot: Robot,
+        controllers: Sequence[Controller],
+        threads: int | None,
+        physical: Physical | None = None,
     ) -> None:
         import pinocchio as pin
 
+        from rrt_pin.robot.limits import applier
+
+        self.apply = None if physical is None else applier(physical)
         self.robot = robot
         self.controllers = list(controllers)
         self.threads = Threads(threads, len(self.controllers))
@@ -190,7 +225,7 @@ class BatchLoop:
             self.kd = np.array([f.kd for f in feedbacks])
             self.qf = np.array([f.qf for f in feedbacks])
             self.gravity = first.gravity
-            self.folded = first.exact_for(robot)
+            self.folded = first.exact_for(robot) and physical is None
         plant = _without_gravity(robot.model) if self.folded else robot.model
 
         self.pool = pin.ModelPool(plant, threads if threads is not None else cpus.available())
@@ -211,15 +246,24 @@ class BatchLoop:
                 return lambda t, q, v: (
                     aba(threads(), pool, to_q(q).T, v.T, (-kd * v - kp * (q - qf)).T).T
                 )
+            if self.apply is not None:
+                apply = self.apply
+                return lambda t, q, v: (
+                    aba(threads(), pool, to_q(q).T, v.T,
+                        apply(-kd * v - kp * (q - qf) + gravity(q), q, v).T).T
+                )  # fmt: skip
             return lambda t, q, v: (
                 aba(threads(), pool, to_q(q).T, v.T, (-kd * v - kp * (q - qf) + gravity(q)).T).T
             )
         laws = [c.efforts for c in self.controllers]
+        apply = self.apply
 
         def acc(t: float, q: np.ndarray, v: np.ndarray) -> np.ndarray:
             tau = np.empty(q.shape)
             for b, law in enumerate(laws):
                 tau[b] = law(t, q[b], v[b])
+            if apply is not None:
+                tau = apply(tau, q, v)
             return aba(threads(), pool, to_q(q).T, v.T, tau.T).T
 
         return acc

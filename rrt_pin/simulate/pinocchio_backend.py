@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from rrt_pin.core.errors import DivergenceError
+from rrt_pin.robot.limits import saturated
 from rrt_pin.simulate.closed_loop import BatchLoop, ClosedLoop
 from rrt_pin.simulate.integrators import integrate_fixed_step
 from rrt_pin.simulate.methods import FIXED_STEP, ODEPACK, SYMPLECTIC
@@ -26,6 +27,7 @@ from rrt_pin.simulate.scipy_runs import (
 from rrt_pin.simulate.symplectic import leapfrog
 
 if TYPE_CHECKING:
+    from rrt_pin.robot.limits import Physical
     from rrt_pin.robot.robot import Robot
     from rrt_pin.simulate.control import Controller
     from rrt_pin.simulate.options import Options
@@ -56,11 +58,16 @@ def run_one(
     t: np.ndarray,
     options: Options,
     start: float,
+    physical: Physical | None = None,
 ) -> SimulationResult:
-    """One run on Pinocchio's ABA (inputs already validated)."""
+    """One run on Pinocchio's ABA (inputs already validated).
+
+    ``physical``: the limits and losses the joints get beyond the law (None: none);
+    the efforts returned are the law's, saturated at its effort limits.
+    """
     n = robot.nv
     names = (*robot.q_names, *robot.qd_names)
-    loop = ClosedLoop(robot, controller)
+    loop = ClosedLoop(robot, controller, physical)
     method, rtol, atol, step = options.method, options.rtol, options.atol, options.step
     n_jac = 0
     if method.family == FIXED_STEP:
@@ -73,7 +80,7 @@ def run_one(
             qd0,
             t,
             step,
-            efforts=controller.efforts,
+            efforts=loop.applied(),
             names=names,
             configuration=robot.configuration if robot.has_continuous_joints else None,
         )
@@ -105,6 +112,8 @@ def run_one(
         Q, V = Y[:, :n], Y[:, n:]
     tau = controller.efforts_many(t, Q, V)
     _check_efforts(t, tau, robot.effort_names)
+    if physical is not None:
+        tau = saturated(tau, physical)
     return SimulationResult(
         t=t,
         q=Q,
@@ -135,8 +144,12 @@ def run_batch(
     threads: int | None,
     efforts: bool,
     start: float,
+    physical: Physical | None = None,
 ) -> BatchResult:
-    """B variants as one vectorized state on ``pin.abaInParallel`` (inputs already validated)."""
+    """B variants as one vectorized state on ``pin.abaInParallel`` (inputs already validated).
+
+    ``physical`` as :func:`run_one`'s.
+    """
     B, n = q0s.shape
     names = (*robot.q_names, *robot.qd_names)
     width = 2 * n
@@ -145,7 +158,7 @@ def run_batch(
     def label(index: int) -> str:
         return f"{names[index % width]} (variant {index // width})"
 
-    loop = BatchLoop(robot, controllers, threads)
+    loop = BatchLoop(robot, controllers, threads, physical)
     acc = loop.acceleration()
     tau = None
     if method.family == FIXED_STEP:
@@ -197,6 +210,8 @@ def run_batch(
         Q, V = Y[..., :n], Y[..., n:]  # (T, B, n) views
     if tau is not None:
         _check_efforts(t, np.moveaxis(tau, 0, 1), robot.effort_names)
+        if physical is not None:
+            tau = saturated(tau, physical)
     return BatchResult(
         t=t,
         q=np.moveaxis(Q, 0, 1),

@@ -79,8 +79,10 @@ class _Run:
         t: output times, shape (N,) [s].
         q: joint coordinates [rad or m]: (N, nv) for one run, (B, N, nv) for a batch.
         qd: velocities [rad/s or m/s], same shape.
-        tau: efforts the controller applied at those states [N·m or N], same
-            shape (None for a batch run with ``efforts=False``).
+        tau: efforts the actuators applied at those states [N·m or N]: the law's,
+            saturated at the effort limits when they apply (not the damping, friction
+            or position-limit efforts); same shape (None for a batch run with
+            ``efforts=False``).
         n_evals: right-hand-side (forward dynamics) evaluations (a batch: each
             evaluates all variants on the Pinocchio backend; the sum over the
             variants on the compiled one).
@@ -106,6 +108,12 @@ class _Run:
         robot: the :class:`~rrt_pin.robot.robot.Robot` that moved (``show(result)``
             draws it), or None for a result made by hand; not pickled (a robot holds
             its model's factory).
+        limits: what the run crossed, measured at the output samples against the
+            robot's stated limits (enforced or not): a tuple of
+            :class:`~rrt_pin.simulate.crossings.LimitEvent` (joint, kind, first time,
+            extent, count, saturated time) for one run; for a batch, one such tuple
+            a variant, or None where they were not measured (a compiled batch that
+            kept no trajectories).
     """
 
     t: np.ndarray
@@ -128,6 +136,7 @@ class _Run:
     estimate: ErrorEstimate | None = None
     estimate_failure: str | None = None
     robot: Robot | None = field(default=None, repr=False)
+    limits: Any = ()
 
     def __post_init__(self) -> None:
         for name in ("t", "q", "qd", "tau"):
@@ -310,4 +319,5 @@ class BatchResult(_Run):
             estimate=None if self.estimate is None else self.estimate.variant(i),
             estimate_failure=self.estimate_failure,
             robot=self.robot,
+            limits=self.limits[i] if self.limits else (),
         )

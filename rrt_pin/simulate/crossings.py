@@ -1,0 +1,170 @@
+"""What a run crossed: its limit events, measured from the samples at the output times.
+
+A pure function of arrays: :func:`limit_events` (one run) and :func:`batch_limit_events`
+(B variants) compare the sampled states and the law's demanded efforts with a robot's
+stated limits (:class:`~rrt_pin.robot.limits.Physical`), whether or not the run enforced
+them. Between two samples nothing is seen: a crossing shorter than an output interval
+may be missed, and times are those of the first sample past a limit.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from rrt_pin.robot.limits import Physical
+
+__all__ = ["KINDS", "LimitEvent", "batch_limit_events", "deepest", "limit_events", "measure"]
+
+#: The kinds of limit events.
+KINDS = ("position", "effort", "velocity")
+
+_UNITS = {
+    "position": {"rad": "rad", "m": "m"},
+    "effort": {"rad": "N·m", "m": "N"},
+    "velocity": {"rad": "rad/s", "m": "m/s"},
+}
+
+
+@dataclass(frozen=True)
+class LimitEvent:
+    """A joint coordinate past one of its limits at some output samples.
+
+    Attributes:
+        joint: the joint's name.
+        kind: ``"position"``, ``"effort"`` or ``"velocity"``.
+        first_time: the first output time past the limit [s].
+        extent: position: the deepest penetration past the limit [rad or m]; effort:
+            the peak demanded |effort| (the law's, before saturation) [N·m or N];
+            velocity: the peak |q̇| [rad/s or m/s].
+        count: separate crossings (runs of consecutive samples past the limit).
+        saturated_time: effort: the time the law's demand exceeded the limit [s]
+            (trapezoidal over the samples; the time spent saturated when enforced);
+            else None.
+        unit: the unit of ``extent``.
+    """
+
+    joint: str
+    kind: str
+    first_time: float
+    extent: float
+    count: int
+    saturated_time: float | None = None
+    unit: str = ""
+
+    def as_dict(self) -> dict:
+        """The event as JSON-ready data."""
+        return {
+            "joint": self.joint,
+            "kind": self.kind,
+            "first_time": self.first_time,
+            "extent": self.extent,
+            "unit": self.unit,
+            "count": self.count,
+            "saturated_time": self.saturated_time,
+        }
+
+
+def deepest(q: np.ndarray, p: Physical) -> np.ndarray:
+    """The deepest penetration past the position limits per coordinate, 0 when none.
+
+    ``q`` of shape (B, T, nv) [rad or m]; returns (B, nv).
+    """
+    with np.errstate(invalid="ignore"):
+        depth = np.maximum(p.lower - q, q - p.upper)
+    return np.maximum(np.nan_to_num(depth, nan=0.0, neginf=0.0).max(axis=1), 0.0)
+
+
+def measure(
+    t: np.ndarray, q: np.ndarray, qd: np.ndarray, demanded: np.ndarray | None, p: Physical
+) -> dict[str, dict[str, np.ndarray]]:
+    """Per kind, the arrays of every event: mask (B, T, nv) past the limit, extent (B, nv).
+
+    ``demanded``: the law's efforts before saturation (None: no effort events).
+    """
+    out: dict[str, dict[str, np.ndarray]] = {}
+    with np.errstate(invalid="ignore"):
+        past = (q < p.lower) | (q > p.upper)
+    out["position"] = {"mask": past, "extent": deepest(q, p)}
+    if demanded is not None:
+        mag = np.abs(demanded)
+        over = mag > p.effort
+        dt = np.diff(t)
+        s = over.astype(float)
+        time = (0.5 * (s[:, 1:] + s[:, :-1]) * dt[None, :, None]).sum(axis=1)
+        out["effort"] = {"mask": over, "extent": mag.max(axis=1), "time": time}
+    speed = np.abs(qd)
+    out["velocity"] = {"mask": speed > p.velocity, "extent": speed.max(axis=1)}
+    return out
+
+
+def _events(
+    t: np.ndarray,
+    measured: dict[str, dict[str, np.ndarray]],
+    b: int,
+    joints: Sequence[str],
+    units: Sequence[str],
+) -> tuple[LimitEvent, ...]:
+    events = []
+    for kind in KINDS:
+        m = measured.get(kind)
+        if m is None:
+            continue
+        mask = m["mask"][b]
+        for k in np.flatnonzero(mask.any(axis=0)):
+            column = mask[:, k]
+            first = int(np.argmax(column))
+            starts = int(column[0]) + int(np.count_nonzero(column[1:] & ~column[:-1]))
+            events.append(
+                LimitEvent(
+                    joint=joints[k],
+                    kind=kind,
+                    first_time=float(t[first]),
+                    extent=float(m["extent"][b, k]),
+                    count=starts,
+                    saturated_time=float(m["time"][b, k]) if kind == "effort" else None,
+                    unit=_UNITS[kind].get(units[k], ""),
+                )
+            )
+    events.sort(key=lambda e: (e.first_time, KINDS.index(e.kind)))
+    return tuple(events)
+
+
+def limit_events(
+    t: np.ndarray,
+    q: np.ndarray,
+    qd: np.ndarray,
+    demanded: np.ndarray | None,
+    p: Physical,
+    joints: Sequence[str],
+    units: Sequence[str],
+) -> tuple[LimitEvent, ...]:
+    """The limit events of one run sampled at ``t`` (shapes (T, nv)), by first time.
+
+    Args:
+        t: output times (T,) [s].
+        q: coordinates [rad or m].
+        qd: velocities [rad/s or m/s].
+        demanded: the law's efforts before saturation [N·m or N] (None: no effort events).
+        p: the limits (the robot's stated ones).
+        joints: each coordinate's joint name (nv,).
+        units: each coordinate's unit, ``rad`` or ``m`` (nv,).
+    """
+    d = None if demanded is None else demanded[None]
+    return _events(t, measure(t, q[None], qd[None], d, p), 0, joints, units)
+
+
+def batch_limit_events(
+    t: np.ndarray,
+    q: np.ndarray,
+    qd: np.ndarray,
+    demanded: np.ndarray | None,
+    p: Physical,
+    joints: Sequence[str],
+    units: Sequence[str],
+) -> list[tuple[LimitEvent, ...]]:
+    """Each variant's limit events (shapes (B, T, nv)); as :func:`limit_events`."""
+    measured = measure(t, q, qd, demanded, p)
+    return [_events(t, measured, b, joints, units) for b in range(q.shape[0])]
