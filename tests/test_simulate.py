@@ -239,7 +239,7 @@ def test_any_urdf_with_pd_gravity_converges():
     qf = np.array([0.5, -1.0, 1.0, 0.0, 0.3, 0.0])
     c = pd_gravity_controller(Robot.from_model(model), 100.0, 20.0, qf)
     t = np.linspace(0.0, 5.0, 51)
-    r = simulate(Robot.from_model(model), c, np.zeros(6), np.zeros(6), t)
+    r = simulate(Robot.from_model(model), c, np.zeros(6), np.zeros(6), t, effort_limits=False)
     assert np.abs(r.q[-1] - qf).max() < 1e-4
     assert r.q_names[0] == "q_shoulder_pan_joint" and r.qd_names[0] == "qd_shoulder_pan_joint"
     assert r.tau_names[-1] == "tau_wrist_3_joint"

@@ -218,9 +218,9 @@ def physical_model(
             velocity limit, or a NaN (the joint named).
     """
     nv = robot.nv
-    if robot.is_chapter_arm:  # its URDF's limits (±4π rad, ±110 m, 1e9 N·m) never bind
-        return inactive(nv)
     m = robot.model if model is None else model
+    if robot.is_chapter_arm or _chapter_urdf(robot, m):
+        return inactive(nv)
     names = joint_names(robot)
     lower, upper = np.full(nv, -np.inf), np.full(nv, np.inf)
     not_given = []
@@ -274,6 +274,20 @@ def applied_efforts(tau_law: np.ndarray, q: np.ndarray, qd: np.ndarray, p: Physi
     below = np.where(q < p.lower, below, 0.0)
     above = np.where(q > p.upper, above, 0.0)
     return tau + below + above
+
+
+def _chapter_urdf(robot: Robot, m: pin.Model) -> bool:
+    """Whether ``m`` is the chapter's arm from its generated URDF (however it was loaded).
+
+    Its limits (±4π rad, ±110 m, 1e9 N·m, 1e6 rad/s) are not binding by construction.
+    """
+    from rrt_pin.robot.urdf import JOINT_NAMES
+
+    return (
+        tuple(j.name for j in robot.joints) == JOINT_NAMES
+        and bool((np.asarray(m.effortLimit) == 1e9).all())
+        and bool((np.asarray(m.velocityLimit) == 1e6).all())
+    )
 
 
 def inactive(nv: int) -> Physical:
