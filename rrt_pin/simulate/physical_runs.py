@@ -36,7 +36,15 @@ if TYPE_CHECKING:
     from rrt_pin.robot.robot import Robot
     from rrt_pin.simulate.options import Options
 
-__all__ = ["RunPhysics", "batch_limits", "energy_law", "run_physics", "with_limits"]
+__all__ = [
+    "RunPhysics",
+    "batch_limits",
+    "energy_law",
+    "outside_messages",
+    "physics_facts",
+    "run_physics",
+    "with_limits",
+]
 
 
 @dataclass(frozen=True, eq=False)
@@ -134,24 +142,17 @@ def _warn_outside(
     """Warn once about a start or a target outside a joint's position limits."""
     if not stated.has_positions:
         return
-    targets = [getattr(law, "qf", None) for law in laws]
-    for what, rows in ((name, q0s), ("qf", [qf for qf in targets if qf is not None])):
-        for i, row in enumerate(rows):
-            found = outside_limits(np.asarray(row, dtype=float), stated, joints)
-            if not found:
-                continue
-            joint, value, lo, hi = found[0]
-            k = joints.index(joint)
-            unit = robot.coordinate_units[k]
+    targets = [qf for qf in (getattr(law, "qf", None) for law in laws) if qf is not None]
+    for what, rows in ((name, q0s), ("qf", targets)):
+        if len(rows) == 0:
+            continue
+        q = np.asarray(rows, dtype=float)
+        bad = np.flatnonzero(((q < stated.lower) | (q > stated.upper)).any(axis=1))
+        if bad.size:
+            i = int(bad[0])
             label = what if len(rows) == 1 else f"{what}[{i}]"
-            hint = ": given in degrees?" if unit == "rad" and abs(value) > np.pi else ""
-            warnings.warn(
-                f"{label} of joint {joint!r} is {value:.6g} {unit}, outside "
-                f"[{lo:.3g}, {hi:.3g}]{hint}",
-                LimitWarning,
-                stacklevel=4,
-            )
-            break
+            line = outside_messages(robot, {label: q[i]})[0]
+            warnings.warn(line, LimitWarning, stacklevel=4)
 
 
 def _demanded(
@@ -221,3 +222,41 @@ def energy_law(law: Any, events: Sequence[Any], rp: RunPhysics) -> Any:
     if any(e.kind == "effort" for e in events):
         return _UNRULED
     return law
+
+
+def outside_messages(robot: Robot, named: dict[str, Any]) -> list[str]:
+    """One line per named coordinates (``{"q0": q0, "qf": qf}``) outside a position limit.
+
+    E.g. "q0 of joint 'elbow_joint' is 4.2 rad, outside [-3.14, 3.14]: given in degrees?"
+    (the first joint outside; a value past π rad asks whether it was given in degrees).
+    """
+    stated = physical_model(robot)
+    joints = joint_names(robot)
+    lines = []
+    for label, q in named.items():
+        if q is None:
+            continue
+        found = outside_limits(np.asarray(q, dtype=float), stated, joints)
+        if found:
+            joint, value, lo, hi = found[0]
+            unit = robot.coordinate_units[joints.index(joint)]
+            hint = ": given in degrees?" if unit == "rad" and abs(value) > np.pi else ""
+            lines.append(
+                f"{label} of joint {joint!r} is {value:.6g} {unit}, outside "
+                f"[{lo:.3g}, {hi:.3g}]{hint}"
+            )
+    return lines
+
+
+def physics_facts(robot: Robot, q0: Any, **switches: bool) -> dict:
+    """The run's physical model for metadata: switches, parameters, what was not given."""
+    if robot.is_chapter_arm:
+        return {"applied": False, "why": "the chapter's arm states no binding limit"}
+    p = physical_model(robot, **switches)
+    if p.active:
+        import pinocchio as pin
+
+        model = robot.model
+        x = robot.configuration(np.asarray(q0, dtype=float))
+        p = p.at(np.diag(pin.crba(model, model.createData(), x)).copy())
+    return {"switches": dict(switches), **p.parameters()}

@@ -31,9 +31,17 @@ from rrt_pin.cli.commands._common import (
 )
 from rrt_pin.cli.commands._laws import law_from_args, law_source
 from rrt_pin.cli.commands._progress import Progress
+from rrt_pin.cli.commands._run_summary import summary, summary_text
 from rrt_pin.core import backends
 from rrt_pin.core.errors import InputError
 from rrt_pin.io.files import check_outputs, check_space
+from rrt_pin.robot.limits import (
+    FRICTION_VELOCITY,
+    LIMIT_DAMPING_RATIO,
+    LIMIT_OMEGA,
+    MAX_STEP_OMEGA,
+    LimitWarning,
+)
 from rrt_pin.simulate import methods
 
 if TYPE_CHECKING:
@@ -193,6 +201,37 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "from MODULE (found in the current directory first) or a file PATH.py; checked at "
         "every call",
     )
+    physics = parser.add_argument_group(
+        "limits, damping and friction (URDF robots, on by default; the chapter's arm states "
+        "no binding limit)"
+    )
+    physics.add_argument(
+        "--no-effort-limits",
+        dest="effort_limits",
+        action="store_false",
+        help="do not saturate the law's efforts at the URDF's <limit effort> [N·m or N] "
+        "(the output efforts are the saturated ones: what the actuators apply)",
+    )
+    physics.add_argument(
+        "--no-position-limits",
+        dest="position_limits",
+        action="store_false",
+        help="do not hold the joints in the URDF's <limit lower upper> [rad or m]. The "
+        "limits are compliant (as MuJoCo's soft constraints): past one, a spring-damper "
+        f"that only pushes back, k = M_kk*omega^2, b = 2*zeta*M_kk*omega, omega = "
+        f"{LIMIT_OMEGA:g} rad/s, damping ratio zeta = {LIMIT_DAMPING_RATIO:g} (critical), "
+        "M_kk the joint's inertia at q0; fixed-step methods then need --step <= "
+        f"{MAX_STEP_OMEGA:g}/omega = {MAX_STEP_OMEGA / LIMIT_OMEGA:g} s. Continuous joints "
+        "have none; velocity limits are reported, never enforced",
+    )
+    physics.add_argument(
+        "--no-losses",
+        dest="losses",
+        action="store_false",
+        help="do not apply the URDF's <dynamics damping friction>: viscous damping -d*qd "
+        "and Coulomb friction regularised as -f*tanh(qd / v), v = "
+        f"{FRICTION_VELOCITY:g} rad/s or m/s",
+    )
     parser.add_argument(
         "--no-error-estimate",
         dest="error_estimate",
@@ -288,8 +327,27 @@ def run(args: argparse.Namespace) -> int:
     if start is not None:  # a tracked motion starts the run on it unless told otherwise
         q0 = start[0] if args.q0 is None else q0
         qd0 = start[1] if args.qd0 is None else qd0
+    switches = {
+        "effort_limits": getattr(args, "effort_limits", True),
+        "position_limits": getattr(args, "position_limits", True),
+        "losses": getattr(args, "losses", True),
+    }
+    from rrt_pin.core._logging import note
+    from rrt_pin.simulate.physical_runs import outside_messages, physics_facts
+
+    qf = robot.defaults.qf if not passive else getattr(law, "qf", None)
+    for line in outside_messages(robot, {"q0": q0, "qf": qf}):
+        note(f"warning: {line}")
+    physical = physics_facts(robot, q0, **switches)
+    if physical.get("not_given"):
+        logging.getLogger("rrt_pin").info(
+            "simulate: limits not given (a zero range or a zero effort in the URDF: no limit) "
+            "for joints %s",
+            ", ".join(physical["not_given"]),
+        )
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", AccuracyWarning)  # said below, in one line
+        warnings.simplefilter("ignore", LimitWarning)  # said above, as a note
         result = simulate(
             robot,
             law,
@@ -303,6 +361,7 @@ def run(args: argparse.Namespace) -> int:
             step=step,
             estimate_error=getattr(args, "error_estimate", True),
             accuracy=accuracy,
+            **switches,
         )
     from rrt_pin.core.text import duration
 
@@ -328,6 +387,7 @@ def run(args: argparse.Namespace) -> int:
 
         extra = frame_table(robot, result.q, result.qd, frames, frame_velocities)
     facts = summary(robot, result, law_name)
+    facts["physical"] = physical
     given = args.rtol is not None or args.atol is not None
     facts["accuracy"] = chosen.accuracy
     facts["tolerances"] = ("given" if given else "chosen for the accuracy") if not fixed else None
@@ -339,7 +399,8 @@ def run(args: argparse.Namespace) -> int:
         kp=[float(x) for x in d.kp] if d.kp is not None and not passive else None,
         kd=[float(x) for x in d.kd] if d.kd is not None and not passive else None,
         qd0=[float(x) for x in qd0] if qd0 is not None else None,
-        error_estimate=facts["error_estimate"],
+        error_estimate=facts["error_estimate"], physical=physical,
+        limit_events=facts["limits"],
     )  # fmt: skip
     progress = Progress(result.t.size, f"writing {args.csv}", force=args.progress)
 
@@ -378,40 +439,6 @@ def _accuracy_warning(result: SimulationResult, est: ErrorEstimate) -> str:
     )
 
 
-def _estimate_facts(robot: Robot, result: SimulationResult) -> dict | None:
-    """The error estimate for the summary and --json (None when not computed)."""
-    est = result.estimate
-    if est is None:
-        return None
-    return {
-        "max": float(est.max),
-        "per_coordinate": [
-            {"name": name, "value": float(e), "unit": unit}
-            for name, e, unit in zip(result.q_names, est.q, robot.coordinate_units, strict=True)
-        ],
-        "accuracy": float(est.accuracy),
-        "exceeded": bool(est.exceeded),
-        "how": est.how,
-        "wall_time": float(est.wall_time),
-    }
-
-
-def _estimate_line(facts: dict) -> str:
-    est = facts.get("error_estimate")
-    if est is None:
-        why = facts.get("error_estimate_failure")
-        return "estimated global error of q(t): not computed" + (f": {why}" if why else "")
-    from rrt_pin.core.text import duration
-
-    per = ", ".join(f"{e['name']} {e['value']:.2g} {e['unit']}" for e in est["per_coordinate"])
-    verdict = "exceeds" if est["exceeded"] else "within"
-    return (
-        f"estimated global error of q(t), max over t: {per} ({verdict} the accuracy asked "
-        f"for, {est['accuracy']:.2g} rad or m; companion run: {est['how']}, "
-        f"{duration(est['wall_time'])})"
-    )
-
-
 def write_result(
     fh: IO[bytes],
     fmt: str,
@@ -441,97 +468,6 @@ def write_result(
             sink.write(np.column_stack(parts))
             if progress is not None:
                 progress.update(stop - start)
-
-
-def summary(robot: Robot, result: SimulationResult, regulator: str | None = None) -> dict:
-    """The run's summary as data: final distances to qf, settling times, peak efforts.
-
-    ``regulator``: the law's name (default the robot's regulator). Without a target
-    (a passive run of a robot that has none) the distances and settling times are None.
-
-    A pure function of the result; :func:`summary_text` prints it and ``--json``
-    writes it.
-    """
-    import numpy as np
-
-    from rrt_pin.simulate.metrics import SETTLING_BAND, settling_times
-
-    t, q, tau = result.t, result.q, result.tau
-    qf = robot.defaults.qf
-    q0 = robot.defaults.q0 if robot.defaults.q0 is not None else q[0]
-    settled = settling_times(t, q, q0, qf) if qf is not None else [None] * q.shape[1]
-    joints = [
-        {
-            "name": name,
-            "unit": robot.coordinate_units[k],
-            "q_tf": float(q[-1, k]),
-            "qf": None if qf is None else float(qf[k]),
-            "distance": None if qf is None else float(abs(q[-1, k] - qf[k])),
-            "settled_at": None if settled[k] is None else float(settled[k]),
-        }
-        for k, name in enumerate(result.q_names)
-    ]
-    peaks = []
-    for k, name in enumerate(result.tau_names):
-        i = int(np.argmax(np.abs(tau[:, k])))
-        peaks.append(
-            {"name": name, "unit": robot.effort_units[k], "peak": float(abs(tau[i, k])),
-             "t": float(t[i])}
-        )  # fmt: skip
-    return {
-        "command": "simulate",
-        "robot": robot.name,
-        "regulator": regulator or robot.regulator,
-        "samples": int(t.size),
-        "t0": float(t[0]),
-        "tf": float(t[-1]),
-        "method": result.method,
-        "backend": result.backend,
-        "rtol": result.rtol,
-        "atol": result.atol,
-        "step": result.step,
-        "evaluations": int(result.n_evals),
-        "wall_time": float(result.wall_time),
-        "error_estimate": _estimate_facts(robot, result),
-        "error_estimate_failure": result.estimate_failure,
-        "settling_band": SETTLING_BAND,
-        "joints": joints,
-        "peaks": peaks,
-    }
-
-
-def summary_text(facts: dict) -> str:
-    """The summary for people: final distance to qf, 2 % settling time, peak efforts."""
-    from rrt_pin.core.text import duration
-
-    tol = (
-        f"rtol {facts['rtol']:g}, atol {facts['atol']:g}"
-        if facts["rtol"]
-        else f"step {facts['step']:g} s"
-    )
-    if facts.get("tolerances") == "chosen for the accuracy":
-        tol += f", chosen for accuracy {facts['accuracy']:g} rad or m"
-    lines = [
-        f"simulated the {facts['robot']} under {facts['regulator']}: {facts['samples']} samples, "
-        f"t = {facts['t0']:g} .. {facts['tf']:g} s, method {facts['method']} ({tol}), "
-        f"backend {facts['backend']}, {facts['evaluations']} evaluations, "
-        f"{duration(facts['wall_time'])}",
-        _estimate_line(facts),
-        f"{'joint':<24} {'q(tf)':>14} {'qf':>14} {'|q(tf) - qf|':>16}  {'settled (2 %) at t':>18}",
-    ]
-    for j in facts["joints"]:
-        when = f"{j['settled_at']:.6g} s" if j["settled_at"] is not None else "not settled"
-        if j["qf"] is None:
-            lines.append(f"{j['name']:<24} {j['q_tf']:>14.10g} {'-':>14} {'-':>12} {j['unit']:<3}")
-            continue
-        lines.append(
-            f"{j['name']:<24} {j['q_tf']:>14.10g} {j['qf']:>14.10g} "
-            f"{j['distance']:>12.3e} {j['unit']:<3}  {when:>18}"
-        )
-    lines.append(f"{'effort':<24} {'peak |effort|':>16}  {'at t [s]':>10}")
-    for p in facts["peaks"]:
-        lines.append(f"{p['name']:<24} {p['peak']:>12.6g} {p['unit']:<3}  {p['t']:>10.6g}")
-    return "\n".join(lines) + "\n"
 
 
 def _picture(robot: Robot, result: SimulationResult, path: str) -> bytes:
