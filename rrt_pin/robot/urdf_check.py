@@ -329,12 +329,32 @@ def _check_joint(joint: ET.Element) -> None:
     if kind not in _JOINT_TYPES:
         raise UrdfError(f"{owner} has an unknown type {kind!r}; valid: {', '.join(_JOINT_TYPES)}")
     _check_numbers(owner, joint, _JOINT_NUMBERS, {"axis": "invalid axis: "})
+    _check_limits(owner, joint)
     axis = joint.find("axis")
     if kind in ("fixed", "floating", "planar") or axis is None:
         return
     text = axis.get("xyz", "1 0 0")
     if math.hypot(*(float(v) for v in text.split())) < 1e-12:
         raise UrdfError(f"{owner} has a zero axis xyz={text!r}")
+
+
+def _check_limits(owner: str, joint: ET.Element) -> None:
+    """Refuse limits no joint can have: lower > upper, a negative effort, velocity, damping or friction.
+
+    Pinocchio would keep some silently and refuse others in its own words.
+    """
+    limit, dynamics = joint.find("limit"), joint.find("dynamics")
+    if limit is not None and limit.get("lower") is not None and limit.get("upper") is not None:
+        lower, upper = float(limit.get("lower", "0")), float(limit.get("upper", "0"))
+        if lower > upper:
+            raise UrdfError(
+                f"{owner} <limit lower upper>: lower {lower:.6g} is above upper {upper:.6g}"
+            )
+    for element, attrs in ((limit, ("effort", "velocity")), (dynamics, ("damping", "friction"))):
+        for attr in attrs:
+            text = None if element is None else element.get(attr)
+            if text is not None and float(text) < 0.0:
+                raise UrdfError(f"{owner} <{element.tag} {attr}>: negative, {float(text):.6g}")
 
 
 def _check_mimic(root: ET.Element, policy: MimicPolicy) -> None:
