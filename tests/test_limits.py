@@ -1,0 +1,263 @@
+"""A robot's limits, damping and friction: applied as its URDF says, and every crossing reported."""
+
+import json
+import math
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from rrt_pin.cli.app import main
+from rrt_pin.core.errors import InputError
+from rrt_pin.core.grid import time_grid
+from rrt_pin.robot.limits import (
+    LIMIT_OMEGA,
+    LimitWarning,
+    applied_efforts,
+    applied_jacobian,
+    applier,
+    physical_model,
+)
+from rrt_pin.robot.params import Params
+from rrt_pin.robot.robot import Robot
+from rrt_pin.robot.robots import chapter_arm, get
+from rrt_pin.simulate import simulate
+from rrt_pin.simulate.control import pd_gravity_controller, seed_controller
+from rrt_pin.simulate.crossings import limit_events
+from rrt_pin.simulate.symplectic import mechanical_energy
+
+G = 9.81
+#: The slider's fall to its lower limit [m].
+DROP = 0.2
+
+_LINK = (
+    '<link name="{name}"><inertial><origin xyz="{com}"/><mass value="{m}"/>'
+    '<inertia ixx="{i}" iyy="{i}" izz="{i}" ixy="0" ixz="0" iyz="0"/></inertial></link>'
+)
+
+
+def _joint(name, kind, parent, child, xyz, axis, limit, dynamics=""):
+    return (
+        f'<joint name="{name}" type="{kind}"><parent link="{parent}"/><child link="{child}"/>'
+        f'<origin xyz="{xyz}"/><axis xyz="{axis}"/><limit {limit}/>{dynamics}</joint>'
+    )
+
+
+def slider(lower=-DROP, upper=1.0, damping=0.0, friction=0.0, effort=100.0):
+    """A 2 kg body on a vertical prismatic joint (gravity along −z)."""
+    dyn = f'<dynamics damping="{damping}" friction="{friction}"/>'
+    xml = (
+        '<robot name="slider"><link name="base"/>'
+        + _LINK.format(name="body", com="0 0 0", m=2.0, i=0.01)
+        + _joint("slide", "prismatic", "base", "body", "0 0 0", "0 0 1",
+                 f'lower="{lower}" upper="{upper}" effort="{effort}" velocity="10"', dyn)
+        + "</robot>"
+    )  # fmt: skip
+    return Robot.from_model(pin.buildModelFromXML(xml))
+
+
+def pendulum2(damping=(0.3, 0.2), limit=100.0, effort=1000.0):
+    """Two revolute joints about y, links 0.5 m, 1 kg each."""
+    lim = f'lower="-{limit}" upper="{limit}" effort="{effort}" velocity="1000"'
+    xml = (
+        '<robot name="p2"><link name="base"/>'
+        + _LINK.format(name="l1", com="0 0 -0.25", m=1.0, i=0.02)
+        + _LINK.format(name="l2", com="0 0 -0.25", m=1.0, i=0.02)
+        + _joint("j1", "revolute", "base", "l1", "0 0 0", "0 1 0", lim,
+                 f'<dynamics damping="{damping[0]}"/>')
+        + _joint("j2", "revolute", "l1", "l2", "0 0 -0.5", "0 1 0", lim,
+                 f'<dynamics damping="{damping[1]}"/>')
+        + "</robot>"
+    )  # fmt: skip
+    return Robot.from_model(pin.buildModelFromXML(xml))
+
+
+def test_applier_equals_the_definition():
+    rng = np.random.default_rng(3)
+    robot = pendulum2(limit=0.5, effort=3.0)
+    p = physical_model(robot).at(np.array([0.4, 0.1]))
+    for _ in range(20):
+        tau, q, qd = rng.normal(0, 5, 2), rng.normal(0, 1, 2), rng.normal(0, 2, 2)
+        np.testing.assert_array_equal(applier(p)(tau, q, qd), applied_efforts(tau, q, qd, p))
+
+
+def test_applied_jacobian_matches_finite_differences():
+    robot = pendulum2(limit=0.5, effort=3.0)
+    p = physical_model(robot).at(np.array([0.4, 0.1]))
+    kp, kd = np.diag([2.0, 50.0]), np.diag([0.5, 0.7])
+    q, qd = np.array([0.2, 0.6]), np.array([-0.3, 0.4])  # joint 2 past its limit, law saturated
+
+    def law(q, qd):
+        return -kp @ q - kd @ qd
+
+    dq, dv = applied_jacobian(law(q, qd), -kp, -kd, q, qd, p)
+    h = 1e-7
+    for j in range(2):
+        e = np.eye(2)[j] * h
+        fq = (applied_efforts(law(q + e, qd), q + e, qd, p)
+              - applied_efforts(law(q - e, qd), q - e, qd, p)) / (2 * h)  # fmt: skip
+        fv = (applied_efforts(law(q, qd + e), q, qd + e, p)
+              - applied_efforts(law(q, qd - e), q, qd - e, p)) / (2 * h)  # fmt: skip
+        np.testing.assert_allclose(dq[:, j], fq, rtol=1e-6, atol=1e-6)
+        np.testing.assert_allclose(dv[:, j], fv, rtol=1e-6, atol=1e-6)
+
+
+@pytest.mark.parametrize("dt", [0.01, 0.001])
+def test_a_slider_falls_onto_its_limit_at_the_closed_form_time(dt):
+    robot = slider()
+    t = time_grid(0.4, dt)
+    r = simulate(robot, None, [0.0], None, t, estimate_error=False)
+    contact = math.sqrt(2 * DROP / G)
+    (event,) = [e for e in r.limits if e.kind == "position"]
+    assert event.joint == "slide" and event.unit == "m" and event.count >= 1
+    assert contact <= event.first_time <= contact + dt
+    # the compliant limit holds it within millimetres (v/(e·ω) for a critically damped stop)
+    v = math.sqrt(2 * G * DROP)
+    assert 0.0 < event.extent <= 1.2 * v / (math.e * LIMIT_OMEGA)
+    free = simulate(robot, None, [0.0], None, t, estimate_error=False, position_limits=False)
+    assert free.q.min() < -DROP - 0.3  # without the limit it falls through
+
+
+def test_viscous_damping_dissipates_exactly_what_it_removes():
+    robot = pendulum2()
+    d = physical_model(robot).damping
+    t = time_grid(0.4, 2e-5)
+    r = simulate(robot, None, [1.0, -0.5], [0.0, 2.0], t, rtol=1e-13, atol=1e-15,
+                 estimate_error=False)  # fmt: skip
+    energy = mechanical_energy(robot.model, r.q, r.qd)
+    power = (d * r.qd**2).sum(axis=1)
+    dissipated = np.concatenate(([0.0], np.cumsum(0.5 * (power[1:] + power[:-1]) * np.diff(t))))
+    assert dissipated[-1] > 0.1  # a real loss
+    assert np.abs(energy - energy[0] + dissipated).max() <= 1e-8 * dissipated[-1]
+    undamped = simulate(robot, None, [1.0, -0.5], [0.0, 2.0], t[:2001], rtol=1e-13,
+                        atol=1e-15, estimate_error=False, losses=False)  # fmt: skip
+    drift = mechanical_energy(robot.model, undamped.q, undamped.qd)
+    assert np.abs(drift - drift[0]).max() < 1e-9 * dissipated[-1]
+
+
+def test_a_compliant_limit_never_adds_energy():
+    robot = slider()
+    p = physical_model(robot).at(np.array([2.0]))
+    t = time_grid(0.4, 1e-4)
+    r = simulate(robot, None, [0.0], None, t, rtol=1e-12, atol=1e-14, estimate_error=False)
+    depth = np.maximum(-DROP - r.q[:, 0], 0.0)
+    total = mechanical_energy(robot.model, r.q, r.qd) + 0.5 * p.stiffness[0] * depth**2
+    scale = 2.0 * G * DROP
+    assert (np.diff(total) <= 1e-9 * scale).all()
+    before = total[t <= math.sqrt(2 * DROP / G)][-1]
+    assert total[-1] < before - 0.5 * scale  # the stop took most of the energy
+
+
+def test_efforts_are_saturated_and_the_demand_reported():
+    robot = pendulum2(effort=2.0, damping=(0.0, 0.0))
+    law = pd_gravity_controller(robot, 100.0, 10.0, [1.0, 0.0])
+    t = time_grid(1.0, 0.01)
+    r = simulate(robot, law, [0.0, 0.0], None, t, estimate_error=False)
+    assert np.abs(r.tau).max() == 2.0
+    demanded = law.efforts_many(t, r.q, r.qd)
+    np.testing.assert_array_equal(r.tau, np.clip(demanded, -2.0, 2.0))
+    (event,) = [e for e in r.limits if e.kind == "effort" and e.joint == "j1"]
+    assert event.extent == np.abs(demanded[:, 0]).max() > 2.0
+    assert event.first_time == 0.0 and 0.0 < event.saturated_time <= 1.0
+    assert event.unit == "N·m"
+    free = simulate(robot, law, [0.0, 0.0], None, t, estimate_error=False, effort_limits=False)
+    assert np.abs(free.tau).max() > 50.0
+
+
+def test_the_chapter_arm_is_bit_identical_with_and_without_the_switches():
+    p = Params()
+    t = time_grid(1.0, 0.01)
+    off = {"effort_limits": False, "position_limits": False, "losses": False}
+    for robot in (chapter_arm(p), Robot.from_model(chapter_arm(p).model)):
+        a = simulate(robot, seed_controller(p), p.q0, p.qd0, t, estimate_error=False)
+        b = simulate(robot, seed_controller(p), p.q0, p.qd0, t, estimate_error=False, **off)
+        assert np.array_equal(a.table(), b.table()) and a.n_evals == b.n_evals
+        assert a.limits == ()
+
+
+def test_a_passive_ur5_stops_at_its_elbow_limit():
+    robot = get("ur5")
+    q0 = [0.0, -1.0, 1.0, 0.3, 0.5, 0.0]
+    t = time_grid(1.6, 0.01)
+    held = simulate(robot, None, q0, None, t, estimate_error=False)
+    assert np.abs(held.q[:, 2]).max() <= math.pi + 0.02
+    assert any(e.joint == "elbow_joint" and e.kind == "position" for e in held.limits)
+    free = simulate(robot, None, q0, None, t, estimate_error=False, position_limits=False)
+    assert np.abs(free.q[:, 2]).max() > math.pi + 0.5
+
+
+def test_a_start_outside_the_limits_warns():
+    robot = pendulum2(limit=1.0)
+    with pytest.warns(
+        LimitWarning, match=r"q0 of joint 'j1' is 90 rad, outside \[-1, 1\]: given in degrees\?"
+    ):  # noqa: E501
+        simulate(robot, None, [90.0, 0.0], None, time_grid(0.001, 0.001), estimate_error=False)
+
+
+def test_a_fixed_step_too_long_for_the_limits_is_refused():
+    robot = slider()
+    t = time_grid(0.3, 0.01)
+    with pytest.raises(InputError, match="step=0.01 s is too long .* joint 'slide'.* 0.0025 s"):
+        simulate(robot, None, [0.05], None, t, method="rk4")
+    r = simulate(robot, None, [0.05], None, t, method="rk4", step=0.0025, estimate_error=False)
+    assert -DROP - 0.01 < r.q[-1, 0] < -DROP  # held at the limit
+    free = simulate(robot, None, [0.05], None, t, method="rk4", position_limits=False,
+                    estimate_error=False)  # fmt: skip
+    assert free.q[-1, 0] < -DROP - 0.1
+
+
+def test_crossings_count_separate_runs_past_a_limit():
+    robot = pendulum2(limit=1.0, effort=5.0)
+    p = physical_model(robot)
+    t = np.arange(6) * 0.5
+    q = np.array([[0, 0], [1.5, 0], [0.5, 0], [1.2, 0], [1.1, 0], [0, -1.3]], dtype=float)
+    qd = np.zeros_like(q)
+    demanded = np.array([[6, 0], [6, 0], [0, 0], [0, 0], [0, 0], [0, 0]], dtype=float)
+    events = limit_events(t, q, qd, demanded, p, ["j1", "j2"], ["rad", "rad"])
+    by = {(e.joint, e.kind): e for e in events}
+    assert by["j1", "position"].count == 2 and by["j1", "position"].first_time == 0.5
+    assert by["j1", "position"].extent == 0.5
+    assert (
+        by["j2", "position"].first_time == 2.5
+        and by["j2", "position"].extent == 0.30000000000000004
+    )
+    effort = by["j1", "effort"]
+    assert (effort.extent, effort.count, effort.saturated_time) == (6.0, 1, 0.75)
+    assert ("j1", "velocity") not in by
+
+
+def test_the_cli_flags_and_summary(tmp_path, capsys):
+    urdf = tmp_path / "slider.urdf"
+    urdf.write_text(
+        '<robot name="slider"><link name="base"/>'
+        + _LINK.format(name="body", com="0 0 0", m=2.0, i=0.01)
+        + _joint("slide", "prismatic", "base", "body", "0 0 0", "0 0 1",
+                 f'lower="{-DROP}" upper="1" effort="100" velocity="10"',
+                 '<dynamics damping="0.1" friction="0.2"/>')
+        + "</robot>"
+    )  # fmt: skip
+    base = ["simulate", "--urdf", str(urdf), "--passive", "--q0", "0", "--tf", "0.4",
+            "--no-error-estimate"]  # fmt: skip
+    assert main([*base, "--json", str(tmp_path / "s.json")]) == 0
+    out, err = capsys.readouterr()
+    line = next(x for x in out.splitlines() if x.startswith("slide") and "position" in x)
+    assert "past by" in line and " m " in line
+    doc = json.loads((tmp_path / "s.json").read_text())
+    physical = doc["metadata"]["physical"]
+    assert physical["omega"] == LIMIT_OMEGA and physical["friction_coefficient"] == [0.2]
+    assert doc["summary"]["limits"][0]["kind"] == "position"
+    assert main([*base, "--no-position-limits", "--no-losses"]) == 0
+    out, _ = capsys.readouterr()
+    free = next(x for x in out.splitlines() if x.startswith("slide") and "position" in x)
+    assert free != line
+    assert main(["simulate", "--urdf", str(urdf), "--passive", "--q0", "-0.5", "--tf", "0.01",
+                 "--no-error-estimate"]) == 0  # fmt: skip
+    _, err = capsys.readouterr()
+    assert "warning: q0 of joint 'slide' is -0.5 m, outside [-0.2, 1]" in err
+    assert main(["simulate", "--urdf", str(urdf), "--passive", "--q0", "-0.5", "--tf", "0.01",
+                 "--no-error-estimate", "-q"]) == 0  # fmt: skip
+    assert capsys.readouterr().err == ""
+    with pytest.raises(SystemExit):
+        main(["simulate", "--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    assert "omega = 200 rad/s" in text and "v = 0.001 rad/s or m/s" in text
