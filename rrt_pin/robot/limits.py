@@ -378,20 +378,19 @@ def applier(p: Physical) -> Callable[[np.ndarray, np.ndarray, np.ndarray], np.nd
                              p.limit_damping)  # fmt: skip
     minus_e = -e
     v = FRICTION_VELOCITY
-    clip_, tanh, where, maximum, minimum = np.clip, np.tanh, np.where, np.maximum, np.minimum
+    tanh, where, maximum, minimum = np.tanh, np.where, np.maximum, np.minimum
+    least = np.minimum.reduce
 
     def apply(tau_law: np.ndarray, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
-        tau = clip_(tau_law, minus_e, e) if clip else tau_law
+        tau = minimum(maximum(tau_law, minus_e), e) if clip else tau_law
         if damp:
             tau = tau - d * qd
         if rub:
             tau = tau - f * tanh(qd / v)
-        if stops:
+        if stops and least(minimum(q - lo, hi - q), axis=None) < 0.0:  # some joint is past one
             below, above = q < lo, q > hi
-            if below.any():
-                tau = tau + where(below, maximum(0.0, k * (lo - q) - b * qd), 0.0)
-            if above.any():
-                tau = tau + where(above, minimum(0.0, k * (hi - q) - b * qd), 0.0)
+            tau = tau + where(below, maximum(0.0, k * (lo - q) - b * qd), 0.0)
+            tau = tau + where(above, minimum(0.0, k * (hi - q) - b * qd), 0.0)
         return tau
 
     return apply

@@ -43,6 +43,11 @@ def _without_gravity(model):  # noqa: ANN001, ANN202
     return free
 
 
+def q_is_x(robot: Robot) -> bool:
+    """Whether the joint coordinates are Pinocchio's configuration (no continuous joint)."""
+    return not robot.has_continuous_joints
+
+
 class ClosedLoop:
     """Accelerations of one run, and their Jacobian."""
 
@@ -58,10 +63,14 @@ class ClosedLoop:
         self.apply = None if physical is None else applier(physical)
         self.plain = not robot.has_continuous_joints
         feedback = controller.feedback()
-        self.folded = feedback is not None and feedback.exact_for(robot) and physical is None
+        exact = feedback is not None and feedback.exact_for(robot)
+        self.folded = exact and physical is None
+        #: PD plus the model's own G(q) under a physical model: G by Pinocchio, no law call
+        self.gravity_pd = exact and physical is not None
+        if exact:
+            self.kp, self.kd, self.qf = feedback.kp, feedback.kd, feedback.qf
         if self.folded:
             self.model = _without_gravity(robot.model)
-            self.kp, self.kd, self.qf = feedback.kp, feedback.kd, feedback.qf
         else:
             self.model = robot.model
 
@@ -77,6 +86,15 @@ class ClosedLoop:
             kp, kd, qf = self.kp, self.kd, self.qf
             return lambda t, q, v: aba(model, data, to_q(q), v, -kd * v - kp * (q - qf))
         efforts = self.controller.efforts
+        if self.gravity_pd and q_is_x(self.robot):
+            gravity, apply = pin.computeGeneralizedGravity, self.apply
+            kp, kd, qf = self.kp, self.kd, self.qf
+
+            def acc(t: float, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+                tau = -kd * v - kp * (q - qf) + gravity(model, data, q)
+                return aba(model, data, q, v, apply(tau, q, v))
+
+            return acc
         if self.apply is not None:
             apply = self.apply
             return lambda t, q, v: aba(model, data, to_q(q), v, apply(efforts(t, q, v), q, v))
