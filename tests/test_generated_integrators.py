@@ -39,7 +39,12 @@ def tree() -> Robot:
     return Robot.from_model(random_tree(3, joints=4))
 
 
+#: The law alone (the physical model has its own tests below and in tests/test_limits.py).
+LAW_ONLY = {"effort_limits": False, "position_limits": False, "losses": False}
+
+
 def _both(robot, law, q0, method, t=T, qd0=None, **options):
+    options = {**LAW_ONLY, **options}
     runs = [
         rrt_pin.simulate(robot, law, q0, qd0, t, method=method, backend=b, estimate_error=False,
                          **options)
@@ -151,7 +156,7 @@ def test_a_diverging_run_names_the_robots_coordinate(tree):
     law = pd_gravity_controller(tree, kp=1e9, kd=0.0, qf=np.zeros(tree.nv))
     with pytest.raises(DivergenceError) as e:
         rrt_pin.simulate(tree, law, np.full(tree.nv, 0.1), None, T, method="rk4", step=0.01,
-                         backend="compiled", estimate_error=False)  # fmt: skip
+                         backend="compiled", estimate_error=False, **LAW_ONLY)  # fmt: skip
     assert any(name in str(e.value) for name in (*tree.q_names, *tree.qd_names))
 
 
@@ -161,13 +166,13 @@ def test_failures_recorded_leave_the_other_variants_as_they_were(ur5, keep):
     q0s = rng.uniform(-1.0, 1.0, (5, 6))
     laws = [_pd(ur5, g) for g in (5.0, 10.0, 1e300, 20.0, 5.0)]  # variant 2 overflows
     run = rrt_pin.simulate_batch(ur5, laws, q0s, None, T, backend="compiled", keep=keep,
-                                 failures="record", estimate_error=False)  # fmt: skip
+                                 failures="record", estimate_error=False, **LAW_ONLY)  # fmt: skip
     assert [f is None for f in run.failures] == [True, True, False, True, True]
     assert isinstance(run.failures[2], DivergenceError)
     assert np.isnan(run.q[2]).all() and run.estimate_failure is None
     ok = [0, 1, 3, 4]
     others = rrt_pin.simulate_batch(ur5, [laws[i] for i in ok], q0s[ok], None, T,
-                                    backend="compiled", keep=keep, estimate_error=False)  # fmt: skip
+                                    backend="compiled", keep=keep, estimate_error=False, **LAW_ONLY)  # fmt: skip
     assert np.array_equal(run.q[ok], others.q)  # the lanes keep each variant's bits
     assert run.evaluations.shape == (5,) and (run.evaluations[ok] > 0).all()
     if keep == "metrics":
@@ -176,19 +181,19 @@ def test_failures_recorded_leave_the_other_variants_as_they_were(ur5, keep):
             assert np.isnan(run.metrics[name][2])
     with pytest.raises(DivergenceError, match=r"variant 2"):
         rrt_pin.simulate_batch(ur5, laws, q0s, None, T, backend="compiled", keep=keep,
-                               estimate_error=False)  # fmt: skip
+                               estimate_error=False, **LAW_ONLY)  # fmt: skip
 
 
 def test_failures_recorded_on_the_pinocchio_backend_one_variant_at_a_time(tree):
     q0s = np.array([[0.1, 0.2, 0.01, 0.3], [0.2, 0.1, 0.02, 0.1], [0.3, 0.0, 0.0, 0.2]])
     laws = [_pd(tree, 5.0), _pd(tree, 1e300), _pd(tree, 10.0)]
     run = rrt_pin.simulate_batch(tree, laws, q0s, None, T, method="DOP853", keep="final",
-                                 failures="record")  # fmt: skip
+                                 failures="record", **LAW_ONLY)  # fmt: skip
     assert [f is None for f in run.failures] == [True, False, True]
     assert run.estimate_failure == "a variant failed" and np.isnan(run.q[1]).all()
     for i in (0, 2):
         one = rrt_pin.simulate(tree, laws[i], q0s[i], None, T, method="DOP853",
-                               estimate_error=False)  # fmt: skip
+                               estimate_error=False, **LAW_ONLY)  # fmt: skip
         np.testing.assert_allclose(run.q[i, 0], one.q[-1], rtol=0, atol=1e-8)
     with pytest.raises(InputError, match="failures"):
         rrt_pin.simulate_batch(tree, laws, q0s, None, T, failures="ignore")
@@ -253,3 +258,14 @@ def test_the_compiled_runs_apply_limits_damping_and_friction(ur5, ur5_physics):
     batch = robot_runs.run_batch(ur5, [law] * 3, q0s, np.zeros((3, 6)), t, options, physical=p)
     assert np.abs(batch.q[0] - reference).max() < 1e-8
     assert np.abs(applied_efforts(demanded, one.q, one.qd, p) - demanded).max() > 1.0
+
+
+def test_the_front_door_gives_both_backends_the_physical_model(ur5, ur5_physics):
+    """simulate(..., backend=...) with the URDF's limits on: compiled and Pinocchio agree."""
+    law, _, q0, t, _ = ur5_physics
+    fast, engine = _both(ur5, law, q0, "DOP853", t=t, rtol=1e-11, atol=1e-13,
+                         effort_limits=True, position_limits=True)  # fmt: skip
+    assert np.abs(fast.q - engine.q).max() < 1e-8
+    assert fast.q[:, 2].max() < np.pi + 0.02 and fast.q[:, 2].max() > np.pi  # held at π
+    np.testing.assert_allclose(fast.tau, engine.tau, rtol=1e-6, atol=1e-6)
+    assert np.abs(fast.tau[:, 0]).max() == pytest.approx(150.0)  # saturated

@@ -23,7 +23,15 @@ def jit(f):  # the module's header defines numba's
     return f
 
 
+def rhs_sincos(w):  # generated: the sines and cosines of rhs_lanes's work array
+    raise NotImplementedError
+
+
 def rhs_lanes(w):  # generated: ẏ of LANE_COUNT states under PD plus gravity, in place in w
+    raise NotImplementedError
+
+
+def phys_sincos(w):  # generated: the sines and cosines of the physical kernels' work array
     raise NotImplementedError
 
 
@@ -31,15 +39,12 @@ def gravity_lanes(w):  # generated: G(q) of LANE_COUNT states, in place in w
     raise NotImplementedError
 
 
-def fwd_lanes(w):  # generated: ẏ of LANE_COUNT states under the efforts in rows n…n+nv−1
+def free_lanes(w):  # generated: ẏ without gravity of LANE_COUNT states, efforts in rows n…
     raise NotImplementedError
 
 
-LANE_COUNT = RHS_LANES_ROWS = RHS_LANES_OUT = GRAVITY_LANES_ROWS = GRAVITY_LANES_OUT = 0
-FWD_LANES_ROWS = FWD_LANES_OUT = 0
+LANE_COUNT = RHS_ROWS = RHS_LANES_OUT = PHYS_ROWS = GRAVITY_LANES_OUT = FREE_LANES_OUT = 0
 FRICTION_VELOCITY = 1e-3
-
-
 first_step = adaptive = efforts_at = metrics_of = samples_until = rhs_lanes
 SAFETY = MIN_FACTOR = MAX_FACTOR = 0.0
 D8_NS = D8_A = D8_C = D8_E3 = D8_E5 = D8_D = RK45_AB = RK45_C = RK45_E = RK45_P = None
@@ -145,40 +150,44 @@ def dense_lanes(dop853, n_stages, K, Y, Ynew, h, F):
 
 
 @jit
-def stage_lanes(phys, Y, K, A, s, h, lanes_w, wy, wo, wf, wfy, wft, wfo, gw, gy, gout, CL, P):
+def stage_lanes(phys, Y, K, A, s, h, lanes_w, wy, wo, wf, wfy, wft, wfo, gout, CL, P):
     """Stage s of every lane: its state into the work rows, ẏ into K[s]; the state's rows.
 
     Without a physical model (phys[0] == 0), ``rhs_lanes`` (PD with the gravity folded);
-    else G(q) by ``gravity_lanes``, the PD-plus-G efforts saturated at the effort limits
-    plus damping, friction and the compliant position limits (``passive``'s terms, in its
-    order), then ``fwd_lanes`` with gravity.
+    else G(q) by ``gravity_lanes``, the PD-plus-G efforts saturated at the effort limits,
+    less G, plus damping, friction and the compliant position limits (``passive``'s
+    terms), then ``free_lanes``: the forward dynamics without gravity under them.
     """
     if phys[0] == 0:
         combine_lanes(Y, K, A, s, h, wy)
+        rhs_sincos(lanes_w)
         rhs_lanes(lanes_w)
         K[s, :, :] = wo
         return wy
     combine_lanes(Y, K, A, s, h, wfy)
-    gy[:, :] = wfy
-    gravity_lanes(gw)
+    phys_sincos(wf)  # once for G and the forward dynamics
+    gravity_lanes(wf)
     nv = Y.shape[0] // 2
     for k in range(nv):
         lo, hi, e, d, fr, kk, bb = P[0, k], P[1, k], P[2, k], P[3, k], P[4, k], P[5, k], P[6, k]
         for lane in range(LANE_COUNT):
             q = wfy[k, lane]
             v = wfy[nv + k, lane]
-            t = (-CL[nv + k, lane] * v - CL[k, lane] * (q - CL[2 * nv + k, lane])) + gout[k, lane]
+            g = gout[k, lane]
+            t = (-CL[nv + k, lane] * v - CL[k, lane] * (q - CL[2 * nv + k, lane])) + g
             if t > e:
                 t = e
             elif t < -e:
                 t = -e
-            f = -d * v - fr * math.tanh(v / FRICTION_VELOCITY)
+            f = -d * v
+            if fr != 0.0:
+                f -= fr * math.tanh(v / FRICTION_VELOCITY)
             if q < lo:
                 f += max(0.0, kk * (lo - q) - bb * v)
             elif q > hi:
                 f += min(0.0, kk * (hi - q) - bb * v)
-            wft[k, lane] = t + f
-    fwd_lanes(wf)
+            wft[k, lane] = (t - g) + f
+    free_lanes(wf)
     K[s, :, :] = wfo
     return wfy
 
@@ -187,8 +196,8 @@ def stage_lanes(phys, Y, K, A, s, h, lanes_w, wy, wo, wf, wfy, wft, wfo, gw, gy,
 def efforts_lanes(ys, rows, c, taus, gw, P, phys):
     """PD plus G(q) at the first ``rows`` states ys (…, n) into taus, LANE_COUNT at a time.
 
-    ``gw``: the work array of ``gravity_lanes``. Returns -1, or nv·i + k of the first
-    non-finite effort.
+    ``gw``: the work array of the physical kernels (``gravity_lanes``). Returns -1, or
+    nv·i + k of the first non-finite effort.
     """
     n = ys.shape[1]
     nv = n // 2
@@ -199,6 +208,7 @@ def efforts_lanes(ys, rows, c, taus, gw, P, phys):
         for i in range(n):
             for j in range(L):
                 gw[i * L + j] = ys[start + min(j, m - 1), i]
+        phys_sincos(gw)
         gravity_lanes(gw)
         for j in range(m):
             y = ys[start + j]
@@ -243,7 +253,7 @@ def run_lanes(
     Y = np.zeros((n, L))
     Ynew = np.zeros((n, L))
     K = np.zeros((16, n, L))
-    lanes_w = np.zeros(RHS_LANES_ROWS * L)
+    lanes_w = np.zeros(RHS_ROWS * L)
     wy = lanes_w[: n * L].reshape((n, L))
     CL = lanes_w[n * L : (n + 3 * nv) * L].reshape((3 * nv, L))
     wo = lanes_w[RHS_LANES_OUT * L : (RHS_LANES_OUT + n) * L].reshape((n, L))
@@ -268,13 +278,11 @@ def run_lanes(
     scale = np.empty(n)
     F = np.empty((7, n))
     FL = np.zeros((7, n, L))
-    gw = np.zeros(GRAVITY_LANES_ROWS * L)
-    gy = gw[: n * L].reshape((n, L))
-    gout = gw[GRAVITY_LANES_OUT * L : (GRAVITY_LANES_OUT + nv) * L].reshape((nv, L))
-    wf = np.zeros(FWD_LANES_ROWS * L)
+    wf = np.zeros(PHYS_ROWS * L)
+    gout = wf[GRAVITY_LANES_OUT * L : (GRAVITY_LANES_OUT + nv) * L].reshape((nv, L))
     wfy = wf[: n * L].reshape((n, L))
     wft = wf[n * L : (n + nv) * L].reshape((nv, L))
-    wfo = wf[FWD_LANES_OUT * L : (FWD_LANES_OUT + n) * L].reshape((n, L))
+    wfo = wf[FREE_LANES_OUT * L : (FREE_LANES_OUT + n) * L].reshape((n, L))
     ERR = np.zeros((n, L))
     e5s = np.zeros(L)
     e3s = np.zeros(L)
@@ -350,7 +358,7 @@ def run_lanes(
             t_next[lane] = t_new
         for s in range(1, n_stages + 1):
             target = stage_lanes(
-                phys, Y, K, A, s, h, lanes_w, wy, wo, wf, wfy, wft, wfo, gw, gy, gout, CL, P
+                phys, Y, K, A, s, h, lanes_w, wy, wo, wf, wfy, wft, wfo, gout, CL, P
             )
         Ynew[:, :] = target
         # Each lane's error norm: accepted, or rejected with a smaller step.
@@ -414,7 +422,7 @@ def run_lanes(
         if any_dense and dop853:
             for s in range(n_stages + 1, 16):
                 stage_lanes(
-                    phys, Y, K, D8_A, s, h, lanes_w, wy, wo, wf, wfy, wft, wfo, gw, gy, gout,
+                    phys, Y, K, D8_A, s, h, lanes_w, wy, wo, wf, wfy, wft, wfo, gout,
                     CL, P,
                 )  # fmt: skip
         if any_dense:
@@ -481,7 +489,7 @@ def run_lanes(
                 ys = out_y[b] if keep == KEEP_TRAJECTORIES else scratch[lane]
                 rows = i_out[lane]
             tau_rows = out_tau[b] if keep != KEEP_METRICS else taus
-            bad = efforts_lanes(ys, rows, C[b], tau_rows, gw, P, phys)
+            bad = efforts_lanes(ys, rows, C[b], tau_rows, wf, P, phys)
             status = STATUS_OK
             coordinate = -1
             when = t_new

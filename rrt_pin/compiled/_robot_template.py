@@ -43,6 +43,14 @@ def rhs_pd(y, c, out):  # generated: ẏ under PD (c = kp, kd, qf) without gravi
     raise NotImplementedError
 
 
+def forward_free(y, tau, out):  # generated: q̈ without gravity under tau, into out[nv:]
+    raise NotImplementedError
+
+
+def rhs_phys(y, c, P, out):  # generated: ẏ under PD + G with the physical model applied
+    raise NotImplementedError
+
+
 def gravity(y, out):  # generated: G(q)
     raise NotImplementedError
 
@@ -184,7 +192,9 @@ def passive(y, P, k):
     nv = P.shape[1]
     q = y[k]
     v = y[nv + k]
-    f = -P[3, k] * v - P[4, k] * math.tanh(v / FRICTION_VELOCITY)
+    f = -P[3, k] * v
+    if P[4, k] != 0.0:
+        f -= P[4, k] * math.tanh(v / FRICTION_VELOCITY)
     if q < P[0, k]:
         f += max(0.0, P[5, k] * (P[0, k] - q) - P[6, k] * v)
     elif q > P[1, k]:
@@ -204,6 +214,10 @@ def rhs(t, y, law, c, rt, rv, out, ws):
     tau, work, m, P, phys = ws
     if law == LAW_PD_GRAVITY and phys[0] == 0:
         rhs_pd(y, c, out)
+    elif law == LAW_PD_GRAVITY:
+        # M⁻¹(τ − b) = forward without gravity under τ − G: G is needed for the
+        # saturation only (generated with it, the sines and cosines shared)
+        rhs_phys(y, c, P, out)
     else:
         nv = tau.shape[0]
         for k in range(nv):

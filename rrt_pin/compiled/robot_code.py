@@ -200,35 +200,45 @@ def _on_state(
     return "\n".join(["@jit", f"def {name}({', '.join(args)}, out):", *body, ""])
 
 
-def _lanes_source(gen: forward_source.GeneratedFunction, name: str, tau_rows: bool = False) -> str:
-    """``name(w)``: ``gen`` of :data:`LANES` states at once, one lane each, in place in ``w``.
+def _lanes_source(
+    group: str, kernels: list[tuple[forward_source.GeneratedFunction, str, bool]]
+) -> str:
+    """Kernels over :data:`LANES` states at once, one lane each, in place in one work array.
 
-    ``w`` is one flat work array of rows of :data:`LANES` values (constant offsets, no
-    call and no branch in the loops, so that LLVM runs the lanes side by side): rows
-    0 … n − 1 the states (q, q̇), then (kp, kd, qf) (3·nv rows), the sine and cosine of
-    each angle, the largest |angle|, then the results: for the forward dynamics (``gen``
-    without gravity, under the PD efforts from those rows) the n rows of ẏ, else gen's
-    nv rows. The sines and cosines are the polynomial ones; a lane with an angle at or
-    beyond their limit (or not finite) gets NaN. With ``tau_rows``, the efforts are read
-    from rows n … n + nv − 1 (where (kp, kd, qf) would be) instead of the PD law.
+    ``w`` is one flat array of rows of :data:`LANES` values (constant offsets, no call and
+    no branch in the loops, so that LLVM runs the lanes side by side), shared by the
+    ``kernels`` (generated function, name, efforts from rows): rows 0 … n − 1 the states
+    (q, q̇), then (kp, kd, qf) (3·nv rows; with efforts from rows, τ in the first nv), the
+    sine and cosine of each angle, the largest |angle|, then each kernel's results: a
+    forward dynamics' n rows of ẏ (``<NAME>_OUT``), else its nv rows. ``<group>_sincos(w)``
+    fills the sines and cosines (the polynomial ones) for them all; a forward dynamics
+    without efforts from rows runs the PD law of the (kp, kd, qf) rows. A lane with an
+    angle at or beyond the polynomials' limit (or not finite) gets NaN.
     """
-    nv, L = gen.nv, LANES
+    nv, L = kernels[0][0].nv, LANES
     n = 2 * nv
-    forward = "tau" in gen.inputs
     trig = re.compile(r"^(t\d+) = (sin|cos)\((t\d+)\)$")
-    inputs = {}
-    for line in gen.lines:
-        m = re.match(r"^(t\d+) = q\[(\d+)\]$", line)
-        if m:
-            inputs[m[1]] = int(m[2])
-    angles = sorted({inputs[m[3]] for line in gen.lines if (m := trig.match(line))})
+    inputs: list[dict[str, int]] = []
+    for gen, _, _ in kernels:
+        found = {}
+        for line in gen.lines:
+            m = re.match(r"^(t\d+) = q\[(\d+)\]$", line)
+            if m:
+                found[m[1]] = int(m[2])
+        inputs.append(found)
+    angles = sorted(
+        {ins[m[3]] for (gen, _, _), ins in zip(kernels, inputs, strict=True)
+         for line in gen.lines if (m := trig.match(line))}
+    )  # fmt: skip
     row = {("y", i): i for i in range(n)}
     row.update({("c", i): n + i for i in range(3 * nv)})
     for k in angles:
         row["sin", k] = len(row)
         row["cos", k] = len(row)
     row["amax", 0] = len(row)
-    row.update({("out", i): len(row) + i for i in range(n if forward else len(gen.outputs))})
+    for gen, name, _ in kernels:
+        size = n if "tau" in gen.inputs else len(gen.outputs)
+        row.update({(name, i): len(row) + i for i in range(size)})
 
     def at(kind: str, i: int) -> str:
         return f"w[{row[kind, i] * L} + l]"
@@ -239,34 +249,97 @@ def _lanes_source(gen: forward_source.GeneratedFunction, name: str, tau_rows: bo
             f"({at('y', k)} - {at('c', 2 * nv + k)}))"
         )
 
-    src = ["@jit", f"def {name}(w):", f"    for l in range({L}):"]
+    src = ["@jit", f"def {group}_sincos(w):", f"    for l in range({L}):"]
     for k in angles:
         src += [f"        {x}" for x in rnea_vector.sincos_lines(at("y", k), "s", "c", "p")]
         src += [f"        {at('sin', k)} = s", f"        {at('cos', k)} = c"]
     biggest = ", ".join(f"abs({at('y', k)})" for k in angles)
     src.append(f"        {at('amax', 0)} = {f'max({biggest}, 0.0)' if angles else '0.0'}")
-    src.append(f"    for l in range({L}):")
-    for line in gen.lines:
-        if m := trig.match(line):
-            src.append(f"        {m[1]} = {at(m[2], inputs[m[3]])}")
-            continue
-        line = re.sub(r"\bq\[(\d+)\]", lambda g: at("y", int(g[1])), line)
-        line = re.sub(r"\bv\[(\d+)\]", lambda g: at("y", nv + int(g[1])), line)
-        if tau_rows:
-            line = re.sub(r"\btau\[(\d+)\]", lambda g: at("c", int(g[1])), line)
-        else:
-            line = re.sub(r"\btau\[(\d+)\]", lambda g: pd(int(g[1])), line)
-        src.append(f"        {line}")
+    src.append("")
     limit = repr(rnea_vector.SINCOS_LIMIT)
-    shift = nv if forward else 0
-    if forward:
-        src += [f"        {at('out', k)} = {at('y', nv + k)}" for k in range(nv)]
-    for k, x in enumerate(gen.outputs):
-        src.append(
-            f"        {at('out', shift + k)} = {x} if {at('amax', 0)} < {limit} else math.nan"
-        )
-    tag = name.upper()
-    return "\n".join([*src, "", f"{tag}_ROWS = {len(row)}", f"{tag}_OUT = {row['out', 0]}", ""])
+    constants = [f"{group.upper()}_ROWS = {len(row)}"]
+    for (gen, name, tau_rows), ins in zip(kernels, inputs, strict=True):
+        src += ["", "@jit", f"def {name}(w):", f"    for l in range({L}):"]
+        for line in gen.lines:
+            if m := trig.match(line):
+                src.append(f"        {m[1]} = {at(m[2], ins[m[3]])}")
+                continue
+            line = re.sub(r"\bq\[(\d+)\]", lambda g: at("y", int(g[1])), line)
+            line = re.sub(r"\bv\[(\d+)\]", lambda g: at("y", nv + int(g[1])), line)
+            if tau_rows:
+                line = re.sub(r"\btau\[(\d+)\]", lambda g: at("c", int(g[1])), line)
+            else:
+                line = re.sub(r"\btau\[(\d+)\]", lambda g: pd(int(g[1])), line)
+            src.append(f"        {line}")
+        shift = nv if "tau" in gen.inputs else 0
+        if shift:
+            src += [f"        {at(name, k)} = {at('y', nv + k)}" for k in range(nv)]
+        for k, x in enumerate(gen.outputs):
+            src.append(
+                f"        {at(name, shift + k)} = {x} if {at('amax', 0)} < {limit} else math.nan"
+            )
+        constants.append(f"{name.upper()}_OUT = {row[name, 0]}")
+    return "\n".join([*src, "", *constants, ""])
+
+
+def _phys_source(
+    gravity: forward_source.GeneratedFunction, free: forward_source.GeneratedFunction
+) -> str:
+    """``rhs_phys(y, c, P, out)``: ẏ under PD plus gravity with the physical model applied.
+
+    One function: the angles' sines and cosines once (polynomial below their limit, libm
+    beyond), G(q) (for the saturation only), the efforts u = clip(PD + G) − G + the
+    ``passive`` terms, then the forward dynamics without gravity under u (M⁻¹(u + G − b)
+    is the forward dynamics under the saturated law).
+    """
+    nv = free.nv
+    body: list[str] = []
+    angles: set[int] = set()
+
+    def lines(gen: forward_source.GeneratedFunction, prefix: str) -> list[str]:
+        inputs, out = {}, []
+        for line in gen.lines:
+            line = re.sub(r"\bt(\d+)\b", lambda g: f"{prefix}{g[1]}", line)
+            if m := re.match(rf"^({prefix}\d+) = q\[(\d+)\]$", line):
+                inputs[m[1]] = int(m[2])
+            if m := re.match(rf"^({prefix}\d+) = (sin|cos)\(({prefix}\d+)\)$", line):
+                k = inputs[m[3]]
+                if k not in angles:
+                    angles.add(k)
+                    out += [f"    if abs(y[{k}]) < {rnea_vector.SINCOS_LIMIT!r}:"]
+                    out += [f"        {x}" for x in
+                            rnea_vector.sincos_lines(f"y[{k}]", f"s_{k}", f"c_{k}", f"a{k}")]  # fmt: skip
+                    out += [
+                        "    else:",
+                        f"        s_{k} = sin(y[{k}])",
+                        f"        c_{k} = cos(y[{k}])",
+                    ]
+                out.append(f"    {m[1]} = {'s' if m[2] == 'sin' else 'c'}_{k}")
+                continue
+            line = re.sub(r"\bq\[", "y[", line)
+            line = re.sub(r"\bv\[(\d+)\]", lambda g: f"y[{nv + int(g[1])}]", line)
+            line = re.sub(r"\btau\[(\d+)\]", lambda g: f"u_{g[1]}", line)
+            out.append(f"    {line}")
+        return out
+
+    body += lines(gravity, "g")
+    for k, x in enumerate(gravity.outputs):
+        x = re.sub(r"\bt(\d+)\b", lambda g: f"g{g[1]}", x)
+        body += [
+            f"    G_{k} = {x}",
+            f"    u_{k} = (-c[{nv + k}] * y[{nv + k}] - c[{k}] * (y[{k}] - c[{2 * nv + k}])) + G_{k}",
+            f"    if u_{k} > P[2, {k}]:",
+            f"        u_{k} = P[2, {k}]",
+            f"    elif u_{k} < -P[2, {k}]:",
+            f"        u_{k} = -P[2, {k}]",
+            f"    u_{k} = (u_{k} - G_{k}) + passive(y, P, {k})",
+        ]
+    body += lines(free, "f")
+    body += [f"    out[{k}] = y[{nv + k}]" for k in range(nv)]
+    for k, x in enumerate(free.outputs):
+        x = re.sub(r"\bt(\d+)\b", lambda g: f"f{g[1]}", x)
+        body.append(f"    out[{nv + k}] = {x}")
+    return "\n".join(["@jit", "def rhs_phys(y, c, P, out):", *body, ""])
 
 
 def _flops(gen: forward_source.GeneratedFunction) -> int:
@@ -295,6 +368,8 @@ def module_source(model: pin.Model) -> tuple[str, int]:
     parts = [
         _on_state(fwd, "forward", nv),
         _on_state(fwd_free, "rhs_pd", nv, pd=True),
+        _on_state(fwd_free, "forward_free", nv),
+        _phys_source(forward_source.gravity_source(model), fwd_free),
         _on_state(forward_source.gravity_source(model), "gravity", 0),
         _on_state(forward_source.mass_matrix_source(model), "mass_matrix", 0),
         _on_state(forward_source.bias_source(model), "bias", 0),
@@ -327,9 +402,14 @@ def module_source(model: pin.Model) -> tuple[str, int]:
         body,
         "",
         f"LANE_COUNT = {LANES}",
-        _lanes_source(fwd_free, "rhs_lanes"),
-        _lanes_source(fwd, "fwd_lanes", tau_rows=True),
-        _lanes_source(forward_source.gravity_source(model), "gravity_lanes"),
+        _lanes_source("rhs", [(fwd_free, "rhs_lanes", False)]),
+        _lanes_source(
+            "phys",
+            [
+                (forward_source.gravity_source(model), "gravity_lanes", False),
+                (fwd_free, "free_lanes", True),
+            ],
+        ),  # fmt: skip
         _LANES.read_text(encoding="utf-8").partition(_LANES_MARK)[2],
     ]
     return "\n".join(lines), fwd.flops
