@@ -145,6 +145,15 @@ def make_files(tmp: Path) -> None:
         (tmp / f"spec_{name}.toml").write_text(text)
     (tmp / "run_params.toml").write_text("[params]\nm3 = 50\n")
     (tmp / "run_bench_quick.toml").write_text('[bench]\nquick = "yes"\n')
+    # limits, damping and friction
+    (tmp / "limit_lower_above.urdf").write_text(good.replace('lower="-', 'lower="9', 1))
+    dynamics = 'velocity="1e6"/>\n    <dynamics {}/>'
+    for name, attr in (("damping_negative", 'damping="-0.5"'), ("friction_negative",
+                       'friction="-0.5"')):  # fmt: skip
+        (tmp / f"{name}.urdf").write_text(
+            good.replace('velocity="1e6"/>', dynamics.format(attr), 1)
+        )
+    (tmp / "limit_nan.urdf").write_text(good.replace('effort="1e9"', 'effort="nan"', 1))
 
 
 #: A "billion laughs" document type declaration.
@@ -1067,5 +1076,30 @@ CASES = (
         "simulate --accuracy abc",
         ("simulate", "--accuracy", "abc", "--csv", OUT),
         "argument --accuracy: not a number: 'abc'",
+    ),
+    # limits, damping and friction
+    Case(
+        "URDF limit lower > upper",
+        ("simulate", "--urdf", "{tmp}/limit_lower_above.urdf", "--passive", "--q0", "0,0,0",
+         "--csv", OUT),  # fmt: skip
+        "joint 'q1' <limit lower upper>: lower 912.566 is above upper 12.5664",
+    ),
+    Case(
+        "URDF negative damping",
+        ("simulate", "--urdf", "{tmp}/damping_negative.urdf", "--passive", "--q0", "0,0,0",
+         "--csv", OUT),  # fmt: skip
+        "joint 'q1' <dynamics damping>: negative, -0.5",
+    ),
+    Case(
+        "URDF negative friction",
+        ("simulate", "--urdf", "{tmp}/friction_negative.urdf", "--passive", "--q0", "0,0,0",
+         "--csv", OUT),  # fmt: skip
+        "joint 'q1' <dynamics friction>: negative, -0.5",
+    ),
+    Case(
+        "URDF NaN limit",
+        ("simulate", "--urdf", "{tmp}/limit_nan.urdf", "--passive", "--q0", "0,0,0",
+         "--csv", OUT),  # fmt: skip
+        "joint 'q1' <limit effort=\"nan\">: not finite",
     ),
 )
