@@ -89,19 +89,19 @@ def kernel_flops() -> dict[str, int]:
     }
 
 
-def fma_rate(seconds: float = 0.3) -> float | None:
+def fma_rate(seconds: float = 0.3, fused: bool = True) -> float | None:
     """Fused multiply-adds a second on one core, best of runs for ``seconds`` [FMA/s].
 
-    Eight independent chains over an array that stays in L1, compiled by numba
-    with contraction to FMA allowed: the throughput limit, not a latency.
-    None without numba.
+    Eight independent chains ``v = v·a + b`` over an array that stays in L1, compiled
+    by numba with contraction to FMA allowed: the throughput limit, not a latency.
+    ``fused=False``: a multiply and an add each, as kernels compiled without fast-math
+    run them [pairs/s]. None without numba.
     """
     try:
         import numba
     except ImportError:
         return None
 
-    @numba.njit(fastmath={"contract"})
     def chains(y, a, b, reps):  # noqa: ANN001, ANN202
         for _ in range(reps):
             for i in range(y.shape[0]):
@@ -117,6 +117,7 @@ def fma_rate(seconds: float = 0.3) -> float | None:
                 y[i] = v
         return y[0]
 
+    chains = numba.njit(fastmath={"contract"} if fused else False)(chains)
     y = np.full(1024, 0.5)
     a, b = 0.999999, 1e-7
     chains(y, a, b, 1)

@@ -42,6 +42,7 @@ from collections.abc import Callable
 import numpy as np
 import pinocchio as pin
 
+from rrt_pin.cli.flops import fma_rate
 from rrt_pin.robot import robots
 from scripts.bench.common import interleaved, verdict
 
@@ -104,41 +105,6 @@ def one_sample_kernel(model: pin.Model) -> Callable:
     scope: dict = {}
     exec(compile(one_sample_source(rnea_source(model)), "<one-sample>", "exec"), scope)  # noqa: S102
     return numba.njit(_signature(numba), nogil=True, error_model="numpy")(scope["kernel"])
-
-
-def mul_add_rate(fused: bool, seconds: float = 0.3) -> float:
-    """Multiply-adds a second on one core, best of runs for ``seconds`` [pairs/s].
-
-    Eight independent chains ``v = v·a + b`` over 1,024 values (L1): with ``fused``
-    contracted to FMAs, else a multiply and an add each (as the kernels compile).
-    """
-    import numba
-
-    def chains(y, a, b, reps):  # noqa: ANN001, ANN202
-        for _ in range(reps):
-            for i in range(y.shape[0]):
-                v = y[i]
-                v = v * a + b
-                v = v * a + b
-                v = v * a + b
-                v = v * a + b
-                v = v * a + b
-                v = v * a + b
-                v = v * a + b
-                v = v * a + b
-                y[i] = v
-        return y[0]
-
-    fn = numba.njit(fastmath={"contract"} if fused else False)(chains)
-    y = np.full(1024, 0.5)
-    fn(y, 0.999999, 1e-7, 1)
-    best = 0.0
-    end = time.perf_counter() + seconds
-    while time.perf_counter() < end:
-        start = time.perf_counter()
-        fn(y, 0.999999, 1e-7, 2000)
-        best = max(best, 8 * 1024 * 2000 / (time.perf_counter() - start))
-    return best
 
 
 def worst(tau: np.ndarray, ref: np.ndarray) -> float:
@@ -242,7 +208,7 @@ def main() -> int:
     ap.add_argument("--sizes", action="store_true", help="also time small batches")
     ap.add_argument("--check", action="store_true", help="exit 1 when a target is missed")
     args = ap.parse_args()
-    rates = {"mul+add": 2 * mul_add_rate(False) / 1e9, "fma": 2 * mul_add_rate(True) / 1e9}
+    rates = {"mul+add": 2 * fma_rate(fused=False) / 1e9, "fma": 2 * fma_rate() / 1e9}
     print(
         f"pinocchio {pin.__version__}, numpy {np.__version__}; one core: "
         f"mul+add {rates['mul+add']:.1f} Gflop/s (a multiply and an add), "
