@@ -44,8 +44,7 @@ def free_lanes(w):  # generated: ẏ without gravity of LANE_COUNT states, effor
 
 
 LANE_COUNT = RHS_ROWS = RHS_LANES_OUT = PHYS_ROWS = GRAVITY_LANES_OUT = FREE_LANES_OUT = 0
-FRICTION_VELOCITY = 1e-3
-first_step = adaptive = efforts_at = metrics_of = samples_until = rhs_lanes
+first_step = adaptive = efforts_at = metrics_of = samples_until = clip = losses = rhs_lanes
 SAFETY = MIN_FACTOR = MAX_FACTOR = 0.0
 D8_NS = D8_A = D8_C = D8_E3 = D8_E5 = D8_D = RK45_AB = RK45_C = RK45_E = RK45_P = None
 LAW_PD_GRAVITY = METHOD_DOP853 = KEEP_FINAL = KEEP_METRICS = KEEP_TRAJECTORIES = 0
@@ -174,19 +173,8 @@ def stage_lanes(phys, Y, K, A, s, h, lanes_w, wy, wo, wf, wfy, wft, wfo, gout, C
             q = wfy[k, lane]
             v = wfy[nv + k, lane]
             g = gout[k, lane]
-            t = (-CL[nv + k, lane] * v - CL[k, lane] * (q - CL[2 * nv + k, lane])) + g
-            if t > e:
-                t = e
-            elif t < -e:
-                t = -e
-            f = -d * v
-            if fr != 0.0:
-                f -= fr * math.tanh(v / FRICTION_VELOCITY)
-            if q < lo:
-                f += max(0.0, kk * (lo - q) - bb * v)
-            elif q > hi:
-                f += min(0.0, kk * (hi - q) - bb * v)
-            wft[k, lane] = (t - g) + f
+            t = clip((-CL[nv + k, lane] * v - CL[k, lane] * (q - CL[2 * nv + k, lane])) + g, e)
+            wft[k, lane] = (t - g) + losses(q, v, lo, hi, d, fr, kk, bb)
     free_lanes(wf)
     K[s, :, :] = wfo
     return wfy
@@ -216,8 +204,7 @@ def efforts_lanes(ys, rows, c, taus, gw, P, phys):
                 pd = -c[nv + k] * y[nv + k] - c[k] * (y[k] - c[2 * nv + k])
                 t = pd + gw[out + k * L + j]
                 if phys[0] != 0:
-                    e = P[2, k]
-                    t = e if t > e else (-e if t < -e else t)
+                    t = clip(t, P[2, k])
                 taus[start + j, k] = t
     for i in range(rows):
         for k in range(nv):

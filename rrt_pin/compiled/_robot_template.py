@@ -35,6 +35,9 @@ def jit(f):  # the module's header defines numba's
     return f
 
 
+jit_inline = jit
+
+
 def forward(y, tau, out):  # generated: q̈ = M(q)⁻¹(τ − b(q, q̇)) into out[nv:]
     raise NotImplementedError
 
@@ -172,34 +175,44 @@ def efforts(t, y, law, c, rt, rv, tau, work, m):
             tau[k] = 0.0
 
 
+@jit_inline
+def clip(t, e):
+    """``t`` clipped to [−e, e] (NaN stays NaN)."""
+    if t > e:
+        return e
+    if t < -e:
+        return -e
+    return t
+
+
 @jit
 def saturate(tau, P):
-    """The law's efforts ``tau`` clipped at the effort limits P[2] (NaN stays NaN)."""
+    """The law's efforts ``tau`` clipped at the effort limits P[2]."""
     for k in range(tau.shape[0]):
-        e = P[2, k]
-        if tau[k] > e:
-            tau[k] = e
-        elif tau[k] < -e:
-            tau[k] = -e
+        tau[k] = clip(tau[k], P[2, k])
+
+
+@jit_inline
+def losses(q, v, lower, upper, damping, friction, stiffness, limit_damping):
+    """One joint's damping, friction and compliant position-limit efforts at (q, q̇).
+
+    The terms of :func:`rrt_pin.robot.limits.applied_efforts` beyond the saturated law.
+    """
+    f = -damping * v
+    if friction != 0.0:
+        f -= friction * math.tanh(v / FRICTION_VELOCITY)
+    if q < lower:
+        f += max(0.0, stiffness * (lower - q) - limit_damping * v)
+    elif q > upper:
+        f += min(0.0, stiffness * (upper - q) - limit_damping * v)
+    return f
 
 
 @jit
 def passive(y, P, k):
-    """Joint k's damping, friction and compliant position-limit efforts at the state y.
-
-    The terms of :func:`rrt_pin.robot.limits.applied_efforts` beyond the saturated law.
-    """
+    """Joint k's :func:`losses` at the state y (P as ``Physical.as_array``)."""
     nv = P.shape[1]
-    q = y[k]
-    v = y[nv + k]
-    f = -P[3, k] * v
-    if P[4, k] != 0.0:
-        f -= P[4, k] * math.tanh(v / FRICTION_VELOCITY)
-    if q < P[0, k]:
-        f += max(0.0, P[5, k] * (P[0, k] - q) - P[6, k] * v)
-    elif q > P[1, k]:
-        f += min(0.0, P[5, k] * (P[1, k] - q) - P[6, k] * v)
-    return f
+    return losses(y[k], y[nv + k], P[0, k], P[1, k], P[3, k], P[4, k], P[5, k], P[6, k])
 
 
 @jit
