@@ -90,14 +90,38 @@ def urdf_for_mujoco(name: str) -> str:
     return re.sub(r"(<robot\b[^>]*>)", r"\1" + compiler, text, count=1)
 
 
-def mujoco_model(name: str, law=None, dt: float = 1e-3, integrator: str = "RK4"):
-    """MuJoCo's model of robot ``name``; with ``law`` (a PD + gravity law) inside it."""
+def mujoco_spec(name: str):
+    """MuJoCo's spec of robot ``name`` (:func:`urdf_for_mujoco`) and its hinge and slide joints.
+
+    The joints are in the order of the robot's coordinates (both depth first); the URDF's
+    limits, damping, friction and effort limits are still as MuJoCo's importer read them.
+    """
     import mujoco
 
     spec = mujoco.MjSpec.from_string(urdf_for_mujoco(name))
+    kinds = (mujoco.mjtJoint.mjJNT_HINGE, mujoco.mjtJoint.mjJNT_SLIDE)
+    return spec, [j for j in spec.joints if j.type in kinds]
+
+
+def mujoco_compile(spec, dt: float, integrator: str, constraints: bool = False):
+    """The compiled model: no contacts, the constraint stage on or off, the integrator and step."""
+    import mujoco
+
+    m = spec.compile()
+    m.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONTACT
+    if not constraints:
+        m.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONSTRAINT
+    m.opt.integrator = getattr(mujoco.mjtIntegrator, f"mjINT_{integrator.upper()}")
+    m.opt.timestep = dt
+    return m
+
+
+def mujoco_model(name: str, law=None, dt: float = 1e-3, integrator: str = "RK4"):
+    """MuJoCo's model of robot ``name``, nothing beyond the law; with ``law`` (PD + gravity) inside."""
+    import mujoco
+
+    spec, joints = mujoco_spec(name)
     off = mujoco.mjtLimited.mjLIMITED_FALSE
-    joints = [j for j in spec.joints if j.type in (mujoco.mjtJoint.mjJNT_HINGE,
-                                                    mujoco.mjtJoint.mjJNT_SLIDE)]  # fmt: skip
     for j in joints:
         j.damping = np.zeros_like(np.asarray(j.damping, dtype=float))
         j.armature = 0.0
@@ -117,12 +141,7 @@ def mujoco_model(name: str, law=None, dt: float = 1e-3, integrator: str = "RK4")
             act.biasprm[:3] = (0.0, -kp, -kd)
             act.ctrllimited = off
             act.forcelimited = off
-    m = spec.compile()
-    m.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONTACT
-    m.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONSTRAINT
-    m.opt.integrator = getattr(mujoco.mjtIntegrator, f"mjINT_{integrator.upper()}")
-    m.opt.timestep = dt
-    return m
+    return mujoco_compile(spec, dt, integrator)
 
 
 def model_checks(name: str, robot, law, qf: np.ndarray, count: int = 5) -> dict[str, float]:
@@ -176,12 +195,15 @@ def initial_states(m, q0s: np.ndarray) -> np.ndarray:
     return x
 
 
-def rollout_runner(m, q0s: np.ndarray, qf: np.ndarray, n_out: int):
-    """A call of ``mujoco.rollout`` (one thread) over the run: q at every output (B, n_out, nv)."""
+def rollout_runner(m, q0s: np.ndarray, qf: np.ndarray, n_out: int, dt_out: float = DT_OUT):
+    """A call of ``mujoco.rollout`` (one thread) over the run: q at every output (B, n_out, nv).
+
+    Outputs every ``dt_out`` [s] (a multiple of the model's step); ``qf``: the controls (nu,).
+    """
     import mujoco
     from mujoco import rollout
 
-    sub = round(DT_OUT / m.opt.timestep)
+    sub = round(dt_out / m.opt.timestep)
     x0 = initial_states(m, q0s)
     B, nstate = x0.shape
     nv = m.nv
