@@ -1,9 +1,10 @@
 """Labelled plots of time series (matplotlib, imported only here, Agg backend).
 
 Every curve has a legend entry, drawn beside the axes (never over the data);
-targets are dashed lines in their curve's colour; a robot's joints are grouped
-by unit and by magnitude so that a 0.08 N·m wrist is not a flat line beside a
-59 N·m shoulder. The image format follows the file's suffix (:data:`FORMATS`).
+targets are dashed lines in their curve's colour, and so are (finer) the position
+limits a run approached or crossed; a robot's joints are grouped by unit and by
+magnitude so that a 0.08 N·m wrist is not a flat line beside a 59 N·m shoulder.
+The image format follows the file's suffix (:data:`FORMATS`).
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ from rrt_pin.core.errors import InputError
 from rrt_pin.core.extras import MissingExtra
 from rrt_pin.core.text import argument
 from rrt_pin.io.files import atomic_write_bytes
+from rrt_pin.robot.limits import physical_model
 
 if TYPE_CHECKING:
     from rrt_pin.robot.robot import Robot
@@ -29,12 +31,14 @@ __all__ = [
     "Panel",
     "effort_panels",
     "figure",
+    "limits_near",
     "inverse_figure",
     "plot_format",
     "plot_panels",
     "position_panels",
     "render_panels",
     "simulate_figure",
+    "simulate_panels",
 ]
 
 #: Image formats by file suffix (matplotlib writes each).
@@ -43,6 +47,12 @@ FORMATS = {".png": "png", ".svg": "svg", ".pdf": "pdf"}
 #: 1/MAGNITUDES of its largest.
 MAX_CURVES = 6
 MAGNITUDES = 20.0
+#: A position limit is drawn when its joint came within this fraction of its panel's
+#: vertical span of it (or crossed it): limits far from the motion would squash the axes.
+LIMIT_NEAR = 0.02
+#: The limits' line: thin, finely dashed, in the curve's colour (gid for readers of the figure).
+LIMIT_STYLE = {"linestyle": (0, (5.0, 2.5)), "linewidth": 0.9, "alpha": 0.9}
+LIMIT_GID = "position limit"
 
 
 def plot_format(path: str | Path) -> str:
@@ -83,12 +93,15 @@ class Panel:
         curves: label → values, each the length of the time array.
         title: optional subplot title.
         targets: label of a curve → its target value, drawn as a dashed line.
+        limits: label of a curve → its limits to draw, (``"lower"`` or ``"upper"``, value),
+            each a finely dashed line in the curve's colour, labelled in the legend.
     """
 
     ylabel: str
     curves: Mapping[str, np.ndarray] = field(default_factory=dict)
     title: str = ""
     targets: Mapping[str, float] = field(default_factory=dict)
+    limits: Mapping[str, Sequence[tuple[str, float]]] = field(default_factory=dict)
 
 
 def render_panels(
@@ -120,7 +133,8 @@ def figure(t: np.ndarray, panels: Sequence[Panel], title: str, xlabel: str = "t 
     plt = _pyplot()
     from matplotlib.lines import Line2D
 
-    fig, axes = plt.subplots(len(panels), 1, sharex=True, figsize=(9.5, 2.4 * len(panels) + 0.8))
+    height = max(2.4 * len(panels) + 0.8, 4.2)  # [in]: a lone panel is not a strip
+    fig, axes = plt.subplots(len(panels), 1, sharex=True, figsize=(9.5, height))
     colors = plt.get_cmap("tab10").colors
     for ax, panel in zip(np.atleast_1d(axes), panels, strict=True):
         handles = []
@@ -132,6 +146,11 @@ def figure(t: np.ndarray, panels: Sequence[Panel], title: str, xlabel: str = "t 
                            linewidth=1.0, alpha=0.8)  # fmt: skip
         if panel.targets:
             handles.append(Line2D([], [], color="0.4", linestyle="--", label="target qf"))
+        for label, limits in panel.limits.items():
+            color = colors[list(panel.curves).index(label) % 10] if label in panel.curves else "0.4"
+            for side, value in limits:
+                handles.append(ax.axhline(value, color=color, gid=LIMIT_GID, **LIMIT_STYLE,
+                                          label=f"{label} {side} limit ({value:.4g})"))  # fmt: skip
         ax.set_ylabel(panel.ylabel)
         if panel.title:
             ax.set_title(panel.title, fontsize=10)
@@ -236,30 +255,91 @@ def effort_panels(robot: Robot, tau: np.ndarray, what: str = "") -> list[Panel]:
 
 
 def position_panels(
-    robot: Robot, q: np.ndarray, targets: Sequence[float] | None = None
+    robot: Robot,
+    q: np.ndarray,
+    targets: Sequence[float] | None = None,
+    limits: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> list[Panel]:
     """Panels of a robot's joint coordinates (N, nv), by unit (rad, m) and magnitude of motion.
 
-    ``targets`` (one per coordinate, e.g. the regulator's qf) are drawn dashed.
+    ``targets`` (one per coordinate, e.g. the regulator's qf) are drawn dashed; of the
+    position ``limits`` (lower, upper), each (nv,) [rad or m], ±inf for none, those the
+    motion approached or crossed (:func:`limits_near`).
     """
     span = np.abs(q - q[:1]).max(axis=0) if len(q) else np.zeros(robot.nv)
     if targets is not None:
         span = np.maximum(span, np.abs(np.asarray(targets, dtype=float) - q[0]))
-    return [
-        Panel(
-            f"q [{unit}]",
-            {robot.q_names[k]: q[:, k] for k in ks},
-            title=_kind(unit, ": positions"),
-            targets={} if targets is None else {robot.q_names[k]: float(targets[k]) for k in ks},
+    panels = []
+    for unit, ks in _groups(robot.coordinate_units, span):
+        aims = {} if targets is None else {robot.q_names[k]: float(targets[k]) for k in ks}
+        near = {} if limits is None else limits_near(q, ks, limits, list(aims.values()))
+        panels.append(
+            Panel(
+                f"q [{unit}]",
+                {robot.q_names[k]: q[:, k] for k in ks},
+                title=_kind(unit, ": positions"),
+                targets=aims,
+                limits={robot.q_names[k]: found for k, found in near.items()},
+            )
         )
-        for unit, ks in _groups(robot.coordinate_units, span)
-    ]
+    return panels
+
+
+def limits_near(
+    q: np.ndarray,
+    ks: Sequence[int],
+    limits: tuple[np.ndarray, np.ndarray],
+    extra: Sequence[float] = (),
+) -> dict[int, list[tuple[str, float]]]:
+    """The position limits of coordinates ``ks`` that ``q`` (N, nv) crossed or came near.
+
+    Near: within :data:`LIMIT_NEAR` of the panel's span (the values of ``q[:, ks]`` and
+    ``extra``, e.g. the targets, drawn together). Returns coordinate → [(side, value)].
+    """
+    if not len(q) or not ks:
+        return {}
+    values = np.concatenate([q[:, ks].ravel(), np.asarray(extra, dtype=float)])
+    values = values[np.isfinite(values)]
+    if not values.size:
+        return {}
+    margin = LIMIT_NEAR * max(float(values.max() - values.min()), 1e-12)
+    found: dict[int, list[tuple[str, float]]] = {}
+    for k in ks:
+        low, high = float(np.nanmin(q[:, k])), float(np.nanmax(q[:, k]))
+        for side, value, gap in (("lower", float(limits[0][k]), low - float(limits[0][k])),
+                                 ("upper", float(limits[1][k]), float(limits[1][k]) - high)):  # fmt: skip
+            if np.isfinite(value) and gap <= margin:
+                found.setdefault(k, []).append((side, value))
+    return found
 
 
 def inverse_figure(robot: Robot, t: np.ndarray, tau: np.ndarray, fmt: str = "png") -> bytes:
     """The inverse-dynamics plot of ``robot``: its efforts along its motion, as ``fmt`` bytes."""
     title = f"{robot.name}: joint efforts along {robot.motion}"
     return render_panels(t, effort_panels(robot, tau), title, fmt=fmt)
+
+
+def simulate_panels(
+    robot: Robot,
+    q: np.ndarray,
+    tau: np.ndarray,
+    targets: Sequence[float] | None = None,
+    law: str | None = None,
+) -> tuple[list[Panel], str]:
+    """The panels and title of :func:`simulate_figure` (data, nothing drawn).
+
+    q(t) with its targets and the robot's stated position limits the run approached or
+    crossed (:func:`rrt_pin.robot.limits.physical_model`: the URDF's, enforced or not);
+    then the applied efforts, left out when all are zero (a passive run).
+    """
+    stated = physical_model(robot)
+    limits = (stated.lower, stated.upper) if stated.has_positions else None
+    panels = position_panels(robot, q, targets, limits)
+    law = law or robot.regulator
+    if np.any(tau):
+        panels += effort_panels(robot, tau, what=": applied efforts")
+        return panels, f"{robot.name} under {law}: q(t) and efforts"
+    return panels, f"{robot.name} under {law}: q(t)"
 
 
 def simulate_figure(
@@ -269,10 +349,11 @@ def simulate_figure(
     tau: np.ndarray,
     targets: Sequence[float] | None = None,
     fmt: str = "png",
+    law: str | None = None,
 ) -> bytes:
-    """The direct-dynamics plot of ``robot``: q(t) (with its targets) and the applied efforts."""
-    panels = position_panels(robot, q, targets) + effort_panels(
-        robot, tau, what=": applied efforts"
-    )
-    title = f"{robot.name} under {robot.regulator}: q(t) and efforts"
+    """The direct-dynamics plot of ``robot`` as ``fmt`` bytes (:func:`simulate_panels`).
+
+    ``law``: the law's name for the title (default the robot's regulator).
+    """
+    panels, title = simulate_panels(robot, q, tau, targets, law)
     return render_panels(t, panels, title, fmt=fmt)

@@ -15,6 +15,7 @@ the figures in docs/benchmarks.md come from these. Shared timing helpers are in
 - ``kernel``: the inverse-dynamics kernels: ns a sample, flops, the FMA rate;
 - ``peers``: rrt-pin against MuJoCo, Drake and scipy at matched accuracy;
 - ``rnea``: the generated RNEA of any robot, vectorised: ns/sample, flops, the machine's rates;
+- ``robot_limits_peers``: passive UR5 and Panda at their joint limits against MuJoCo;
 - ``robot_peers``: UR5 and Panda batches against ``mujoco.rollout`` at matched error;
 - ``startup``: whole-process time of the CLI's two jobs against ``import pinocchio``;
 - ``stream``: peak memory and rows/s of streamed ``rrt-pin inverse`` outputs;

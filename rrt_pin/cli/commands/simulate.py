@@ -240,8 +240,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     add_output_arguments(
         parser,
-        "write a plot of q(t) (targets dashed) and the efforts (matplotlib); the "
-        "format follows the suffix: .png, .svg or .pdf",
+        "write a plot of q(t) (targets dashed, and the URDF's position limits the run "
+        "came near or crossed) and the efforts (matplotlib); the format follows the "
+        "suffix: .png, .svg or .pdf",
     )
     parser.add_argument(
         "--backend",
@@ -416,7 +417,7 @@ def run(args: argparse.Namespace) -> int:
             args.csv,
             table,
             args.plot,
-            lambda: _picture(robot, result, args.plot),
+            lambda: _picture(robot, result, args.plot, law_name),
             args.json,
             summary_json,
         )
@@ -470,8 +471,8 @@ def write_result(
                 progress.update(stop - start)
 
 
-def _picture(robot: Robot, result: SimulationResult, path: str) -> bytes:
+def _picture(robot: Robot, result: SimulationResult, path: str, law: str) -> bytes:
     from rrt_pin.viewer.plot import plot_format, simulate_figure
 
     return simulate_figure(robot, result.t, result.q, result.tau, targets=robot.defaults.qf,
-                           fmt=plot_format(path))  # fmt: skip
+                           fmt=plot_format(path), law=law)  # fmt: skip
