@@ -9,6 +9,8 @@ samples as soon as they are computed, so that no trajectory is kept.
 
 A row of metrics is laid out as the ``METRIC_*`` offsets of
 :mod:`rrt_pin.simulate.codes` say (:data:`~rrt_pin.simulate.codes.METRIC_WIDTH` values).
+The ``limits`` group is 0: the chapter's arm states no binding limit
+(:func:`rrt_pin.robot.limits.physical_model`).
 """
 
 from __future__ import annotations
@@ -25,8 +27,10 @@ from rrt_pin.simulate.codes import (
     METRIC_ENERGY,
     METRIC_EXCURSION,
     METRIC_FINAL,
+    METRIC_LIMIT,
     METRIC_PEAK,
     METRIC_PEAK_TIME,
+    METRIC_SATURATION,
     METRIC_SETTLE,
     METRIC_WIDTH,
 )
@@ -64,7 +68,10 @@ def _double(typingctx, n):
 
 @jit(None, inline=True)
 def _joint(out, k, t, final, last, top, when, far):
-    """Joint k's columns of ``out`` from its pass: last sample outside the band, peak, excursion."""
+    """Joint k's columns of ``out`` from its pass: last sample outside the band, peak, excursion.
+
+    Its ``limits`` columns are 0 (the arm states no binding limit).
+    """
     T = t.shape[0]
     out[METRIC_FINAL + k] = final
     if last == -1:
@@ -76,6 +83,8 @@ def _joint(out, k, t, final, last, top, when, far):
     out[METRIC_PEAK + k] = top
     out[METRIC_PEAK_TIME + k] = t[when]
     out[METRIC_EXCURSION + k] = far
+    out[METRIC_LIMIT + k] = 0.0
+    out[METRIC_SATURATION + k] = 0.0
 
 
 #: Partial sums of the energy's trapezoids (independent chains of additions).

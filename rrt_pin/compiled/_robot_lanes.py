@@ -490,7 +490,10 @@ def run_lanes(
                 for i in range(nv):
                     out_tau[b, 0, i] = tau_rows[rows - 1, i]
                 if status == STATUS_OK:
-                    metrics_of(t_eval, ys, tau_rows, C[b, 2 * nv : 3 * nv], band, metrics[b])
+                    metrics_of(
+                        t_eval, ys, tau_rows, C[b, 2 * nv : 3 * nv], band, metrics[b],
+                        LAW_PD_GRAVITY, C[b], rt, rv, ws,
+                    )  # fmt: skip
             info[b, 0] = status
             info[b, 1] = coordinate
             info[b, 2] = evals[lane]

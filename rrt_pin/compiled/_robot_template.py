@@ -643,14 +643,22 @@ def efforts_at(t_eval, rows, law, c, rt, rv, ys, taus, ws):
 
 
 @jit
-def metrics_of(t_eval, ys, taus, qf, band, row):
+def metrics_of(t_eval, ys, taus, qf, band, row, law, c, rt, rv, ws):
     """The metrics row of one run sampled at every t_eval (see rrt_pin.simulate.metrics).
 
-    ``row`` (5·nv + 1): |q(tf) − qf|, settling time (NaN: not settled), peak |τ| and
-    its time, max |q(t) − q(t0)|, then ∫ Σ|τ·q̇| dt (trapezoidal) [J].
+    ``row`` (7·nv + 1): |q(tf) − qf|, settling time (NaN: not settled), peak |τ| and
+    its time, max |q(t) − q(t0)|, then ∫ Σ|τ·q̇| dt (trapezoidal) [J], then the
+    ``limits`` group: the largest distance past the stated position limits (0 inside)
+    and the time the law's demand exceeded the stated effort limit [s], trapezoidal
+    over the samples, as ``rrt_pin.simulate.crossings`` measures them. ``taus`` are the
+    efforts applied (saturated when the model applies effort limits); where one is at
+    its limit, the law's demand is computed again at that sample (``law``, ``c``,
+    ``rt``, ``rv`` its law, ``ws`` the run's workspace: P's rows 8–10 hold the stated
+    lower, upper and effort limits).
     """
     T = t_eval.shape[0]
     nv = taus.shape[1]
+    limits_of(t_eval, ys, taus, row, law, c, rt, rv, ws)
     for k in range(nv):
         row[k] = abs(ys[T - 1, k] - qf[k])
         scale = abs(ys[0, k] - qf[k])
@@ -695,6 +703,43 @@ def metrics_of(t_eval, ys, taus, qf, band, row):
 
 
 @jit
+def limits_of(t_eval, ys, taus, row, law, c, rt, rv, ws):
+    """The ``limits`` group of :func:`metrics_of` into row[5·nv + 1 …] (see its docstring)."""
+    T = t_eval.shape[0]
+    nv = taus.shape[1]
+    demand, work, m, P, phys = ws
+    depth = 5 * nv + 1
+    saturated = 6 * nv + 1
+    for k in range(nv):
+        worst = 0.0
+        lo = P[8, k]
+        hi = P[9, k]
+        for i in range(T):
+            q = ys[i, k]
+            if lo - q > worst:
+                worst = lo - q
+            if q - hi > worst:
+                worst = q - hi
+        row[depth + k] = worst
+        row[saturated + k] = 0.0
+    over = np.zeros(nv)
+    for i in range(T):
+        again = False
+        if phys[0] != 0:
+            for k in range(nv):
+                if abs(taus[i, k]) >= P[2, k]:
+                    again = True
+        if again:
+            efforts(t_eval[i], ys[i], law, c, rt, rv, demand, work, m)
+        for k in range(nv):
+            a = abs(demand[k]) if again else abs(taus[i, k])
+            now = 1.0 if a > P[10, k] else 0.0
+            if i > 0:
+                row[saturated + k] += 0.5 * (now + over[k]) * (t_eval[i] - t_eval[i - 1])
+            over[k] = now
+
+
+@jit
 def run_many(
     method, Y0, t_eval, dt, atol, rtol, max_step, max_steps, laws, C, rt, rv, keep, band,
     out_y, out_tau, metrics, info, t_reached, first, stop, P, phys,
@@ -725,8 +770,10 @@ def run_many(
         t_reached: the time each reached, or failed at (B,) [s].
         first: the first variant.
         stop: one past the last.
-        P: the physical model (8, nv), as ``rrt_pin.robot.limits.Physical.as_array``.
-        phys: (1,) int: 1 to apply it, 0 for the law alone.
+        P: the physical model (11, nv): rows 0–7 as ``rrt_pin.robot.limits.Physical.as_array``,
+            rows 8–10 the robot's stated lower, upper and effort limits (what the
+            metrics measure against, applied or not).
+        phys: (1,) int: 1 to apply P's rows 0–7, 0 for the law alone.
     """
     n = Y0.shape[1]
     nv = n // 2
@@ -755,7 +802,10 @@ def run_many(
             for k in range(nv):
                 out_tau[b, 0, k] = taus[rows - 1, k] if rows > 0 else np.nan
             if status == STATUS_OK and bad < 0:
-                metrics_of(t_eval, ys, taus, C[b, 2 * nv : 3 * nv], band, metrics[b])
+                metrics_of(
+                    t_eval, ys, taus, C[b, 2 * nv : 3 * nv], band, metrics[b], laws[b], C[b],
+                    rt, rv, ws,
+                )  # fmt: skip
         if status == STATUS_OK and bad >= 0:
             status, coordinate = STATUS_EFFORT_NONFINITE, bad
             t = t_eval[bad // nv] if ys.shape[0] == T else t_eval[T - 1]

@@ -32,7 +32,7 @@ from rrt_pin.compiled.lanes import MAX_STEPS, _in_slices, _raise_status, _thread
 from rrt_pin.core import cpus
 from rrt_pin.core.errors import DivergenceError, InputError
 from rrt_pin.dynamics.trajectory import Trajectory
-from rrt_pin.robot.limits import Physical
+from rrt_pin.robot.limits import Physical, physical_model
 from rrt_pin.robot.robot import Robot
 from rrt_pin.simulate import codes
 from rrt_pin.simulate.control import OpenLoop, PDGravityController, TrackingController
@@ -152,13 +152,15 @@ def _run(
         P, phys = physical.as_array(), np.ones(1, dtype=np.int64)
     else:
         P, phys = np.zeros((8, nv)), np.zeros(1, dtype=np.int64)
+    stated = physical_model(robot)  # what the metrics measure against, applied or not
+    P = np.ascontiguousarray(np.vstack([P, stated.lower, stated.upper, stated.effort]))
     laws, C, (rt, rv) = _laws(robot, controllers)
     count, n = Y0.shape[0], Y0.shape[1]
     keep_code = _KEEP[keep]
     rows = t.size if keep == "trajectories" else 1
     out_y = np.empty((count, rows, n))
     out_tau = np.empty((count, rows, nv))
-    metrics = np.full((count, 5 * nv + 1), np.nan)
+    metrics = np.full((count, codes.metric_start(codes.METRIC_WIDTH, nv)), np.nan)
     info = np.zeros((count, 3), dtype=np.int64)
     reached = np.empty(count)
     atol = np.full(n, options.atol if options.atol is not None else 0.0)

@@ -529,7 +529,7 @@ def simulate_batch(
         def run(o: Options, began: float, tau: bool, kept: str, main: bool = True) -> BatchResult:
             wants = tau or kept == "metrics" or (main and rp.needs_demand)
             full = run_batch(robot, laws, q0s, qd0s, t, o, chosen, wants, began, rp.applied)
-            return reduced(full, kept, qf, tau, measured if main else None)
+            return reduced(full, kept, qf, tau, measured if main else None, rp, laws)
 
     if failures == "record" and not generated:
         try:

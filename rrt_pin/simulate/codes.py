@@ -26,8 +26,10 @@ __all__ = [
     "METRIC_ENERGY",
     "METRIC_EXCURSION",
     "METRIC_FINAL",
+    "METRIC_LIMIT",
     "METRIC_PEAK",
     "METRIC_PEAK_TIME",
+    "METRIC_SATURATION",
     "METRIC_SETTLE",
     "METRIC_WIDTH",
     "METHOD_RK4",
@@ -44,6 +46,7 @@ __all__ = [
     "STATUS_OK",
     "STATUS_SINGULAR_MASS",
     "STATUS_STEP_UNDERFLOW",
+    "metric_start",
 ]
 
 # Integration methods: adaptive ones below 10, fixed-step ones from 10 on.
@@ -88,7 +91,9 @@ METRIC_PEAK = 6  # peak |tau| [N·m, N·m, N]
 METRIC_PEAK_TIME = 9  # its time [s]
 METRIC_EXCURSION = 12  # max |q(t) - q(t0)| [rad, rad, m]
 METRIC_ENERGY = 15  # control energy, integral of sum |tau·qd| dt [J] (one value)
-METRIC_WIDTH = 16
+METRIC_LIMIT = 16  # largest distance past the stated position limits [rad, rad, m], 0 inside
+METRIC_SATURATION = 19  # time the law's demand exceeded the stated effort limit [s]
+METRIC_WIDTH = 22
 
 #: Number of physical parameters (``rrt_pin.dynamics.kernel.PARAM_ORDER``) and of controller parameters.
 NP = 15
@@ -97,3 +102,13 @@ NC = 9 + NP
 #: Floating-point operations of ``_jit_dynamics.vsincos`` (reduction 6, two polynomials 20,
 #: assembly 7): the compiled kernels' flop counts (:mod:`rrt_pin.cli.flops`) include it.
 SINCOS_FLOPS = 33
+
+
+def metric_start(offset: int, nv: int) -> int:
+    """Where a ``METRIC_*`` offset (laid out for 3 coordinates) lies in a row for ``nv``.
+
+    Each block of 3 becomes a block of ``nv``; a remainder counts single values (the
+    energy) before it: ``offset // 3 * nv + offset % 3`` (the row's width from
+    :data:`METRIC_WIDTH` the same way).
+    """
+    return offset // 3 * nv + offset % 3

@@ -16,9 +16,11 @@ from rrt_pin.core.errors import InputError
 from rrt_pin.simulate.metrics import GROUPS, batch_metrics
 
 if TYPE_CHECKING:
+    from rrt_pin.robot.limits import Physical
+    from rrt_pin.simulate.physical_runs import RunPhysics
     from rrt_pin.simulate.results import BatchResult
 
-__all__ = ["reduced", "targets"]
+__all__ = ["demanded", "reduced", "targets"]
 
 
 def targets(laws: Sequence[Any]) -> np.ndarray:
@@ -32,16 +34,47 @@ def targets(laws: Sequence[Any]) -> np.ndarray:
     return np.array(found, dtype=float)
 
 
+def demanded(
+    t: np.ndarray,
+    q: np.ndarray,
+    qd: np.ndarray,
+    tau: np.ndarray,
+    laws: Sequence[Any],
+    applied: Physical | None,
+) -> np.ndarray:
+    """The laws' efforts before saturation at the samples (B, T, nv) [N·m or N].
+
+    ``tau``: the efforts applied (the laws', saturated at ``applied``'s effort limits);
+    a variant's demand is computed again (its law's ``efforts_many``) only where some
+    effort is at its limit, as :func:`rrt_pin.simulate.physical_runs.with_limits` does.
+    """
+    if applied is None or not np.isfinite(applied.effort).any():
+        return tau
+    out = tau
+    for b, law in enumerate(laws):
+        if law is None or not (np.abs(tau[b]) >= applied.effort).any():
+            continue
+        if out is tau:
+            out = tau.copy()
+        with np.errstate(all="ignore"):
+            out[b] = np.asarray(law.efforts_many(t, q[b], qd[b]), dtype=float)
+    return out
+
+
 def reduced(
     full: BatchResult,
     keep: str,
     qf: np.ndarray | None,
     efforts: bool,
     limits: Callable[[BatchResult], Any] | None = None,
+    physics: RunPhysics | None = None,
+    laws: Sequence[Any] = (),
 ) -> BatchResult:
     """A batch with every output time reduced to what ``keep`` asks for.
 
     ``limits(full)``: the variants' limit events, measured before the samples go.
+    ``physics``, ``laws``: the run's physical model and laws, for the ``limits`` metrics
+    (the stated limits, the laws' demands); None: no limit stated.
     """
     events = limits(full) if limits is not None else full.limits
     if keep == "trajectories":
@@ -50,10 +83,17 @@ def reduced(
         return replace(full, limits=events, tau=full.tau if efforts else None)
     metrics = None
     if keep == "metrics":
+        stated = demand = None
+        if physics is not None:
+            stated = physics.stated
+            if full.tau is not None:
+                applied = physics.applied
+                demand = demanded(full.t, full.q, full.qd, full.tau, laws, applied)
         with np.errstate(invalid="ignore"):
             metrics = batch_metrics(
-                GROUPS, full.t, full.q, full.qd, full.tau, qf, full.q_names, full.tau_names
-            )
+                GROUPS, full.t, full.q, full.qd, full.tau, qf, full.q_names, full.tau_names,
+                stated=stated, demanded=demand,
+            )  # fmt: skip
     return replace(
         full,
         t=full.t[-1:],

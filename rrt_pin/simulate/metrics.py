@@ -1,6 +1,9 @@
-"""Numbers that summarise a run: settling times, distance to the target, peaks.
+"""Numbers that summarise a run: settling times, distance to the target, peaks, limits.
 
 Pure functions of arrays (SI units), shared by the CLI's summaries and the library.
+The ``limits`` group measures a run against its robot's stated limits as
+:mod:`rrt_pin.simulate.crossings` measures a single run's limit events (the same
+function), so that a batch's row and a run's ``result.limits`` agree.
 """
 
 from __future__ import annotations
@@ -12,7 +15,9 @@ from typing import Any
 import numpy as np
 
 from rrt_pin.core import backends
+from rrt_pin.robot.limits import Physical
 from rrt_pin.simulate import codes
+from rrt_pin.simulate.crossings import measure
 
 __all__ = [
     "GROUPS",
@@ -25,6 +30,7 @@ __all__ = [
     "column_names",
     "column_units",
     "for_task",
+    "limit_columns",
     "metric_columns",
     "settling_times",
 ]
@@ -96,6 +102,11 @@ METRICS: dict[str, Metric] = {
                (Column("excursion", "coordinate", None, "METRIC_EXCURSION"),)),
         Metric("control_energy", "∫ Σ|τ·q̇| dt [J]", _BOTH,
                (Column("control_energy", "run", "J", "METRIC_ENERGY"),)),
+        Metric("limits", "the largest distance past the URDF's position limits per joint "
+               "[rad or m] and the time the law's demand exceeded its effort limit [s] "
+               "(0: inside, or no limit stated)", _BOTH,
+               (Column("limit_violation", "coordinate", None, "METRIC_LIMIT"),
+                Column("saturation_time", "effort", "s", "METRIC_SATURATION"))),
         Metric("evaluations", "dynamics evaluations", ("simulate",),
                (Column("evaluations", "run", ""),), from_samples=False),
         Metric("diverged", "whether the variant failed, when [s], in which coordinate, and "
@@ -192,17 +203,29 @@ def batch_metrics(
     effort_names: tuple[str, ...],
     band: float = SETTLING_BAND,
     compiled: bool = False,
+    *,
+    stated: Physical | None = None,
+    demanded: np.ndarray | None = None,
 ) -> dict[str, np.ndarray]:
     """Per-variant metrics of B runs sampled at ``t`` (shapes (B, T, n)), as named columns.
 
     Groups (see :data:`METRICS`): ``final_error`` (|q(tf) − qf|),
     ``settling_time`` (as :func:`settling_times`; NaN when not settled), ``peak_effort``
     (peak |τ| and its time), ``excursion`` (max |q(t) − q(0)|), ``control_energy``
-    (∫ Σ|τ·q̇| dt by the trapezoidal rule [J]). Units as the coordinates and efforts.
+    (∫ Σ|τ·q̇| dt by the trapezoidal rule [J]), ``limits`` (:func:`limit_columns`).
+    Units as the coordinates and efforts.
     ``compiled``: one pass in machine code (numba; the same numbers, a few times faster).
+    ``stated``: the robot's stated limits, whether the runs enforced them or not
+    (:func:`rrt_pin.robot.limits.physical_model` with every switch on; None: none stated,
+    the ``limits`` columns are 0); ``demanded``: the laws' efforts before saturation
+    (B, T, n) [N·m or N] (None: ``tau``, right when no effort was saturated).
     """
     if compiled and tau is not None and qf is not None and q.shape[2] == 3:
-        return _compiled_metrics(groups, t, q, qd, tau, qf, q_names, effort_names, band)
+        out = _compiled_metrics(groups, t, q, qd, tau, qf, q_names, effort_names, band)
+        if "limits" in groups and stated is not None:  # the kernel's row: no limit stated
+            efforts = tau if demanded is None else demanded
+            out.update(limit_columns(t, q, qd, efforts, stated, q_names, effort_names))
+        return out
     out: dict[str, np.ndarray] = {}
     n = q.shape[2]
     if "final_error" in groups:
@@ -233,6 +256,54 @@ def batch_metrics(
     if "control_energy" in groups and tau is not None:
         power = np.abs(tau * qd).sum(axis=2)
         out["control_energy"] = (0.5 * (power[:, 1:] + power[:, :-1]) * np.diff(t)).sum(axis=1)
+    if "limits" in groups:
+        efforts = tau if demanded is None else demanded
+        out.update(limit_columns(t, q, qd, efforts, stated, q_names, effort_names))
+    return out
+
+
+def limit_columns(
+    t: np.ndarray,
+    q: np.ndarray,
+    qd: np.ndarray,
+    demanded: np.ndarray | None,
+    stated: Physical | None,
+    q_names: tuple[str, ...],
+    effort_names: tuple[str, ...],
+) -> dict[str, np.ndarray]:
+    """The ``limits`` group of B runs sampled at ``t`` (shapes (B, T, n)), as named columns.
+
+    ``limit_violation_<q>`` [rad or m]: the largest distance past the position limits
+    over the samples (0 inside; continuous joints and limits not given: 0);
+    ``saturation_time_<effort>`` [s]: the time the demanded |effort| exceeded the effort
+    limit, trapezoidal over the samples. Both as :func:`rrt_pin.simulate.crossings.measure`
+    makes a position event's extent and an effort event's ``saturated_time``.
+
+    Args:
+        t: sample times (T,) [s].
+        q: coordinates [rad or m].
+        qd: velocities [rad/s or m/s].
+        demanded: the laws' efforts before saturation [N·m or N] (None: no efforts, no
+            ``saturation_time`` columns).
+        stated: the limits measured against (None: none, every column 0).
+        q_names: the coordinates' names.
+        effort_names: the efforts' names.
+    """
+    B, n = q.shape[0], q.shape[2]
+    out: dict[str, np.ndarray] = {}
+    if stated is None:
+        depth = np.zeros((B, n))
+        time = None if demanded is None else np.zeros((B, n))
+    else:
+        with np.errstate(invalid="ignore"):
+            found = measure(t, q, qd, demanded, stated)
+        depth = found["position"]["extent"]
+        time = found["effort"]["time"] if demanded is not None else None
+    for k in range(n):
+        out[f"limit_violation_{q_names[k]}"] = depth[:, k]
+    if time is not None:
+        for k in range(n):
+            out[f"saturation_time_{effort_names[k]}"] = time[:, k]
     return out
 
 
@@ -253,14 +324,14 @@ def metric_columns(
     ``rows`` laid out as the ``METRIC_*`` offsets of :mod:`rrt_pin.simulate.codes` say
     (each :class:`Column`'s ``offset``, then one value per coordinate or effort), for
     the chapter's 3 coordinates; ``width``: the coordinates of another robot's rows,
-    whose offsets are the same multiples of it.
+    whose offsets are the same multiples of it (:func:`rrt_pin.simulate.codes.metric_start`).
     """
     out: dict[str, np.ndarray] = {}
     for group in groups:
         for column in METRICS[group].columns:
             if column.offset is None:
                 continue
-            start = getattr(codes, column.offset) // 3 * width
+            start = codes.metric_start(getattr(codes, column.offset), width)
             for k, name in enumerate(column.names(q_names, effort_names)):
                 out[name] = rows[:, start + k]
     return out
