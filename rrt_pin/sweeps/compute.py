@@ -24,11 +24,13 @@ from rrt_pin.core.grid import time_grid
 from rrt_pin.dynamics.inverse import inverse_dynamics
 from rrt_pin.dynamics.kernel import PARAM_ORDER
 from rrt_pin.dynamics.trajectory import rest_to_rest
+from rrt_pin.robot.limits import physical_model
 from rrt_pin.robot.params import Params
 from rrt_pin.robot.robot import Robot
 from rrt_pin.robot.robots import chapter_arm
 from rrt_pin.simulate import codes, simulate, simulate_batch
 from rrt_pin.simulate.control import ChapterController, PDGravityController
+from rrt_pin.simulate.kept import demanded
 from rrt_pin.simulate.metrics import GROUPS, batch_metrics, column_names, metric_columns
 from rrt_pin.simulate.options import resolve
 from rrt_pin.sweeps.spec import Spec, spec_from_dict
@@ -317,7 +319,7 @@ def _urdf_simulate(p: Plan, values: dict, start: int, count: int, rows: list[int
     q = np.full((count, p.t.size, n), np.nan)
     qd, tau = q.copy(), q.copy()
     # efforts only where a metric (or a kept trajectory) needs them
-    efforts = bool({"peak_effort", "control_energy"} & set(p.spec.metrics)) or bool(rows)
+    efforts = bool({"peak_effort", "control_energy", "limits"} & set(p.spec.metrics)) or bool(rows)
     edges = sorted({0, count, *range((-start) % BLOCK, count, BLOCK)})
     for a, b in zip(edges[:-1], edges[1:], strict=True):
         idx = [i for i in range(a, b) if not bad[i]]
@@ -338,7 +340,11 @@ def _urdf_simulate(p: Plan, values: dict, start: int, count: int, rows: list[int
                     failures[i] = e
                     continue
                 q[i], qd[i], tau[i], evals[i] = one.q, one.qd, one.tau, one.n_evals
-    part = _finish(p, q, qd, tau, cols["qf"], evals, bad, why, failures)
+    demand = None
+    if efforts and "limits" in p.spec.metrics:  # the laws' efforts before saturation
+        applied = physical_model(robot)  # a sweep applies the URDF's limits
+        demand = demanded(p.t, q, qd, tau, laws, applied)
+    part = _finish(p, q, qd, tau, cols["qf"], evals, bad, why, failures, demand=demand)
     return {"columns": part["columns"], "keep": {k: (q[k], qd[k], tau[k]) for k in rows}}
 
 
@@ -390,11 +396,14 @@ def _finish(
     failures: list,
     metrics: np.ndarray | None = None,
     columns: dict[str, np.ndarray] | None = None,
+    demand: np.ndarray | None = None,
 ) -> dict[str, Any]:
     """The block's columns: metrics, evaluations and failures.
 
     The metrics are ``columns`` when given, else from ``metrics`` rows when the
-    compiled loop made them, else from the samples q, qd, tau.
+    compiled loop made them, else from the samples q, qd, tau (``demand``: the laws'
+    efforts before saturation, for the ``limits`` group; None: tau), measured against
+    the robot's stated limits.
     """
     robot = p.robot
     groups = p.spec.metrics
@@ -404,10 +413,11 @@ def _finish(
         columns = metric_columns(groups, metrics, robot.q_names, robot.effort_names)
         columns = {name: col.copy() for name, col in columns.items()}
     else:
+        stated = physical_model(robot) if "limits" in groups else None
         with np.errstate(invalid="ignore"):
             columns = batch_metrics(
                 groups, p.t, q, qd, tau, qf, robot.q_names, robot.effort_names,
-                compiled=p.backend == "compiled",
+                compiled=p.backend == "compiled", stated=stated, demanded=demand,
             )  # fmt: skip
     failed = np.array([f is not None for f in failures], dtype=bool) | bad
     if "evaluations" in groups:

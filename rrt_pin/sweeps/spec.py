@@ -24,7 +24,7 @@ A spec is a TOML file (or the same dict in Python)::
     gamma23 = { lhs = [40.0, 60.0] }        # random: Latin hypercube over all lhs axes
 
     [keep]
-    metrics = ["final_error", "settling_time"]   # default: all of the task's
+    metrics = ["final_error", "settling_time"]   # default: all of the task's (the arm: not limits)
     trajectories = [0, 17]                       # dense runs of these variants
 
 Variants are the Cartesian product of the grid axes (first axis slowest) times
@@ -70,6 +70,9 @@ __all__ = [
 
 #: Metrics by task: name -> what it is (from the registry, :data:`rrt_pin.simulate.metrics.METRICS`).
 METRICS: dict[str, dict[str, str]] = {task: for_task(task) for task in ("simulate", "inverse")}
+#: Metrics a sweep of the chapter's arm leaves out unless asked: its URDF states no
+#: binding limit (the columns would be 0).
+ARM_UNASKED = ("limits",)
 _SECTIONS = ("sweep", "base", "vary", "keep")
 _SWEEP_KEYS = (
     "task",
@@ -523,7 +526,8 @@ def spec_from_dict(data: Mapping[str, Any], where: str = "spec") -> Spec:
     bad = sorted(set(keep) - {"metrics", "trajectories"})
     if bad:
         raise SpecError(f"{where}: unknown key {bad[0]!r} in [keep]; valid: metrics, trajectories")
-    metrics = keep.get("metrics", list(METRICS[task]))
+    default = [m for m in METRICS[task] if not (arm and m in ARM_UNASKED)]
+    metrics = keep.get("metrics", default)
     if not isinstance(metrics, list) or not metrics:
         raise SpecError(f"{where}: [keep] metrics must be a non-empty list")
     for m in metrics:
