@@ -2,6 +2,7 @@
 
 import json
 import math
+from dataclasses import replace
 
 import numpy as np
 import pinocchio as pin
@@ -16,7 +17,10 @@ from rrt_pin.robot.limits import (
     applied_efforts,
     applied_jacobian,
     applier,
+    gravity_bound,
+    losses,
     physical_model,
+    within,
 )
 from rrt_pin.robot.params import Params
 from rrt_pin.robot.robot import Robot
@@ -261,3 +265,105 @@ def test_the_cli_flags_and_summary(tmp_path, capsys):
         main(["simulate", "--help"])
     text = " ".join(capsys.readouterr().out.split())
     assert "omega = 200 rad/s" in text and "v = 0.001 rad/s or m/s" in text
+
+
+# --------------------------------------------------------------------------
+# The Pinocchio backend's shortcuts: the same model, at less cost
+# --------------------------------------------------------------------------
+def _states_within(p, rng, count):
+    """``count`` random coordinates inside the position limits (±π where there are none)."""
+    lo = np.where(np.isfinite(p.lower), p.lower, -math.pi)
+    hi = np.where(np.isfinite(p.upper), p.upper, math.pi)
+    return lo + (hi - lo) * rng.random((count, p.nv))
+
+
+@pytest.mark.parametrize("name", ["ur5", "panda"])
+def test_the_gravity_bound_holds_over_the_joints_ranges(name):
+    robot = get(name)
+    p = physical_model(robot)
+    bound = gravity_bound(robot.model, p)
+    data = robot.model.createData()
+    q = _states_within(p, np.random.default_rng(5), 3000)
+    seen = np.array([np.abs(pin.computeGeneralizedGravity(robot.model, data, x)) for x in q])
+    assert np.isfinite(bound).all()
+    assert (seen.max(axis=0) <= bound).all()
+    heaviest = int(np.argmax(seen.max(axis=0)))
+    assert bound[heaviest] <= 1.3 * seen[:, heaviest].max()  # a useful bound, not a huge one
+
+
+def test_the_gravity_bound_of_a_prismatic_joint_is_its_weight_and_needs_limits_below():
+    robot = slider()
+    bound = gravity_bound(robot.model, physical_model(robot))
+    weight = pin.computeGeneralizedGravity(robot.model, robot.model.createData(), np.zeros(1))
+    assert bound[0] == pytest.approx(abs(weight[0]), rel=1e-8) and bound[0] >= abs(weight[0])
+    panda = get("panda")
+    free = gravity_bound(panda.model, physical_model(panda, position_limits=False))
+    assert np.isinf(free[:7]).all()  # the fingers' travel is unknown: no bound above them
+    assert np.isfinite(free[7:]).all()
+
+
+def test_within_says_where_only_the_losses_act():
+    rng = np.random.default_rng(4)
+    robot = pendulum2(limit=0.5, effort=3.0, damping=(0.3, 0.0))
+    p = replace(physical_model(robot), friction=np.array([0.0, 0.2])).at(np.array([0.4, 0.1]))
+    inside, lose = within(p), losses(p)
+    answers = set()
+    for _ in range(200):
+        tau, q, qd = rng.normal(0, 3, 2), rng.normal(0, 0.5, 2), rng.normal(0, 2, 2)
+        expected = bool((np.abs(tau) <= 3.0).all() and (np.abs(q) <= 0.5).all())
+        answers.add(expected)
+        assert inside(tau, q) is expected
+        if expected:
+            np.testing.assert_array_equal(lose(tau, qd), applied_efforts(tau, q, qd, p))
+        np.testing.assert_array_equal(applier(p)(tau, q, qd), applied_efforts(tau, q, qd, p))
+    assert answers == {True, False}
+    assert not inside(np.array([np.nan, 0.0]), np.zeros(2))
+    assert not inside(np.zeros(2), np.array([0.0, np.nan]))
+    assert losses(physical_model(robot, losses=False)) is None
+
+
+@pytest.mark.parametrize("name", ["ur5", "panda"])
+def test_gravity_folded_where_it_cannot_saturate_changes_nothing_but_rounding(name):
+    from rrt_pin.simulate.closed_loop import BatchLoop, ClosedLoop
+
+    robot = get(name)
+    model, data = robot.model, robot.model.createData()
+    qf = _states_within(physical_model(robot), np.random.default_rng(0), 1)[0]
+    mass = np.diag(pin.crba(model, data, qf))
+    law = pd_gravity_controller(robot, kp=100.0 * mass, kd=20.0 * mass, qf=qf)
+    p = physical_model(robot).at(mass)
+    rng = np.random.default_rng(6)
+    # near the target (folded), far from it (saturated), past a limit (the stops push)
+    offsets = np.concatenate([rng.normal(0, s, (20, robot.nv)) for s in (0.01, 1.0, 3.0)])
+    q, qd = qf + offsets, rng.normal(0, 0.5, offsets.shape)
+    expected = np.array([
+        pin.aba(model, data, x, v, applied_efforts(law.efforts(0.0, x, v), x, v, p))
+        for x, v in zip(q, qd, strict=True)
+    ])  # fmt: skip
+    loop = ClosedLoop(robot, law, p)
+    one = loop.acceleration()
+    folded = [
+        loop.unsaturated(-loop.kd * v - loop.kp * (x - qf), x) for x, v in zip(q, qd, strict=True)
+    ]
+    assert 0 < sum(folded) < len(folded)  # both ways taken
+    scale = np.abs(expected).max(axis=1, keepdims=True) + 1.0
+    got = np.array([one(0.0, x, v) for x, v in zip(q, qd, strict=True)])
+    assert (np.abs(got - expected) <= 1e-10 * scale).all()
+    batch = BatchLoop(robot, [law] * len(q), 1, p).acceleration()(0.0, q, qd)
+    assert (np.abs(batch - expected) <= 1e-10 * scale).all()
+
+
+def test_a_ur5_run_that_hits_no_limit_is_the_law_alone_to_rounding():
+    robot = get("ur5")
+    qf = np.array([0.0, -1.2, 1.2, -1.0, -1.2, 0.0])
+    mass = np.diag(pin.crba(robot.model, robot.model.createData(), qf))
+    law = pd_gravity_controller(robot, kp=100.0 * mass, kd=20.0 * mass, qf=qf)
+    t = time_grid(2.0, 0.01)
+    off = {"effort_limits": False, "position_limits": False, "losses": False}
+    runs = [
+        simulate(robot, law, qf + 0.3, None, t, method="DOP853", rtol=1e-10, atol=1e-12,
+                 estimate_error=False, **switches)
+        for switches in ({}, off)
+    ]  # fmt: skip
+    assert runs[0].limits == () and np.abs(runs[0].tau).max() > 50.0  # real efforts, none clipped
+    assert np.abs(runs[0].q - runs[1].q).max() <= 1e-9

@@ -49,11 +49,14 @@ __all__ = [
     "applied_jacobian",
     "applier",
     "check_step",
+    "gravity_bound",
     "inactive",
     "joint_names",
+    "losses",
     "outside_limits",
     "physical_model",
     "saturated",
+    "within",
 ]
 
 #: The velocity below which Coulomb friction fades linearly-ish to zero: τ = −f·tanh(q̇/v) [rad/s or m/s].
@@ -363,12 +366,48 @@ def outside_limits(
     return out
 
 
+def within(p: Physical, room: np.ndarray | None = None) -> Callable[[np.ndarray, np.ndarray], bool]:
+    """f(τ, q) for one state (nv,): whether −room ≤ τ ≤ room and lower ≤ q ≤ upper everywhere.
+
+    With ``room`` the effort limits (the default), True says that neither the saturation
+    nor a position limit acts on ``τ`` at ``q``: :func:`applied_efforts` is then
+    τ − d·q̇ − f·tanh(q̇/v). False on NaN. A comparison of Python floats, joint by joint:
+    a numpy call on a few coordinates costs more than the whole loop.
+    """
+    room = p.effort if room is None else np.asarray(room, dtype=float)
+    keep = np.isfinite(room) | np.isfinite(p.lower) | np.isfinite(p.upper)
+    index = np.flatnonzero(keep).tolist()
+    rows = list(zip(p.lower[keep].tolist(), p.upper[keep].tolist(),
+                    (-room[keep]).tolist(), room[keep].tolist(), strict=True))  # fmt: skip
+    if not rows:
+        return lambda tau, q: True
+    if len(index) == p.nv:
+
+        def inside(tau: np.ndarray, q: np.ndarray) -> bool:
+            for x, s, (lo, hi, least, most) in zip(q.tolist(), tau.tolist(), rows, strict=True):
+                if not (lo <= x <= hi and least <= s <= most):
+                    return False
+            return True
+
+        return inside
+
+    def inside_some(tau: np.ndarray, q: np.ndarray) -> bool:
+        qs, ss = q.tolist(), tau.tolist()
+        for k, (lo, hi, least, most) in zip(index, rows, strict=True):
+            if not (lo <= qs[k] <= hi and least <= ss[k] <= most):
+                return False
+        return True
+
+    return inside_some
+
+
 def applier(p: Physical) -> Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]:
     """:func:`applied_efforts` for one model, as f(τ_law, q, q̇): the same values, faster.
 
     Terms the model does not have (no effort limit, no damping, no friction, no
-    position limit) are left out, and a position limit's spring is only computed when
-    some coordinate is past one. States of shape (…, nv).
+    position limit) are left out; for one state (nv,), the saturation and the position
+    limits only when :func:`within` says one acts, else a position limit's spring only
+    when some coordinate is past one. States of shape (…, nv).
     """
     clip = bool(np.isfinite(p.effort).any())
     damp = bool((p.damping > 0).any())
@@ -380,17 +419,83 @@ def applier(p: Physical) -> Callable[[np.ndarray, np.ndarray, np.ndarray], np.nd
     v = FRICTION_VELOCITY
     tanh, where, maximum, minimum = np.tanh, np.where, np.maximum, np.minimum
     least = np.minimum.reduce
+    free = within(p)
 
     def apply(tau_law: np.ndarray, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
-        tau = minimum(maximum(tau_law, minus_e), e) if clip else tau_law
+        bound = not (tau_law.ndim == 1 and free(tau_law, q))
+        tau = minimum(maximum(tau_law, minus_e), e) if clip and bound else tau_law
         if damp:
             tau = tau - d * qd
         if rub:
             tau = tau - f * tanh(qd / v)
-        if stops and least(minimum(q - lo, hi - q), axis=None) < 0.0:  # some joint is past one
+        if bound and stops and least(minimum(q - lo, hi - q), axis=None) < 0.0:  # one is past
             below, above = q < lo, q > hi
             tau = tau + where(below, maximum(0.0, k * (lo - q) - b * qd), 0.0)
             tau = tau + where(above, minimum(0.0, k * (hi - q) - b * qd), 0.0)
         return tau
 
     return apply
+
+
+def losses(p: Physical) -> Callable[[np.ndarray, np.ndarray], np.ndarray] | None:
+    """τ ↦ τ − d·q̇ − f·tanh(q̇/v) as f(τ, q̇), what the joints get where :func:`within` holds.
+
+    None when the model has neither damping nor friction (τ itself).
+    """
+    damp = bool((p.damping > 0).any())
+    rub = bool((p.friction > 0).any())
+    d, f, v, tanh = p.damping, p.friction, FRICTION_VELOCITY, np.tanh
+    if damp and rub:
+        return lambda tau, qd: tau - d * qd - f * tanh(qd / v)
+    if damp:
+        return lambda tau, qd: tau - d * qd
+    if rub:
+        return lambda tau, qd: tau - f * tanh(qd / v)
+    return None
+
+
+#: Pinocchio's revolute and prismatic joints (what :func:`gravity_bound` knows).
+_REVOLUTE = {"JointModelRX", "JointModelRY", "JointModelRZ", "JointModelRevoluteUnaligned",
+             "JointModelRUBX", "JointModelRUBY", "JointModelRUBZ",
+             "JointModelRevoluteUnboundedUnaligned"}  # fmt: skip
+_PRISMATIC = {"JointModelPX", "JointModelPY", "JointModelPZ", "JointModelPrismaticUnaligned"}
+
+
+def gravity_bound(model: pin.Model, p: Physical) -> np.ndarray:
+    """An upper bound of |G_k(q)| over every q within ``p``'s position limits [N·m or N] (nv,).
+
+    G_k = Σ_b m_b·gᵀ·∂c_b/∂q_k over the bodies b that joint k carries, with
+    |∂c_b/∂q_k| = 1 for a prismatic joint and ≤ |c_b − o_k| for a revolute one, o_k on
+    its axis; |c_b − o_k| is at most the lengths of the joint placements between them,
+    the travel of the prismatic joints among them (their limits) and b's centre-of-mass
+    offset. inf where no bound is known: a joint of another kind in the model, or an
+    unlimited prismatic joint on the way. With it, |τ_PD| ≤ effort − bound says
+    that PD plus G(q) is not saturated, without computing G.
+    """
+    nv, joints = model.nv, range(model.njoints)
+    kinds = [model.joints[j].shortname() for j in joints]
+    if any(kind not in _REVOLUTE | _PRISMATIC for kind in kinds[1:]):
+        return np.full(nv, np.inf)
+    g = float(np.linalg.norm(model.gravity.linear))
+    travel = np.maximum(np.abs(p.lower), np.abs(p.upper))
+    mass = [model.inertias[j].mass for j in joints]
+    lever = [float(np.linalg.norm(model.inertias[j].lever)) for j in joints]
+    # how far joint j's origin may lie from its parent's: its placement, its travel
+    step = [float(np.linalg.norm(model.jointPlacements[j].translation)) for j in joints]
+    for j in joints[1:]:
+        if kinds[j] in _PRISMATIC:
+            step[j] += float(travel[model.joints[j].idx_v])
+    parents = list(model.parents)
+    bound = np.zeros(nv)
+    for k in joints[1:]:
+        total = 0.0
+        for body in model.subtrees[k]:
+            reach = 1.0
+            if kinds[k] not in _PRISMATIC:
+                reach, j = lever[body], body
+                while j != k:
+                    reach += step[j]
+                    j = parents[j]
+            total += mass[body] * reach
+        bound[model.joints[k].idx_v] = g * total
+    return bound * (1.0 + 1e-9)  # room for the rounding of G's sum

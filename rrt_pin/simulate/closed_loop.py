@@ -8,8 +8,13 @@ efforts reported are always the controller's full output at the output times.
 
 With a robot's physical model (:class:`~rrt_pin.robot.limits.Physical`, active), the
 joints get :func:`~rrt_pin.robot.limits.applied_efforts` of the law's efforts
-(saturated, minus damping and friction, plus the compliant position limits) and
-gravity is not folded (saturation needs the law's whole effort).
+(saturated, minus damping and friction, plus the compliant position limits).
+Saturation needs the law's whole effort, PD plus G(q); for PD plus the model's G,
+gravity is still folded at the states where that effort cannot be saturated
+(|τ_PD| ≤ effort − a bound of |G| over the joints' ranges,
+:func:`~rrt_pin.robot.limits.gravity_bound`) and no joint is past a position limit:
+there the joints get τ_PD + G minus the losses, and ABA₀ needs neither G nor the
+saturation. Elsewhere G(q) is computed and the whole model applied.
 
 Joint coordinates (angles for continuous joints) are mapped to Pinocchio's
 configuration by the robot (:meth:`rrt_pin.robot.robot.Robot.configuration`), which
@@ -43,6 +48,26 @@ def _without_gravity(model):  # noqa: ANN001, ANN202
     return free
 
 
+def _unsaturated(robot: Robot, p: Physical) -> Callable[[np.ndarray, np.ndarray], bool]:
+    """f(τ_PD, q) for one state: whether τ_PD + G(q) cannot saturate and no joint is past a limit.
+
+    :func:`~rrt_pin.robot.limits.within`, with G's bound taken off the effort limits.
+    """
+    from rrt_pin.robot.limits import within
+
+    return within(p, _room(robot, p))
+
+
+def _room(robot: Robot, p: Physical) -> np.ndarray:
+    """The effort limits less a bound of |G| over the joints' ranges [N·m or N] (inf: no limit)."""
+    from rrt_pin.robot.limits import gravity_bound
+
+    finite = np.isfinite(p.effort)
+    bound = gravity_bound(robot.model, p)
+    with np.errstate(invalid="ignore"):
+        return np.where(finite, p.effort - np.where(finite, bound, 0.0), np.inf)
+
+
 def q_is_x(robot: Robot) -> bool:
     """Whether the joint coordinates are Pinocchio's configuration (no continuous joint)."""
     return not robot.has_continuous_joints
@@ -54,7 +79,7 @@ class ClosedLoop:
     def __init__(
         self, robot: Robot, controller: Controller, physical: Physical | None = None
     ) -> None:
-        from rrt_pin.robot.limits import applier
+        from rrt_pin.robot.limits import applier, losses
 
         self.robot = robot
         self.n = robot.nv
@@ -76,6 +101,12 @@ class ClosedLoop:
 
         check_data(self.model, f"a simulation of a {self.n}-joint model")
         self.data = self.model.createData()
+        if self.gravity_pd and q_is_x(robot):
+            #: where PD plus G cannot saturate and no joint is past a limit: G folded
+            self.unsaturated = _unsaturated(robot, physical)  # type: ignore[arg-type]
+            self.losses = losses(physical)  # type: ignore[arg-type]
+            self.model0 = _without_gravity(robot.model)
+            self.data0 = self.model0.createData()
 
     def acceleration(self) -> Callable[[float, np.ndarray, np.ndarray], np.ndarray]:
         """a(t, q, q̇) for one state (or a batch of one robot's states, fixed-step methods)."""
@@ -89,10 +120,15 @@ class ClosedLoop:
         if self.gravity_pd and q_is_x(self.robot):
             gravity, apply = pin.computeGeneralizedGravity, self.apply
             kp, kd, qf = self.kp, self.kd, self.qf
+            unsaturated, lose, model0, data0 = (
+                self.unsaturated, self.losses, self.model0, self.data0,
+            )  # fmt: skip
 
             def acc(t: float, q: np.ndarray, v: np.ndarray) -> np.ndarray:
-                tau = -kd * v - kp * (q - qf) + gravity(model, data, q)
-                return aba(model, data, q, v, apply(tau, q, v))
+                tau = -kd * v - kp * (q - qf)
+                if unsaturated(tau, q):  # ABA(τ_PD + G − losses) = ABA₀(τ_PD − losses)
+                    return aba(model0, data0, q, v, tau if lose is None else lose(tau, v))
+                return aba(model, data, q, v, apply(tau + gravity(model, data, q), q, v))
 
             return acc
         if self.apply is not None:
@@ -228,9 +264,10 @@ class BatchLoop:
     ) -> None:
         import pinocchio as pin
 
-        from rrt_pin.robot.limits import applier
+        from rrt_pin.robot.limits import applier, losses
 
         self.apply = None if physical is None else applier(physical)
+        self.physical = physical
         self.robot = robot
         self.controllers = list(controllers)
         self.threads = Threads(threads, len(self.controllers))
@@ -238,13 +275,20 @@ class BatchLoop:
         first = feedbacks[0]
         self.stacked = all(f is not None and f.key == first.key for f in feedbacks)
         self.folded = False
+        #: PD plus the model's G under a physical model: G folded where it cannot saturate
+        self.split = False
         if self.stacked:
             self.kp = np.array([f.kp for f in feedbacks])
             self.kd = np.array([f.kd for f in feedbacks])
             self.qf = np.array([f.qf for f in feedbacks])
             self.gravity = first.gravity
-            self.folded = first.exact_for(robot) and physical is None
-        plant = _without_gravity(robot.model) if self.folded else robot.model
+            exact = first.exact_for(robot)
+            self.folded = exact and physical is None
+            self.split = exact and physical is not None
+        if self.split:
+            self.room = _room(robot, physical)  # type: ignore[arg-type]
+            self.losses = losses(physical)  # type: ignore[arg-type]
+        plant = _without_gravity(robot.model) if self.folded or self.split else robot.model
 
         self.pool = pin.ModelPool(plant, threads if threads is not None else cpus.available())
 
@@ -264,6 +308,8 @@ class BatchLoop:
                 return lambda t, q, v: (
                     aba(threads(), pool, to_q(q).T, v.T, (-kd * v - kp * (q - qf)).T).T
                 )
+            if self.split:
+                return self._split(aba, pool, threads, to_q)
             if self.apply is not None:
                 apply = self.apply
                 return lambda t, q, v: (
@@ -283,6 +329,33 @@ class BatchLoop:
             if apply is not None:
                 tau = apply(tau, q, v)
             return aba(threads(), pool, to_q(q).T, v.T, tau.T).T
+
+        return acc
+
+    def _split(self, aba, pool, threads, to_q):  # noqa: ANN001, ANN202
+        """a(t, q, q̇) of stacked PD plus the model's G under the physical model, on ABA₀.
+
+        Variants whose PD plus G cannot saturate and that are past no position limit
+        get τ_PD − losses (G folded); the others apply(τ_PD + G) − G, G computed for them only.
+        """
+        kp, kd, qf, gravity, apply, lose = (
+            self.kp, self.kd, self.qf, self.gravity, self.apply, self.losses,
+        )  # fmt: skip
+        p = self.physical
+        lower, upper, room = p.lower, p.upper, self.room  # type: ignore[union-attr]
+        every = np.logical_and.reduce
+
+        def acc(t: float, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+            tau = -kd * v - kp * (q - qf)
+            with np.errstate(invalid="ignore"):
+                free = (abs(tau) <= room) & (q >= lower) & (q <= upper)
+            free_rows = every(free, axis=1)
+            out = tau if lose is None else lose(tau, v)
+            if not every(free_rows):
+                rows = np.flatnonzero(~free_rows)
+                qs, g = q[rows], gravity(q[rows])
+                out[rows] = apply(tau[rows] + g, qs, v[rows]) - g
+            return aba(threads(), pool, to_q(q).T, v.T, out.T).T
 
         return acc
 
