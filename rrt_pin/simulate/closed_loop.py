@@ -341,18 +341,19 @@ class BatchLoop:
         kp, kd, qf, gravity, apply, lose = (
             self.kp, self.kd, self.qf, self.gravity, self.apply, self.losses,
         )  # fmt: skip
-        p = self.physical
-        lower, upper, room = p.lower, p.upper, self.room  # type: ignore[union-attr]
+        p: Physical = self.physical  # type: ignore[assignment]
+        # the bounds spelt out (B, n): cheaper than broadcasting them at each call
+        lower, upper, room = (
+            np.broadcast_to(x, self.kp.shape).copy() for x in (p.lower, p.upper, self.room)
+        )
         every = np.logical_and.reduce
 
         def acc(t: float, q: np.ndarray, v: np.ndarray) -> np.ndarray:
             tau = -kd * v - kp * (q - qf)
-            with np.errstate(invalid="ignore"):
-                free = (abs(tau) <= room) & (q >= lower) & (q <= upper)
-            free_rows = every(free, axis=1)
+            free = (abs(tau) <= room) & (q >= lower) & (q <= upper)  # NaN: not free
             out = tau if lose is None else lose(tau, v)
-            if not every(free_rows):
-                rows = np.flatnonzero(~free_rows)
+            if not every(free, axis=None):
+                rows = np.flatnonzero(~every(free, axis=1))
                 qs, g = q[rows], gravity(q[rows])
                 out[rows] = apply(tau[rows] + g, qs, v[rows]) - g
             return aba(threads(), pool, to_q(q).T, v.T, out.T).T

@@ -117,7 +117,7 @@ def run_physics(
     run = RunPhysics(None, stated, joints, list(robot.coordinate_units))
     if robot.is_chapter_arm:
         return run
-    p = physical_model(robot, **switches)
+    p = stated if all(switches.values()) else physical_model(robot, **switches)
     if p.active:
         import pinocchio as pin
 

@@ -14,6 +14,7 @@ the figures in docs/benchmarks.md come from these. Shared timing helpers are in
 - ``inverse``: inverse dynamics of the chapter's run: speed and agreement;
 - ``kernel``: the inverse-dynamics kernels: ns a sample, flops, the FMA rate;
 - ``peers``: rrt-pin against MuJoCo, Drake and scipy at matched accuracy;
+- ``physical_cost``: the URDF's limits, damping and friction on a run that hits no limit;
 - ``rnea``: the generated RNEA of any robot, vectorised: ns/sample, flops, the machine's rates;
 - ``robot_limits_peers``: passive UR5 and Panda at their joint limits against MuJoCo;
 - ``robot_peers``: UR5 and Panda batches against ``mujoco.rollout`` at matched error;
