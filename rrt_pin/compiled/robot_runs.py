@@ -143,6 +143,7 @@ def _run(
     band: float,
     max_steps: int,
     physical: Physical | None = None,
+    law_arrays: tuple | None = None,
 ) -> tuple[np.ndarray, ...]:
     code = robot_code.integrators_for(robot.model, robot.name)
     nv = robot.nv
@@ -154,7 +155,7 @@ def _run(
         P, phys = np.zeros((8, nv)), np.zeros(1, dtype=np.int64)
     stated = physical_model(robot)  # what the metrics measure against, applied or not
     P = np.ascontiguousarray(np.vstack([P, stated.lower, stated.upper, stated.effort]))
-    laws, C, (rt, rv) = _laws(robot, controllers)
+    laws, C, (rt, rv) = law_arrays or _laws(robot, controllers)
     count, n = Y0.shape[0], Y0.shape[1]
     keep_code = _KEEP[keep]
     rows = t.size if keep == "trajectories" else 1
@@ -247,12 +248,13 @@ def run_one(
         InputError: a law that does not run compiled.
         DivergenceError: the run failed (time and coordinate named).
     """
+    arrays = _laws(robot, [controller])  # a law refused before anything is compiled
     robot_code.integrators_for(robot.model, robot.name)  # compiled before the clock starts
     start = time.perf_counter() if start is None else start
     Y0 = np.concatenate([q0, qd0])[None, :]
     y, tau, _, info, reached, _ = _run(
         robot, [controller], Y0, t, options, "trajectories", 1, SETTLING_BAND, max_steps,
-        physical,
+        physical, arrays,
     )  # fmt: skip
     _raise(info, reached, tau, robot, options, max_steps, False)
     nv = robot.nv
@@ -318,21 +320,23 @@ def run_batch(
         DivergenceError: a variant failed (named, with its coordinate and time), with
             ``failures="raise"``.
     """
-    robot_code.integrators_for(robot.model, robot.name)
-    start = time.perf_counter() if start is None else start
-    count = q0s.shape[0]
+    # refused before anything is compiled
     if keep == "metrics" and any(type(c) is not PDGravityController for c in controllers):
         raise InputError(
             "keep='metrics' measures each variant against its controller's target qf: "
             "every controller needs one (or keep='final')"
         )
+    arrays = _laws(robot, controllers)
+    robot_code.integrators_for(robot.model, robot.name)
+    start = time.perf_counter() if start is None else start
+    count = q0s.shape[0]
     if threads is None:
         threads = cpus.threads_for(count, MIN_PER_THREAD)
     else:
         threads = _threads_that_fit(threads, count)
     Y0 = np.ascontiguousarray(np.concatenate([q0s, qd0s], axis=1))
     y, tau, rows, info, reached, used = _run(
-        robot, controllers, Y0, t, options, keep, threads, band, max_steps, physical
+        robot, controllers, Y0, t, options, keep, threads, band, max_steps, physical, arrays
     )
     recorded = None
     if failures == "record":

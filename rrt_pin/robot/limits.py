@@ -11,7 +11,9 @@ applies the same model (:func:`applied_efforts` is its definition, in numpy):
 * **position limits**, compliant (a spring–damper that only pushes, as MuJoCo's soft
   constraints): below ``lower``, τ = max(0, k·(lower − q) − b·q̇); above ``upper``,
   τ = min(0, k·(upper − q) − b·q̇); k = m·ω², b = 2·m·ω with ω = :data:`LIMIT_OMEGA` and m
-  the joint's diagonal inertia M_kk at the run's start (critically damped, ~1/ω to settle);
+  the joint's effective inertia 1/(M⁻¹)_kk at the run's start (what the joint pushes
+  against when the others move freely, as in MuJoCo's joint limits: critically damped,
+  ~1/ω to settle);
 * **velocity limits**: reported, not enforced.
 
 "Not given" (URDFs often write ``lower="0" upper="0" effort="0" velocity="0"``): a zero
@@ -130,9 +132,13 @@ class Physical:
             or (self.friction > 0).any()
         )
 
-    def at(self, mass_diagonal: np.ndarray) -> Physical:
-        """This model with the position limits' stiffness and damping for these inertias."""
-        m = np.asarray(mass_diagonal, dtype=float)
+    def at(self, inertia: np.ndarray) -> Physical:
+        """This model with the position limits' stiffness and damping for these inertias.
+
+        Args:
+            inertia: each joint's effective inertia, 1/(M⁻¹)_kk [kg·m² or kg] (nv,).
+        """
+        m = np.asarray(inertia, dtype=float)
         limited = np.isfinite(self.lower) | np.isfinite(self.upper)
         k = np.where(limited, m * LIMIT_OMEGA**2, 0.0)
         b = np.where(limited, 2.0 * LIMIT_DAMPING_RATIO * m * LIMIT_OMEGA, 0.0)
@@ -147,7 +153,7 @@ class Physical:
         return {
             "applied": self.active,
             "position_limits": "compliant: a spring-damper outside [lower, upper] that only "
-            "pushes back, k = M_kk·omega², b = 2·zeta·M_kk·omega (M_kk at the run's start)",
+            "pushes back, k = m·omega², b = 2·zeta·m·omega, m = 1/(M^-1)_kk at the run's start",
             "omega": LIMIT_OMEGA,
             "omega_unit": "rad/s",
             "damping_ratio": LIMIT_DAMPING_RATIO,

@@ -172,8 +172,8 @@ def simulate(
             explicit tolerances asks for max(1e-8, rtol, atol).
         effort_limits: saturate the law's efforts at the URDF's ``<limit effort>`` [N·m or N].
         position_limits: compliant limits at the URDF's ``<limit lower upper>`` [rad or m]:
-            past one, a spring–damper that only pushes back, k = M_kk·ω², b = 2·M_kk·ω,
-            ω = 200 rad/s (M_kk from M(q0); a fixed step must be ≤ 0.5/ω).
+            past one, a spring–damper that only pushes back, k = m·ω², b = 2·m·ω,
+            ω = 200 rad/s, m = 1/(M⁻¹)_kk at q0 (a fixed step must be ≤ 0.5/ω).
         losses: the URDF's ``<dynamics damping friction>``: −d·q̇ and Coulomb friction
             −f·tanh(q̇ / 1e-3 rad/s or m/s) [N·m or N]. The three apply to URDF robots
             (the chapter's arm states no binding limit; :mod:`rrt_pin.robot.limits`).

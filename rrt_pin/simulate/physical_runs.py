@@ -2,8 +2,8 @@
 
 :func:`run_physics` reads the robot's limits and losses once a run
 (:func:`rrt_pin.robot.limits.physical_model`, with the switches ``effort_limits``,
-``position_limits``, ``losses``), sets the compliant limits' stiffness from M(q0)'s
-diagonal, refuses a fixed step too long for it and warns (:class:`LimitWarning`)
+``position_limits``, ``losses``), sets the compliant limits' stiffness from each joint's
+effective inertia at q0 (:func:`limit_inertia`), refuses a fixed step too long for it and warns (:class:`LimitWarning`)
 when a start or a target lies outside a joint's position limits. The backends apply
 :attr:`RunPhysics.applied` (None: nothing, the law's run bit for bit) and return the
 actuators' efforts (the law's, saturated); :func:`with_limits` and
@@ -40,6 +40,7 @@ __all__ = [
     "RunPhysics",
     "batch_limits",
     "energy_law",
+    "limit_inertia",
     "outside_messages",
     "physics_facts",
     "run_physics",
@@ -119,11 +120,7 @@ def run_physics(
         return run
     p = stated if all(switches.values()) else physical_model(robot, **switches)
     if p.active:
-        import pinocchio as pin
-
-        model = robot.model
-        mass = pin.crba(model, model.createData(), robot.configuration(q0s[0]))
-        p = p.at(np.diag(mass).copy())
+        p = p.at(limit_inertia(robot, q0s[0]))
         if options.method.family in (FIXED_STEP, SYMPLECTIC):
             check_step(options.step, p, joints)
         run = replace(run, applied=p)
@@ -248,15 +245,27 @@ def outside_messages(robot: Robot, named: dict[str, Any]) -> list[str]:
     return lines
 
 
+def limit_inertia(robot: Robot, q0: Any) -> np.ndarray:
+    """Each joint's effective inertia at ``q0``, 1 / (M⁻¹)_kk [kg·m² or kg] (nv,).
+
+    What a joint's position limit pushes against when the other joints move freely (as
+    MuJoCo's joint-limit constraints see it): the compliant limit set from it is
+    critically damped on that joint at the run's start, whatever the coupling.
+    """
+    import pinocchio as pin
+
+    model = robot.model
+    x = robot.configuration(np.asarray(q0, dtype=float))
+    upper = np.triu(pin.crba(model, model.createData(), x))
+    mass = upper + np.triu(upper, 1).T
+    return 1.0 / np.diag(np.linalg.inv(mass))
+
+
 def physics_facts(robot: Robot, q0: Any, **switches: bool) -> dict:
     """The run's physical model for metadata: switches, parameters, what was not given."""
     if robot.is_chapter_arm:
         return {"applied": False, "why": "the chapter's arm states no binding limit"}
     p = physical_model(robot, **switches)
     if p.active:
-        import pinocchio as pin
-
-        model = robot.model
-        x = robot.configuration(np.asarray(q0, dtype=float))
-        p = p.at(np.diag(pin.crba(model, model.createData(), x)).copy())
+        p = p.at(limit_inertia(robot, q0))
     return {"switches": dict(switches), **p.parameters()}

@@ -22,7 +22,7 @@ frictionloss then both vanish), armature 0, ``actfrclimited`` with ``actfrcrange
 contacts off, the constraint stage on; RK4.
 
 The limit models differ. rrt-pin's is a spring–damper that only pushes back, τ =
-k·(lower − q) − b·q̇ with k = M_kk(q0)·ω², b = 2·M_kk(q0)·ω, ω = 200 rad/s
+k·(lower − q) − b·q̇ with k = m·ω², b = 2·m·ω, ω = 200 rad/s, m = 1/(M⁻¹)_kk(q0)
 (:mod:`rrt_pin.robot.limits`), added to the joint's other efforts. MuJoCo's is a soft
 constraint whose limited joint accelerates as a₁ = (1 − d)·a₀ − d·(b·ṙ + k·r) with b =
 2/(dmax·timeconst), k = d/(dmax²·timeconst²·dampratio²). "MuJoCo matched" sets solref =
@@ -30,7 +30,7 @@ constraint whose limited joint accelerates as a₁ = (1 − d)·a₀ − d·(b·
 impedance d at its maximum everywhere, so a₁ ≈ −ω²·r − 2ω·ṙ, the same reference as
 rrt-pin's per unit of effective inertia. What still differs: MuJoCo's acts through
 1/(M⁻¹)_kk at the current state and replaces the free acceleration a₀ (gravity's push is
-cancelled but for 1e-4 of it), rrt-pin's acts through M_kk(q0) and adds to a₀ (gravity
+cancelled but for 1e-4 of it), rrt-pin's acts through 1/(M⁻¹)_kk at q0 and adds to a₀ (gravity
 keeps a steady penetration a₀/ω²). "MuJoCo default" keeps the importer's solref (0.02,
 1) and solimp (0.9, 0.95, 0.001, 0.5, 2), what a MuJoCo user gets.
 
@@ -181,14 +181,15 @@ def milliseconds(s: float) -> str:
 def stiffer(robot, q0: np.ndarray, t: np.ndarray, q: np.ndarray, found: list[Crossing]) -> str:
     """How much stiffer rrt-pin's limit is than MuJoCo matched's at each first crossing.
 
-    rrt-pin's spring (k = M_kk(q0)·ω², b = 2·M_kk(q0)·ω) on the joint's effective inertia
-    1/(M⁻¹)_kk has the natural frequency ω·√f and the damping ratio √f, f = M_kk(q0)·(M⁻¹)_kk(q).
+    rrt-pin's spring (k = m·ω², b = 2·m·ω, m = 1/(M⁻¹)_kk(q0)) on the joint's effective
+    inertia 1/(M⁻¹)_kk(q) has the natural frequency ω·√f and the damping ratio √f,
+    f = (M⁻¹)_kk(q) / (M⁻¹)_kk(q0).
     """
     import pinocchio as pin
 
     model = robot.model
     data = model.createData()
-    m0 = np.diag(pin.crba(model, data, robot.configuration(q0))).copy()
+    m0 = 1.0 / np.diag(pin.computeMinverse(model, data, robot.configuration(q0))).copy()
     parts = []
     for c in found:
         k = robot.joints[[j.name for j in robot.joints].index(c.joint)].idx_v
@@ -198,7 +199,7 @@ def stiffer(robot, q0: np.ndarray, t: np.ndarray, q: np.ndarray, found: list[Cro
         parts.append(f"{c.joint} sqrt(f) = {np.sqrt(f):.2f}")
     return (
         "rrt-pin's limit against MuJoCo matched's at each first crossing, frequency and "
-        "damping ratio × sqrt(M_kk(q0)·(M⁻¹)_kk(q)): " + ", ".join(parts)
+        "damping ratio × sqrt((M⁻¹)_kk(q) / (M⁻¹)_kk(q0)): " + ", ".join(parts)
     )
 
 

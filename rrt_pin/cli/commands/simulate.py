@@ -218,9 +218,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         action="store_false",
         help="do not hold the joints in the URDF's <limit lower upper> [rad or m]. The "
         "limits are compliant (as MuJoCo's soft constraints): past one, a spring-damper "
-        f"that only pushes back, k = M_kk*omega^2, b = 2*zeta*M_kk*omega, omega = "
+        f"that only pushes back, k = m*omega^2, b = 2*zeta*m*omega, omega = "
         f"{LIMIT_OMEGA:g} rad/s, damping ratio zeta = {LIMIT_DAMPING_RATIO:g} (critical), "
-        "M_kk the joint's inertia at q0; fixed-step methods then need --step <= "
+        "m = 1/(M^-1)_kk the joint's effective inertia at q0; fixed-step methods then need --step <= "
         f"{MAX_STEP_OMEGA:g}/omega = {MAX_STEP_OMEGA / LIMIT_OMEGA:g} s. Continuous joints "
         "have none; velocity limits are reported, never enforced",
     )
