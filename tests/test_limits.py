@@ -122,6 +122,39 @@ def test_a_slider_falls_onto_its_limit_at_the_closed_form_time(dt):
     assert free.q.min() < -DROP - 0.3  # without the limit it falls through
 
 
+def test_a_pendulum_released_onto_its_limit_at_the_closed_form_time():
+    """A physical pendulum released at rest from θ0 reaches its limit −a at t = (K + F(φ))/ω0."""
+    from scipy.special import ellipk, ellipkinc
+
+    m, l, i_com, theta0, a = 1.5, 0.4, 0.01, 2.0, 1.0
+    xml = (
+        '<robot name="pendulum"><link name="base"/>'
+        + _LINK.format(name="bob", com=f"0 0 {-l}", m=m, i=i_com)
+        + _joint("swing", "revolute", "base", "bob", "0 0 0", "0 1 0",
+                 f'lower="{-a}" upper="3" effort="100" velocity="100"')
+        + "</robot>"
+    )  # fmt: skip
+    robot = Robot.from_model(pin.buildModelFromXML(xml))
+    # θ'' = −ω0²·sin θ (θ from the hanging position); released at rest from θ0:
+    # t(θ) = (K(k) + F(φ, k)) / ω0 on the far side, k = sin(θ0/2), sin φ = sin(a/2) / k
+    omega0 = math.sqrt(m * G * l / (i_com + m * l**2))
+    k2 = math.sin(theta0 / 2) ** 2
+    phi = math.asin(math.sin(a / 2) / math.sqrt(k2))
+    contact = (ellipk(k2) + ellipkinc(phi, k2)) / omega0
+    dt = 1e-3
+    t = time_grid(1.5, dt)
+    r = simulate(robot, None, [theta0], None, t, rtol=1e-12, atol=1e-14, estimate_error=False)
+    (event,) = [e for e in r.limits if e.kind == "position"]
+    assert event.joint == "swing" and event.unit == "rad"
+    assert contact <= event.first_time <= contact + dt
+    # before the contact the run is the free pendulum: its energy is kept to the tolerance
+    before = t < contact
+    energy = 0.5 * (i_com + m * l**2) * r.qd[before, 0] ** 2 - m * G * l * np.cos(r.q[before, 0])
+    assert np.abs(energy - energy[0]).max() <= 1e-9 * m * G * l
+    free = simulate(robot, None, [theta0], None, t, estimate_error=False, position_limits=False)
+    assert free.q[:, 0].min() < -a - 0.5  # without the limit it swings on
+
+
 def test_viscous_damping_dissipates_exactly_what_it_removes():
     robot = pendulum2()
     d = physical_model(robot).damping
