@@ -126,10 +126,10 @@ def test_a_pendulum_released_onto_its_limit_at_the_closed_form_time():
     """A physical pendulum released at rest from θ0 reaches its limit −a at t = (K + F(φ))/ω0."""
     from scipy.special import ellipk, ellipkinc
 
-    m, l, i_com, theta0, a = 1.5, 0.4, 0.01, 2.0, 1.0
+    m, length, i_com, theta0, a = 1.5, 0.4, 0.01, 2.0, 1.0
     xml = (
         '<robot name="pendulum"><link name="base"/>'
-        + _LINK.format(name="bob", com=f"0 0 {-l}", m=m, i=i_com)
+        + _LINK.format(name="bob", com=f"0 0 {-length}", m=m, i=i_com)
         + _joint("swing", "revolute", "base", "bob", "0 0 0", "0 1 0",
                  f'lower="{-a}" upper="3" effort="100" velocity="100"')
         + "</robot>"
@@ -137,7 +137,7 @@ def test_a_pendulum_released_onto_its_limit_at_the_closed_form_time():
     robot = Robot.from_model(pin.buildModelFromXML(xml))
     # θ'' = −ω0²·sin θ (θ from the hanging position); released at rest from θ0:
     # t(θ) = (K(k) + F(φ, k)) / ω0 on the far side, k = sin(θ0/2), sin φ = sin(a/2) / k
-    omega0 = math.sqrt(m * G * l / (i_com + m * l**2))
+    omega0 = math.sqrt(m * G * length / (i_com + m * length**2))
     k2 = math.sin(theta0 / 2) ** 2
     phi = math.asin(math.sin(a / 2) / math.sqrt(k2))
     contact = (ellipk(k2) + ellipkinc(phi, k2)) / omega0
@@ -149,8 +149,9 @@ def test_a_pendulum_released_onto_its_limit_at_the_closed_form_time():
     assert contact <= event.first_time <= contact + dt
     # before the contact the run is the free pendulum: its energy is kept to the tolerance
     before = t < contact
-    energy = 0.5 * (i_com + m * l**2) * r.qd[before, 0] ** 2 - m * G * l * np.cos(r.q[before, 0])
-    assert np.abs(energy - energy[0]).max() <= 1e-9 * m * G * l
+    q, qd = r.q[before, 0], r.qd[before, 0]
+    energy = 0.5 * (i_com + m * length**2) * qd**2 - m * G * length * np.cos(q)
+    assert np.abs(energy - energy[0]).max() <= 1e-9 * m * G * length
     free = simulate(robot, None, [theta0], None, t, estimate_error=False, position_limits=False)
     assert free.q[:, 0].min() < -a - 0.5  # without the limit it swings on
 
