@@ -269,3 +269,32 @@ def test_the_front_door_gives_both_backends_the_physical_model(ur5, ur5_physics)
     assert fast.q[:, 2].max() < np.pi + 0.02 and fast.q[:, 2].max() > np.pi  # held at π
     np.testing.assert_allclose(fast.tau, engine.tau, rtol=1e-6, atol=1e-6)
     assert np.abs(fast.tau[:, 0]).max() == pytest.approx(150.0)  # saturated
+
+
+def test_a_robots_first_use_compiles_only_the_entry_it_runs(ur5, monkeypatch):
+    """A batch of adaptive PD variants needs the lanes alone; a single run, run_many alone."""
+    from rrt_pin.compiled import robot_code, robot_runs
+    from rrt_pin.simulate.options import resolve
+
+    asked = []
+
+    class Code:  # stands for a robot's code not compiled yet: records what is compiled
+        def entry(self, name):
+            asked.append(name)
+
+    monkeypatch.setattr(robot_code, "integrators_for", lambda model, name=None: Code())
+    pd = _pd(ur5)
+    t = np.linspace(0.0, 1.0, 11)
+    dop853 = resolve(t, backend="compiled", method="DOP853", rtol=1e-9, atol=1e-11)
+    rk4 = resolve(t, backend="compiled", method="rk4", step=1e-3)
+    robot_runs.prepare(ur5, [pd, pd], dop853)
+    robot_runs.prepare(ur5, [pd], dop853)
+    robot_runs.prepare(ur5, [pd, pd], rk4)
+    robot_runs.prepare(ur5, [pd, None], dop853)
+    assert asked == ["run_lanes", "run_many", "run_many", "run_many"]
+    with pytest.raises(InputError):  # refused before anything is compiled
+        robot_runs.prepare(ur5, [lambda t, q, qd: q], dop853)
+    assert len(asked) == 4
+    # a robot's code object compiles nothing until an entry is asked for
+    code = robot_code.RobotCode("r", 1, 0, object(), None, "")
+    assert code._entries == {}

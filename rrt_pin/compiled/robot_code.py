@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 import os
 import re
 import threading
@@ -67,19 +68,22 @@ class RobotCode:
         name: what messages call the robot.
         nv: joint coordinates (the state has 2·nv entries).
         flops: arithmetic operations of one forward-dynamics evaluation.
-        origin: how ``run_many`` came: ``loaded`` (numba's disk cache), ``compiled``
-            (and saved) or ``memory``.
-        seconds: what importing and compiling (or loading) ``run_many`` took [s].
+        origin: how the last entry made came: ``loaded`` (numba's disk cache),
+            ``compiled`` (and saved) or ``memory``.
+        seconds: what importing the module and compiling (or loading) that entry took [s].
+
+    Each entry is compiled on its first use only: a single run compiles ``run_many``, a
+    batch of adaptive PD variants only ``run_lanes``.
     """
 
-    def __init__(self, name: str, nv: int, flops: int, module: Any, path: Path | None) -> None:
+    def __init__(
+        self, name: str, nv: int, flops: int, module: Any, path: Path | None, source: str
+    ) -> None:
         self.name, self.nv, self.flops = name, nv, flops
-        self._module, self._path = module, path
+        self._module, self._path, self._source = module, path, source
         self._entries: dict[str, Any] = {}
         self.origin, self.seconds = "memory", 0.0
-        start = time.perf_counter()
-        self.entry("run_many")
-        self.seconds = time.perf_counter() - start
+        self._imported = time.perf_counter()  # the module's import counts in the first entry
 
     @property
     def run_many(self) -> Any:
@@ -99,7 +103,23 @@ class RobotCode:
         with _lock:
             found = self._entries.get(name)
             if found is None:
-                found = self._entries[name] = self._compile(name)
+                start = min(time.perf_counter(), self._imported)
+                self._imported = math.inf
+                try:
+                    found = self._compile(name)
+                except Exception as exc:  # a damaged or unwritable numba cache
+                    if self._path is None:
+                        raise
+                    from rrt_pin.compiled._cache import warn_once
+
+                    warn_once(
+                        f"generated integrators cache {self._path.parent}: "
+                        f"{type(exc).__name__}: {exc}"[:300]
+                    )
+                    self._module, self._path = _in_memory(self._source), None
+                    found = self._compile(name)
+                self._entries[name] = found
+                self.seconds = time.perf_counter() - start
         return found
 
     def _compile(self, name: str) -> Any:
@@ -124,8 +144,7 @@ class RobotCode:
         origin = "loaded" if sum(dispatcher.stats.cache_hits.values()) else "compiled"
         if origin == "compiled":
             _record(record, files)
-        if name == "run_many":
-            self.origin = origin
+        self.origin = origin
         return dispatcher
 
 
@@ -456,17 +475,23 @@ def _load(source: str, digest: str, name: str, nv: int, flops: int) -> RobotCode
     path = where / f"{module_name.removeprefix('rrt_pin_')}.py" if where is not None else None
     if path is not None and rnea._write(path, source):
         try:
-            return RobotCode(name, nv, flops, rnea._import(path, module_name), path)
-        except Exception as exc:  # a damaged or unwritable numba cache: compile in memory
+            return RobotCode(name, nv, flops, rnea._import(path, module_name), path, source)
+        except Exception as exc:  # an unreadable module: compile in memory
             from rrt_pin.compiled._cache import warn_once
 
             warn_once(
                 f"generated integrators cache {path.parent}: {type(exc).__name__}: {exc}"[:300]
             )
-    namespace = types.ModuleType(module_name)
+    return RobotCode(name, nv, flops, _in_memory(source), None, source)
+
+
+def _in_memory(source: str) -> types.ModuleType:
+    """The generated module executed in memory, nothing cached on disk."""
+    digest = hashlib.sha256(source.encode()).hexdigest()
+    namespace = types.ModuleType(f"rrt_pin_robot_{digest[:24]}")
     text = source.replace("cache=True", "cache=False")
-    exec(compile(text, f"<{module_name}>", "exec"), namespace.__dict__)  # noqa: S102
-    return RobotCode(name, nv, flops, namespace, None)
+    exec(compile(text, f"<{namespace.__name__}>", "exec"), namespace.__dict__)  # noqa: S102
+    return namespace
 
 
 def _estimate(flops: int) -> float:

@@ -40,7 +40,7 @@ from rrt_pin.simulate.metrics import GROUPS, SETTLING_BAND, metric_columns
 from rrt_pin.simulate.options import Options
 from rrt_pin.simulate.results import BatchResult, SimulationResult
 
-__all__ = ["run_batch", "run_one", "supports"]
+__all__ = ["prepare", "run_batch", "run_one", "supports"]
 
 _KEEP = {
     "trajectories": codes.KEEP_TRAJECTORIES,
@@ -132,6 +132,33 @@ def _laws(robot: Robot, controllers: Sequence[Any]) -> tuple[np.ndarray, np.ndar
     return laws, C, reference or _NONE
 
 
+def _entry(count: int, options: Options, laws: np.ndarray) -> str:
+    """The compiled entry a batch runs on: ``run_lanes`` or ``run_many``.
+
+    Adaptive PD variants run side by side in lanes; anything else one after the other.
+    """
+    lanes = count >= 2 and options.method.code < codes.FIXED_STEP_FROM
+    return "run_lanes" if lanes and bool(np.all(laws == codes.LAW_PD_GRAVITY)) else "run_many"
+
+
+def prepare(robot: Robot, controllers: Sequence[Any], options: Options) -> tuple:
+    """Compile (or load) the one entry these runs need, before any run's clock starts.
+
+    A single run needs ``run_many``; a batch of adaptive PD variants only ``run_lanes``:
+    a robot's first use compiles one of the two, not both.
+
+    Returns:
+        The laws as arrays (:func:`_laws`), for the run.
+
+    Raises:
+        InputError: a law that does not run compiled (refused before anything compiles).
+    """
+    arrays = _laws(robot, controllers)
+    code = robot_code.integrators_for(robot.model, robot.name)
+    code.entry(_entry(len(controllers), options, arrays[0]))
+    return arrays
+
+
 def _run(
     robot: Robot,
     controllers: Sequence[Any],
@@ -168,7 +195,7 @@ def _run(
     rtol = options.rtol if options.rtol is not None else 0.0
     step = options.step if options.step is not None else 0.0
     method = options.method.code
-    if count >= 2 and method < codes.FIXED_STEP_FROM and bool(np.all(laws == codes.LAW_PD_GRAVITY)):
+    if _entry(count, options, laws) == "run_lanes":
         # side by side in vector lanes: the same steps, each variant its own
         lanes = code.run_lanes
         args = (
@@ -248,8 +275,7 @@ def run_one(
         InputError: a law that does not run compiled.
         DivergenceError: the run failed (time and coordinate named).
     """
-    arrays = _laws(robot, [controller])  # a law refused before anything is compiled
-    robot_code.integrators_for(robot.model, robot.name)  # compiled before the clock starts
+    arrays = prepare(robot, [controller], options)  # compiled before the clock starts
     start = time.perf_counter() if start is None else start
     Y0 = np.concatenate([q0, qd0])[None, :]
     y, tau, _, info, reached, _ = _run(
@@ -326,8 +352,7 @@ def run_batch(
             "keep='metrics' measures each variant against its controller's target qf: "
             "every controller needs one (or keep='final')"
         )
-    arrays = _laws(robot, controllers)
-    robot_code.integrators_for(robot.model, robot.name)
+    arrays = prepare(robot, controllers, options)
     start = time.perf_counter() if start is None else start
     count = q0s.shape[0]
     if threads is None:

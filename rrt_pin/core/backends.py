@@ -161,7 +161,6 @@ BACKENDS: dict[str, Backend] = {
                 ("unsupported_joint", "rrt_pin.dynamics.rnea_source:unsupported_joint"),
                 ("simulate", "rrt_pin.compiled.integrate"),  # run_one, run_batch, check_model
                 ("simulate_generated", "rrt_pin.compiled.robot_runs"),  # run_one, run_batch
-                ("integrators_generated", "rrt_pin.compiled.robot_code:integrators_for"),
                 ("load_batch", "rrt_pin.compiled:ensure_compiled"),
                 ("load_single", "rrt_pin.compiled:machine_code"),
                 ("mass_matrix", "rrt_pin.compiled.dynamics:mass_matrix"),

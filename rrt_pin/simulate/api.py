@@ -215,7 +215,7 @@ def simulate(
     plant = None  # the arm's parameters of a compiled run (the energy rule's M(q))
     if options.backend == "compiled" and _generated(robot, params, [controller]):
         runs = _compiled("simulate_generated")
-        _compiled("integrators_generated")(robot.model, robot.name)  # not simulation time
+        runs.prepare(robot, [controller], options)  # not simulation time
         start = time.perf_counter()
 
         def run(o: Options, began: float) -> SimulationResult:
@@ -497,7 +497,7 @@ def simulate_batch(
     generated = options.backend == "compiled" and _generated(robot, params, controllers)
     if generated:
         runs = _compiled("simulate_generated")
-        _compiled("integrators_generated")(robot.model, robot.name)  # not simulation time
+        runs.prepare(robot, controllers, options)  # not simulation time
         start = time.perf_counter()
 
         def run(o: Options, began: float, tau: bool, kept: str, main: bool = True) -> BatchResult:

@@ -466,6 +466,7 @@ def _load_generated(robot: Robot, task: str) -> str:
             where = f" ({kernel.path.parent})" if kernel.path is not None else ""
         else:
             kernel = robot_code.integrators_for(robot.model, robot.name)
+            kernel.entry("run_many")  # a single run's
             what, where = "integrators", ""
     except ImportError as e:
         raise InputError(f"backend 'compiled' is not available: {e}") from e
