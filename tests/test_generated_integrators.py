@@ -140,7 +140,7 @@ def test_batches_equal_single_runs_on_any_thread_count(ur5, keep):
         for name, column in runs[0].metrics.items():
             np.testing.assert_allclose(column, engine.metrics[name], rtol=1e-6, atol=1e-9,
                                        err_msg=name)  # fmt: skip
-        assert len(runs[0].metrics) == 7 * 6 + 1  # 7 columns a joint (limits too), the energy
+        assert len(runs[0].metrics) == 8 * 6 + 1  # 8 columns a joint (limits too), the energy
 
 
 def test_other_laws_are_refused_with_the_backend_that_runs_them(ur5):

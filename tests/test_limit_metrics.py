@@ -97,10 +97,12 @@ def expected(robot, t, q, qd, qf):
     lower, upper = np.array([LOWER, -1.5]), np.array([UPPER, 1.5])
     depth = np.maximum(0.0, np.maximum(q - upper, lower - q).max(axis=0))
     over = np.zeros((t.size, 2))
+    peak = np.zeros(2)
     for i in range(t.size):
         g = pin.computeGeneralizedGravity(model, data, robot.configuration(q[i]))
         demand = np.array(KP) * (qf - q[i]) - np.array(KD) * qd[i] + g
         over[i] = np.abs(demand) > np.array(EFFORT)
+        peak = np.maximum(peak, np.abs(demand))
     time = np.zeros(2)
     for i in range(1, t.size):
         time += 0.5 * (over[i] + over[i - 1]) * (t[i] - t[i - 1])
@@ -109,17 +111,22 @@ def expected(robot, t, q, qd, qf):
         "limit_violation_q_j2": depth[1],
         "saturation_time_tau_j1": time[0],
         "saturation_time_tau_j2": time[1],
+        "peak_demand_tau_j1": peak[0],
+        "peak_demand_tau_j2": peak[1],
     }
 
 
 LIMIT_COLUMNS = (
     "limit_violation_q_j1", "limit_violation_q_j2", "saturation_time_tau_j1",
-    "saturation_time_tau_j2",
+    "saturation_time_tau_j2", "peak_demand_tau_j1", "peak_demand_tau_j2",
 )  # fmt: skip
 
 
 def _close(name: str, got: float, want: float) -> bool:
-    """Depths agree to the runs' accuracy; saturated times exactly (no sample near the limit)."""
+    """Depths and demands agree to the runs' accuracy; saturated times exactly (no sample near
+    the limit)."""
+    if name.startswith("peak_demand"):
+        return abs(got - want) <= RUNS * max(KP) * 10
     tol = RUNS if name.startswith("limit_violation") else 1e-12
     return abs(got - want) <= tol
 
@@ -153,7 +160,9 @@ def test_a_urdf_sweep_keeps_the_limits_columns_as_its_trajectories_say(sweep, ro
     # the variants that overshoot cross their limit and saturate; the quiet one does neither
     assert cols["limit_violation_q_j1"][HIGH] > 5e-4 and cols["limit_violation_q_j1"][LOW] > 5e-4
     assert cols["saturation_time_tau_j1"][HIGH] > 0.1 and cols["saturation_time_tau_j2"][HIGH] > 0.0
-    assert all(cols[name][QUIET] == 0.0 for name in LIMIT_COLUMNS)
+    assert all(cols[name][QUIET] == 0.0 for name in LIMIT_COLUMNS if "demand" not in name)
+    assert 0.0 < cols["peak_demand_tau_j1"][QUIET] <= EFFORT[0]  # it asked, within the limit
+    assert cols["peak_demand_tau_j1"][HIGH] > EFFORT[0]  # it asked for more than it got
     assert cols["limit_violation_q_j2"][HIGH] == 0.0  # inside its limits
 
 
@@ -184,7 +193,8 @@ def test_compiled_limits_equal_pinocchio_s(robot, method):
     }  # fmt: skip
     assert set(rows["compiled"]) == set(rows["pinocchio"])
     for name in LIMIT_COLUMNS:
-        tol = RUNS if name.startswith("limit") else 1e-12
+        # depths and demands to the runs' accuracy (demand: the gains times it), times exactly
+        tol = {"l": RUNS, "p": RUNS * max(KP) * 10}.get(name[0], 1e-12)
         np.testing.assert_allclose(
             rows["compiled"][name], rows["pinocchio"][name], rtol=0, atol=tol, err_msg=name
         )
@@ -212,7 +222,11 @@ def test_a_batch_row_agrees_with_each_single_run_s_limit_events(robot, backend):
                 found[f"limit_violation_q_{e.joint}"] = e.extent
             elif e.kind == "effort":
                 found[f"saturation_time_tau_{e.joint}"] = e.saturated_time
-        for name in LIMIT_COLUMNS:
+                found[f"peak_demand_tau_{e.joint}"] = e.extent
+        for k, name in enumerate(LIMIT_COLUMNS):
+            if name.startswith("peak_demand") and found[name] == 0.0:  # no effort event:
+                assert batch[name][i] <= EFFORT[k - 4]  # its demand stayed within the limit
+                continue
             assert _close(name, batch[name][i], found[name]), (i, name, batch[name][i], found[name])
     assert batch["limit_violation_q_j1"][HIGH] > 0.0
 
@@ -250,7 +264,9 @@ def test_limits_not_given_and_continuous_measure_zero():
     names = (("q_j1", "q_j2"), ("tau_j1", "tau_j2"))
     cols = batch_metrics(("limits",), t, q, q, tau, None, *names, stated=stated)
     assert set(cols) == set(LIMIT_COLUMNS)
-    assert all((cols[name] == 0.0).all() for name in LIMIT_COLUMNS)
+    assert all((cols[name] == 0.0).all() for name in LIMIT_COLUMNS if "demand" not in name)
+    for k, name in enumerate(names[1]):  # the demand is measured with or without a limit
+        np.testing.assert_array_equal(cols[f"peak_demand_{name}"], np.abs(tau[:, :, k]).max(1))
     # the same samples against the robot's stated limits do cross
     limited = Robot.from_model(pin.buildModelFromXML(urdf_text()))
     crossed = batch_metrics(("limits",), t, q, q, tau, None, *names, stated=physical_model(limited))
@@ -268,4 +284,6 @@ def test_the_arm_has_the_columns_and_they_are_zero():
     for name in [*(f"limit_violation_{q}" for q in arm.q_names),
                  *(f"saturation_time_{e}" for e in arm.effort_names)]:  # fmt: skip
         assert (cols[name] == 0.0).all(), name
+    for e in arm.effort_names:  # nothing saturates: the demand is the effort applied
+        assert (cols[f"peak_demand_{e}"] > 0).all(), e
     assert (cols["final_error_q1"] > 0).all()

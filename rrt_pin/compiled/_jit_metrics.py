@@ -9,7 +9,7 @@ samples as soon as they are computed, so that no trajectory is kept.
 
 A row of metrics is laid out as the ``METRIC_*`` offsets of
 :mod:`rrt_pin.simulate.codes` say (:data:`~rrt_pin.simulate.codes.METRIC_WIDTH` values).
-The ``limits`` group is 0: the chapter's arm states no binding limit
+The ``limits`` group is 0 (its peak demand the peak effort): the chapter's arm states no binding limit
 (:func:`rrt_pin.robot.limits.physical_model`).
 """
 
@@ -24,6 +24,7 @@ from numba.extending import intrinsic
 
 from rrt_pin.compiled._jit import jit, warn_problems, wide_vectors
 from rrt_pin.simulate.codes import (
+    METRIC_DEMAND,
     METRIC_ENERGY,
     METRIC_EXCURSION,
     METRIC_FINAL,
@@ -70,7 +71,8 @@ def _double(typingctx, n):
 def _joint(out, k, t, final, last, top, when, far):
     """Joint k's columns of ``out`` from its pass: last sample outside the band, peak, excursion.
 
-    Its ``limits`` columns are 0 (the arm states no binding limit).
+    Its ``limits`` columns are 0 (the arm states no binding limit), its peak demanded
+    effort the peak effort (nothing saturates).
     """
     T = t.shape[0]
     out[METRIC_FINAL + k] = final
@@ -85,6 +87,7 @@ def _joint(out, k, t, final, last, top, when, far):
     out[METRIC_EXCURSION + k] = far
     out[METRIC_LIMIT + k] = 0.0
     out[METRIC_SATURATION + k] = 0.0
+    out[METRIC_DEMAND + k] = top
 
 
 #: Partial sums of the energy's trapezoids (independent chains of additions).

@@ -646,11 +646,12 @@ def efforts_at(t_eval, rows, law, c, rt, rv, ys, taus, ws):
 def metrics_of(t_eval, ys, taus, qf, band, row, law, c, rt, rv, ws):
     """The metrics row of one run sampled at every t_eval (see rrt_pin.simulate.metrics).
 
-    ``row`` (7·nv + 1): |q(tf) − qf|, settling time (NaN: not settled), peak |τ| and
+    ``row`` (8·nv + 1): |q(tf) − qf|, settling time (NaN: not settled), peak |τ| and
     its time, max |q(t) − q(t0)|, then ∫ Σ|τ·q̇| dt (trapezoidal) [J], then the
     ``limits`` group: the largest distance past the stated position limits (0 inside)
     and the time the law's demand exceeded the stated effort limit [s], trapezoidal
-    over the samples, as ``rrt_pin.simulate.crossings`` measures them. ``taus`` are the
+    over the samples, then the peak demanded |effort| [N·m or N], as
+    ``rrt_pin.simulate.crossings`` measures them. ``taus`` are the
     efforts applied (saturated when the model applies effort limits); where one is at
     its limit, the law's demand is computed again at that sample (``law``, ``c``,
     ``rt``, ``rv`` its law, ``ws`` the run's workspace: P's rows 8–10 hold the stated
@@ -710,6 +711,7 @@ def limits_of(t_eval, ys, taus, row, law, c, rt, rv, ws):
     demand, work, m, P, phys = ws
     depth = 5 * nv + 1
     saturated = 6 * nv + 1
+    peak = 7 * nv + 1
     for k in range(nv):
         worst = 0.0
         lo = P[8, k]
@@ -722,6 +724,7 @@ def limits_of(t_eval, ys, taus, row, law, c, rt, rv, ws):
                 worst = q - hi
         row[depth + k] = worst
         row[saturated + k] = 0.0
+        row[peak + k] = 0.0
     over = np.zeros(nv)
     for i in range(T):
         again = False
@@ -733,6 +736,8 @@ def limits_of(t_eval, ys, taus, row, law, c, rt, rv, ws):
             efforts(t_eval[i], ys[i], law, c, rt, rv, demand, work, m)
         for k in range(nv):
             a = abs(demand[k]) if again else abs(taus[i, k])
+            if a > row[peak + k]:
+                row[peak + k] = a
             now = 1.0 if a > P[10, k] else 0.0
             if i > 0:
                 row[saturated + k] += 0.5 * (now + over[k]) * (t_eval[i] - t_eval[i - 1])

@@ -23,6 +23,7 @@ __all__ = [
     "KEEP_TRAJECTORIES",
     "KIND_PD_PLANT_GRAVITY",
     "METHOD_DOP853",
+    "METRIC_DEMAND",
     "METRIC_ENERGY",
     "METRIC_EXCURSION",
     "METRIC_FINAL",
@@ -93,7 +94,8 @@ METRIC_EXCURSION = 12  # max |q(t) - q(t0)| [rad, rad, m]
 METRIC_ENERGY = 15  # control energy, integral of sum |tau·qd| dt [J] (one value)
 METRIC_LIMIT = 16  # largest distance past the stated position limits [rad, rad, m], 0 inside
 METRIC_SATURATION = 19  # time the law's demand exceeded the stated effort limit [s]
-METRIC_WIDTH = 22
+METRIC_DEMAND = 22  # peak |demanded effort| (the law's, before saturation) [N·m, N·m, N]
+METRIC_WIDTH = 25
 
 #: Number of physical parameters (``rrt_pin.dynamics.kernel.PARAM_ORDER``) and of controller parameters.
 NP = 15

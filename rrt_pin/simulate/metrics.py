@@ -103,10 +103,11 @@ METRICS: dict[str, Metric] = {
         Metric("control_energy", "∫ Σ|τ·q̇| dt [J]", _BOTH,
                (Column("control_energy", "run", "J", "METRIC_ENERGY"),)),
         Metric("limits", "the largest distance past the URDF's position limits per joint "
-               "[rad or m] and the time the law's demand exceeded its effort limit [s] "
-               "(0: inside, or no limit stated)", _BOTH,
+               "[rad or m], the time the law's demand exceeded its effort limit [s] (0: "
+               "inside, or no limit stated) and the peak demanded effort [N·m or N]", _BOTH,
                (Column("limit_violation", "coordinate", None, "METRIC_LIMIT"),
-                Column("saturation_time", "effort", "s", "METRIC_SATURATION"))),
+                Column("saturation_time", "effort", "s", "METRIC_SATURATION"),
+                Column("peak_demand", "effort", None, "METRIC_DEMAND"))),
         Metric("evaluations", "dynamics evaluations", ("simulate",),
                (Column("evaluations", "run", ""),), from_samples=False),
         Metric("diverged", "whether the variant failed, when [s], in which coordinate, and "
@@ -276,8 +277,10 @@ def limit_columns(
     ``limit_violation_<q>`` [rad or m]: the largest distance past the position limits
     over the samples (0 inside; continuous joints and limits not given: 0);
     ``saturation_time_<effort>`` [s]: the time the demanded |effort| exceeded the effort
-    limit, trapezoidal over the samples. Both as :func:`rrt_pin.simulate.crossings.measure`
-    makes a position event's extent and an effort event's ``saturated_time``.
+    limit, trapezoidal over the samples; ``peak_demand_<effort>`` [N·m or N]: the largest
+    demanded |effort| (the law's, before saturation). All as
+    :func:`rrt_pin.simulate.crossings.measure` makes a position event's extent and an
+    effort event's ``saturated_time`` and extent.
 
     Args:
         t: sample times (T,) [s].
@@ -294,16 +297,19 @@ def limit_columns(
     if stated is None:
         depth = np.zeros((B, n))
         time = None if demanded is None else np.zeros((B, n))
+        peak = None if demanded is None else np.abs(demanded).max(axis=1)
     else:
         with np.errstate(invalid="ignore"):
             found = measure(t, q, qd, demanded, stated)
         depth = found["position"]["extent"]
         time = found["effort"]["time"] if demanded is not None else None
+        peak = found["effort"]["extent"] if demanded is not None else None
     for k in range(n):
         out[f"limit_violation_{q_names[k]}"] = depth[:, k]
     if time is not None:
         for k in range(n):
             out[f"saturation_time_{effort_names[k]}"] = time[:, k]
+            out[f"peak_demand_{effort_names[k]}"] = peak[:, k]
     return out
 
 

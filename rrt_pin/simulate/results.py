@@ -263,7 +263,8 @@ class BatchResult(_Run):
             :func:`rrt_pin.simulate.metrics.batch_metrics` (final_error_<q> [rad or m],
             settling_time_<q> [s], peak_effort_<τ> [N·m or N],
             peak_effort_time_<τ> [s], excursion_<q> [rad or m], control_energy
-            [J], limit_violation_<q> [rad or m], saturation_time_<τ> [s]), each of
+            [J], limit_violation_<q> [rad or m], saturation_time_<τ> [s],
+            peak_demand_<τ> [N·m or N]), each of
             shape (B,), from the samples at every output time; else None.
         evaluations: dynamics evaluations of each variant (B,), where the backend
             counts them apart (the compiled backend's generated integrators); else None.
