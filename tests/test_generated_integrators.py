@@ -160,6 +160,25 @@ def test_a_diverging_run_names_the_robots_coordinate(tree):
     assert any(name in str(e.value) for name in (*tree.q_names, *tree.qd_names))
 
 
+def test_lanes_leave_gravity_out_only_where_it_cannot_saturate(ur5):
+    """Lanes that fold G(q) (PD within its room, no limit crossed) and lanes that saturate,
+    side by side: each variant as the Pinocchio backend runs it, whatever its neighbours."""
+    rng = np.random.default_rng(8)
+    q0s = rng.uniform(-1.0, 1.0, (5, 6))
+    laws = [_pd(ur5, gain) for gain in (10.0, 900.0, 10.0, 20.0, 900.0)]  # 900: saturates
+    run = rrt_pin.simulate_batch(ur5, laws, q0s, None, T, backend="compiled",
+                                 estimate_error=False)  # fmt: skip
+    engine = rrt_pin.simulate_batch(ur5, laws, q0s, None, T, method="DOP853", rtol=1e-12,
+                                    atol=1e-14, estimate_error=False)  # fmt: skip
+    np.testing.assert_allclose(run.q, engine.q, rtol=0, atol=1e-7)
+    assert (np.abs(run.tau[1]) >= ur5.model.effortLimit - 1e-9).any()  # saturated somewhere
+    assert (np.abs(run.tau[0]) < 0.5 * ur5.model.effortLimit).all()  # never near the limit
+    for group in ([0, 2], [1, 4, 3]):
+        part = rrt_pin.simulate_batch(ur5, [laws[b] for b in group], q0s[group], None, T,
+                                      backend="compiled", estimate_error=False)  # fmt: skip
+        assert np.array_equal(part.q, run.q[group])
+
+
 @pytest.mark.parametrize("keep", ["final", "metrics"])
 def test_failures_recorded_leave_the_other_variants_as_they_were(ur5, keep):
     rng = np.random.default_rng(9)

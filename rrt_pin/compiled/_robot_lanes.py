@@ -149,13 +149,14 @@ def dense_lanes(dop853, n_stages, K, Y, Ynew, h, F):
 
 
 @jit
-def stage_lanes(phys, Y, K, A, s, h, lanes_w, wy, wo, wf, wfy, wft, wfo, gout, CL, P):
+def stage_lanes(phys, Y, K, A, s, h, lanes_w, wy, wo, wf, wfy, wft, wfo, gout, CL, P, fold):
     """Stage s of every lane: its state into the work rows, ẏ into K[s]; the state's rows.
 
     Without a physical model (phys[0] == 0), ``rhs_lanes`` (PD with the gravity folded);
     else G(q) by ``gravity_lanes``, the PD-plus-G efforts saturated at the effort limits,
     less G, plus damping, friction and the compliant position limits (``passive``'s
     terms), then ``free_lanes``: the forward dynamics without gravity under them.
+    ``fold`` (LANE_COUNT,) booleans: scratch.
     """
     if phys[0] == 0:
         combine_lanes(Y, K, A, s, h, wy)
@@ -165,16 +166,34 @@ def stage_lanes(phys, Y, K, A, s, h, lanes_w, wy, wo, wf, wfy, wft, wfo, gout, C
         return wy
     combine_lanes(Y, K, A, s, h, wfy)
     phys_sincos(wf)  # once for G and the forward dynamics
-    gravity_lanes(wf)
     nv = Y.shape[0] // 2
+    # A lane is folded where no joint's PD effort exceeds its room (P[11]: the effort limit
+    # less a bound of |G|) and no joint is past a limit: clip(PD + G) − G is PD there, to
+    # rounding, and G(q) is computed only if some lane is not (each lane's numbers depend
+    # on its own state alone, not on its neighbours').
+    folded = 0
+    for lane in range(LANE_COUNT):
+        fold[lane] = True
+        for k in range(nv):
+            q = wfy[k, lane]
+            pd = -CL[nv + k, lane] * wfy[nv + k, lane] - CL[k, lane] * (q - CL[2 * nv + k, lane])
+            if not (abs(pd) <= P[11, k] and P[0, k] <= q <= P[1, k]):
+                fold[lane] = False
+        folded += fold[lane]
+    if folded < LANE_COUNT:
+        gravity_lanes(wf)
     for k in range(nv):
         lo, hi, e, d, fr, kk, bb = P[0, k], P[1, k], P[2, k], P[3, k], P[4, k], P[5, k], P[6, k]
         for lane in range(LANE_COUNT):
             q = wfy[k, lane]
             v = wfy[nv + k, lane]
-            g = gout[k, lane]
-            t = clip((-CL[nv + k, lane] * v - CL[k, lane] * (q - CL[2 * nv + k, lane])) + g, e)
-            wft[k, lane] = (t - g) + losses(q, v, lo, hi, d, fr, kk, bb)
+            pd = -CL[nv + k, lane] * v - CL[k, lane] * (q - CL[2 * nv + k, lane])
+            if fold[lane]:
+                t = pd
+            else:
+                g = gout[k, lane]
+                t = clip(pd + g, e) - g
+            wft[k, lane] = t + losses(q, v, lo, hi, d, fr, kk, bb)
     free_lanes(wf)
     K[s, :, :] = wfo
     return wfy
@@ -270,6 +289,7 @@ def run_lanes(
     wfy = wf[: n * L].reshape((n, L))
     wft = wf[n * L : (n + nv) * L].reshape((nv, L))
     wfo = wf[FREE_LANES_OUT * L : (FREE_LANES_OUT + n) * L].reshape((n, L))
+    fold = np.zeros(L, dtype=np.bool_)
     ERR = np.zeros((n, L))
     e5s = np.zeros(L)
     e3s = np.zeros(L)
@@ -345,7 +365,7 @@ def run_lanes(
             t_next[lane] = t_new
         for s in range(1, n_stages + 1):
             target = stage_lanes(
-                phys, Y, K, A, s, h, lanes_w, wy, wo, wf, wfy, wft, wfo, gout, CL, P
+                phys, Y, K, A, s, h, lanes_w, wy, wo, wf, wfy, wft, wfo, gout, CL, P, fold
             )
         Ynew[:, :] = target
         # Each lane's error norm: accepted, or rejected with a smaller step.
@@ -410,7 +430,7 @@ def run_lanes(
             for s in range(n_stages + 1, 16):
                 stage_lanes(
                     phys, Y, K, D8_A, s, h, lanes_w, wy, wo, wf, wfy, wft, wfo, gout,
-                    CL, P,
+                    CL, P, fold,
                 )  # fmt: skip
         if any_dense:
             dense_lanes(dop853, n_stages, K, Y, Ynew, h, FL)

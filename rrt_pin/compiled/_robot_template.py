@@ -775,9 +775,10 @@ def run_many(
         t_reached: the time each reached, or failed at (B,) [s].
         first: the first variant.
         stop: one past the last.
-        P: the physical model (11, nv): rows 0–7 as ``rrt_pin.robot.limits.Physical.as_array``,
+        P: the physical model (12, nv): rows 0–7 as ``rrt_pin.robot.limits.Physical.as_array``,
             rows 8–10 the robot's stated lower, upper and effort limits (what the
-            metrics measure against, applied or not).
+            metrics measure against, applied or not), row 11 the room a PD effort has
+            before PD plus G(q) saturates (the lanes' fold; −inf: never).
         phys: (1,) int: 1 to apply P's rows 0–7, 0 for the law alone.
     """
     n = Y0.shape[1]

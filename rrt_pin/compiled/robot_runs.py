@@ -32,7 +32,7 @@ from rrt_pin.compiled.lanes import MAX_STEPS, _in_slices, _raise_status, _thread
 from rrt_pin.core import cpus
 from rrt_pin.core.errors import DivergenceError, InputError
 from rrt_pin.dynamics.trajectory import Trajectory
-from rrt_pin.robot.limits import Physical, physical_model
+from rrt_pin.robot.limits import Physical, gravity_bound, physical_model
 from rrt_pin.robot.robot import Robot
 from rrt_pin.simulate import codes
 from rrt_pin.simulate.control import OpenLoop, PDGravityController, TrackingController
@@ -141,6 +141,18 @@ def _entry(count: int, options: Options, laws: np.ndarray) -> str:
     return "run_lanes" if lanes and bool(np.all(laws == codes.LAW_PD_GRAVITY)) else "run_many"
 
 
+def _room(robot: Robot, physical: Physical) -> np.ndarray:
+    """Per joint, how large a PD effort may be and PD plus G(q) still not saturate (nv,) [N·m or N].
+
+    The effort limit less a bound of |G| over the joints' ranges
+    (:func:`rrt_pin.robot.limits.gravity_bound`); −inf where no bound is known. Where
+    every joint's PD effort is within it and no joint is past a limit, the lanes leave
+    G(q) out (it cancels to rounding).
+    """
+    room = physical.effort - gravity_bound(robot.model, physical)
+    return np.where(np.isnan(room), np.inf, room)
+
+
 def prepare(robot: Robot, controllers: Sequence[Any], options: Options) -> tuple:
     """Compile (or load) the one entry these runs need, before any run's clock starts.
 
@@ -181,9 +193,11 @@ def _run(
     else:
         P, phys = np.zeros((8, nv)), np.zeros(1, dtype=np.int64)
     stated = physical_model(robot)  # what the metrics measure against, applied or not
-    P = np.ascontiguousarray(np.vstack([P, stated.lower, stated.upper, stated.effort]))
     laws, C, (rt, rv) = law_arrays or _laws(robot, controllers)
     count, n = Y0.shape[0], Y0.shape[1]
+    lanes = _entry(count, options, laws) == "run_lanes"
+    room = _room(robot, physical) if lanes and phys[0] else np.full(nv, -np.inf)
+    P = np.ascontiguousarray(np.vstack([P, stated.lower, stated.upper, stated.effort, room]))
     keep_code = _KEEP[keep]
     rows = t.size if keep == "trajectories" else 1
     out_y = np.empty((count, rows, n))
@@ -195,7 +209,7 @@ def _run(
     rtol = options.rtol if options.rtol is not None else 0.0
     step = options.step if options.step is not None else 0.0
     method = options.method.code
-    if _entry(count, options, laws) == "run_lanes":
+    if lanes:
         # side by side in vector lanes: the same steps, each variant its own
         lanes = code.run_lanes
         args = (
