@@ -317,3 +317,28 @@ def test_a_robots_first_use_compiles_only_the_entry_it_runs(ur5, monkeypatch):
     # a robot's code object compiles nothing until an entry is asked for
     code = robot_code.RobotCode("r", 1, 0, object(), None, "")
     assert code._entries == {}
+
+
+def test_the_lanes_call_pd_copies_that_name_no_other_laws_dynamics(ur5):
+    """The lanes' first step and metrics reach PD plus gravity alone: a batch's first use
+    compiles no tracking (M, bias) or open-loop (forward under given efforts) dynamics."""
+    import re
+
+    from rrt_pin.compiled.robot_code import module_source
+
+    source, _ = module_source(ur5.model)
+
+    def body(name):
+        return re.search(rf"\ndef {name}\(.*?(?=\n@jit|\Z)", source, flags=re.DOTALL).group(0)
+
+    lanes = body("run_lanes")
+    assert "first_step_pd(" in lanes and "metrics_of_pd(" in lanes
+    assert not re.search(r"\b(first_step|metrics_of|rhs|efforts)\(", lanes)
+    assert "rhs_pd_law(" in body("first_step_pd") and not re.search(
+        r"\brhs\(", body("first_step_pd")
+    )
+    assert "limits_of_pd(" in body("metrics_of_pd")
+    assert "efforts_pd_law(" in body("limits_of_pd")
+    assert not re.search(r"\befforts\(", body("limits_of_pd"))
+    pd_law = body("efforts_pd_law") + body("rhs_pd_law")
+    assert not re.search(r"\b(mass_matrix|bias|forward)\(", pd_law)

@@ -44,7 +44,7 @@ def free_lanes(w):  # generated: ẏ without gravity of LANE_COUNT states, effor
 
 
 LANE_COUNT = RHS_ROWS = RHS_LANES_OUT = PHYS_ROWS = GRAVITY_LANES_OUT = FREE_LANES_OUT = 0
-first_step = adaptive = efforts_at = metrics_of = samples_until = clip = losses = rhs_lanes
+first_step_pd = adaptive = efforts_at = metrics_of_pd = samples_until = clip = losses = rhs_lanes
 SAFETY = MIN_FACTOR = MAX_FACTOR = 0.0
 D8_NS = D8_A = D8_C = D8_E3 = D8_E5 = D8_D = RK45_AB = RK45_C = RK45_E = RK45_P = None
 LAW_PD_GRAVITY = METHOD_DOP853 = KEEP_FINAL = KEEP_METRICS = KEEP_TRAJECTORIES = 0
@@ -307,7 +307,7 @@ def run_lanes(
                 next_b += 1
                 for i in range(n):
                     ycol[i] = Y0[b, i]
-                status, k, ev, hh = first_step(
+                status, k, ev, hh = first_step_pd(
                     t0, ycol, LAW_PD_GRAVITY, C[b], rt, rv, atol, rtol, order, t_bound - t0,
                     max_step, f, ytmp, err, scale, ws,
                 )  # fmt: skip
@@ -510,7 +510,7 @@ def run_lanes(
                 for i in range(nv):
                     out_tau[b, 0, i] = tau_rows[rows - 1, i]
                 if status == STATUS_OK:
-                    metrics_of(
+                    metrics_of_pd(
                         t_eval, ys, tau_rows, C[b, 2 * nv : 3 * nv], band, metrics[b],
                         LAW_PD_GRAVITY, C[b], rt, rv, ws,
                     )  # fmt: skip

@@ -147,14 +147,25 @@ def pd(y, c, tau):
 
 
 @jit
+def efforts_pd_law(t, y, law, c, rt, rv, tau, work, m):
+    """``efforts`` of PD plus this robot's gravity.
+
+    The lanes' one law: their copies of the functions that ask for a law's efforts call
+    this one, and compile no other law's.
+    """
+    nv = tau.shape[0]
+    gravity(y, work)
+    pd(y, c, tau)
+    for k in range(nv):
+        tau[k] = tau[k] + work[k]
+
+
+@jit
 def efforts(t, y, law, c, rt, rv, tau, work, m):
     """τ of the law at (t, y) into ``tau`` (nv,); ``work`` (3·nv,) and ``m`` (nv, nv) scratch."""
     nv = tau.shape[0]
     if law == LAW_PD_GRAVITY:
-        gravity(y, work)
-        pd(y, c, tau)
-        for k in range(nv):
-            tau[k] = tau[k] + work[k]
+        efforts_pd_law(t, y, law, c, rt, rv, tau, work, m)
     elif law == LAW_TRACKING:
         interp_at(rt, rv, t, 0, 3 * nv, work)
         for k in range(nv):
@@ -216,6 +227,22 @@ def passive(y, P, k):
 
 
 @jit
+def rhs_pd_law(t, y, law, c, rt, rv, out, ws):
+    """``rhs`` under PD plus this robot's gravity (the lanes' one law, as ``efforts_pd_law``).
+
+    With no physical model applied (``ws[4][0] == 0``), q̈ is the forward dynamics
+    without gravity under the PD efforts alone (the law's G(q) and the robot's cancel
+    exactly); else M⁻¹(τ − b) = the forward dynamics without gravity under τ − G, G
+    needed for the saturation only (generated with it, the sines and cosines shared).
+    """
+    tau, work, m, P, phys = ws
+    if phys[0] == 0:
+        rhs_pd(y, c, out)
+    else:
+        rhs_phys(y, c, P, out)
+
+
+@jit
 def rhs(t, y, law, c, rt, rv, out, ws):
     """ẏ = (q̇, q̈) of the closed loop at (t, y) into ``out``.
 
@@ -225,12 +252,8 @@ def rhs(t, y, law, c, rt, rv, out, ws):
     limits plus damping, friction and the compliant position limits (P = ws[3]).
     """
     tau, work, m, P, phys = ws
-    if law == LAW_PD_GRAVITY and phys[0] == 0:
-        rhs_pd(y, c, out)
-    elif law == LAW_PD_GRAVITY:
-        # M⁻¹(τ − b) = forward without gravity under τ − G: G is needed for the
-        # saturation only (generated with it, the sines and cosines shared)
-        rhs_phys(y, c, P, out)
+    if law == LAW_PD_GRAVITY:
+        rhs_pd_law(t, y, law, c, rt, rv, out, ws)
     else:
         nv = tau.shape[0]
         for k in range(nv):
