@@ -143,3 +143,13 @@ def test_a_reading_of_the_free_cpus_is_reused_briefly_and_a_busy_one_confirmed(m
     assert cpus.free() == 2  # reused within FRESH seconds
     monkeypatch.setattr(cpus, "FRESH", 0.0)
     assert cpus.free() == 1  # read again: a job holds a core now
+
+
+def test_work_shared_as_threads_finish_uses_every_cpu_even_a_busy_one(monkeypatch):
+    """A static split waits for its slowest thread: it takes the free CPUs; threads that
+    take items from one counter lose nothing to a busy core, and take them all."""
+    monkeypatch.setattr(cpus, "available", lambda: 2)
+    monkeypatch.setattr(cpus, "free", lambda: 1)  # another process holds a core
+    assert cpus.threads_for(1000, 4) == 1
+    assert cpus.threads_for(1000, 4, shared=True) == 2
+    assert cpus.threads_for(5, 4, shared=True) == 1  # too little work for a second thread

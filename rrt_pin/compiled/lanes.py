@@ -270,8 +270,8 @@ def integrate_arrays(
                 out_tau, metrics, info, t_reached, counter,
             )  # fmt: skip
 
-    if threads is None:
-        threads = cpus.threads_for(count, MIN_PER_THREAD)
+    if threads is None:  # the items are shared as threads finish (_together)
+        threads = cpus.threads_for(count, MIN_PER_THREAD, shared=True)
     used = _together(run, count, threads, fill)
     if detail:
         return out_y, out_tau, (metrics if metrics.shape[0] else None), info, t_reached, used

@@ -142,7 +142,7 @@ def _entry(count: int, options: Options, laws: np.ndarray) -> str:
 
 
 def _room(robot: Robot, physical: Physical) -> np.ndarray:
-    """Per joint, how large a PD effort may be and PD plus G(q) still not saturate (nv,) [N·m or N].
+    """Per joint, how large a PD effort may be with PD plus G(q) unsaturated (nv,) [N·m or N].
 
     The effort limit less a bound of |G| over the joints' ranges
     (:func:`rrt_pin.robot.limits.gravity_bound`); −inf where no bound is known. Where
@@ -346,7 +346,8 @@ def run_batch(
         efforts: return the efforts (they are computed in any case).
         keep: ``"trajectories"``, ``"final"`` or ``"metrics"`` (as
             :func:`rrt_pin.simulate.simulate_batch`; metrics need PD laws, their target qf).
-        threads: threads sharing the variants; default the CPUs free now, none with
+        threads: threads sharing the variants; default every CPU this process may use, none
+            with
             fewer than :data:`MIN_PER_THREAD` variants. The numbers do not depend on it.
         band: the settling band of ``keep="metrics"`` (share of |q0 − qf|).
         max_steps: step budget of each variant.
@@ -369,8 +370,8 @@ def run_batch(
     arrays = prepare(robot, controllers, options)
     start = time.perf_counter() if start is None else start
     count = q0s.shape[0]
-    if threads is None:
-        threads = cpus.threads_for(count, MIN_PER_THREAD)
+    if threads is None:  # the slices are shared as threads finish (_in_slices)
+        threads = cpus.threads_for(count, MIN_PER_THREAD, shared=True)
     else:
         threads = _threads_that_fit(threads, count)
     Y0 = np.ascontiguousarray(np.concatenate([q0s, qd0s], axis=1))

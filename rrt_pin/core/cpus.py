@@ -118,12 +118,16 @@ def free() -> int:
     return _last[1]
 
 
-def threads_for(items: int, min_per_thread: int) -> int:
+def threads_for(items: int, min_per_thread: int, shared: bool = False) -> int:
     """The default thread count for ``items`` units of work (at least 1).
 
-    The free CPUs, but no thread with fewer than ``min_per_thread`` items.
+    The free CPUs, but no thread with fewer than ``min_per_thread`` items. ``shared``:
+    the threads take the items from one counter as they finish (no static split), so a
+    thread on a core another process holds never holds the others up and still adds
+    its share: every CPU this process may use (:func:`available`), busy or not — measured
+    (``scripts/bench/batch_threads.py --busy``), a second thread beside a busy core pays.
     """
     most = max(1, items // max(1, min_per_thread))
     if most == 1:
         return 1
-    return max(1, min(most, free()))
+    return max(1, min(most, available() if shared else free()))

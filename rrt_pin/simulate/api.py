@@ -404,8 +404,8 @@ def simulate_batch(
         backend: ``pinocchio`` or ``compiled``.
         step: longest step of the fixed-step methods [s].
         threads: threads of the batch, at most :func:`rrt_pin.core.cpus.max_threads`
-            (256); default: the CPUs free now, none with too little work, capped by
-            ``OMP_NUM_THREADS`` (:mod:`rrt_pin.core.cpus`); the numbers do not depend on it.
+            (256); default: the CPUs free now (compiled: all, they share the work), none with
+            too little work, capped by ``OMP_NUM_THREADS``; the numbers do not depend on it.
             Each thread reserves a stack (and, Pinocchio backend, holds a copy of the
             model's data): a count that does not fit in the memory left is cut to
             one that does, with a warning on the ``rrt_pin`` logger

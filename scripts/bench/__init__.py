@@ -7,6 +7,7 @@ the figures in docs/benchmarks.md come from these. Shared timing helpers are in
 - ``accuracy``: the accuracy catalogue: the defaults' global error, its estimate and cost;
 - ``aot``: ahead-of-time compiled code against the JIT cache: what a process pays;
 - ``auto``: the costs ``--backend auto`` compares, next to the registry's values;
+- ``batch_threads``: compiled batches on one thread, two and the default (a busy core too);
 - ``cache``: the compiled backend's import, cache load and compilation;
 - ``compiled``: the compiled backend against its baselines (direct, inverse, batches);
 - ``direct``: direct dynamics of the chapter's run against the plain scipy baseline;
