@@ -14,13 +14,13 @@ import numpy as np
 
 from rrt_pin.core.errors import InputError
 from rrt_pin.simulate.metrics import GROUPS, batch_metrics
+from rrt_pin.simulate.physical_runs import demanded
 
 if TYPE_CHECKING:
-    from rrt_pin.robot.limits import Physical
     from rrt_pin.simulate.physical_runs import RunPhysics
     from rrt_pin.simulate.results import BatchResult
 
-__all__ = ["demanded", "reduced", "targets"]
+__all__ = ["reduced", "targets"]
 
 
 def targets(laws: Sequence[Any]) -> np.ndarray:
@@ -32,33 +32,6 @@ def targets(laws: Sequence[Any]) -> np.ndarray:
             "every controller needs one (or keep='final')"
         )
     return np.array(found, dtype=float)
-
-
-def demanded(
-    t: np.ndarray,
-    q: np.ndarray,
-    qd: np.ndarray,
-    tau: np.ndarray,
-    laws: Sequence[Any],
-    applied: Physical | None,
-) -> np.ndarray:
-    """The laws' efforts before saturation at the samples (B, T, nv) [N·m or N].
-
-    ``tau``: the efforts applied (the laws', saturated at ``applied``'s effort limits);
-    a variant's demand is computed again (its law's ``efforts_many``) only where some
-    effort is at its limit, as :func:`rrt_pin.simulate.physical_runs.with_limits` does.
-    """
-    if applied is None or not np.isfinite(applied.effort).any():
-        return tau
-    out = tau
-    for b, law in enumerate(laws):
-        if law is None or not (np.abs(tau[b]) >= applied.effort).any():
-            continue
-        if out is tau:
-            out = tau.copy()
-        with np.errstate(all="ignore"):
-            out[b] = np.asarray(law.efforts_many(t, q[b], qd[b]), dtype=float)
-    return out
 
 
 def reduced(

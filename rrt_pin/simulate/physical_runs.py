@@ -39,6 +39,7 @@ if TYPE_CHECKING:
 __all__ = [
     "RunPhysics",
     "batch_limits",
+    "demanded",
     "energy_law",
     "limit_inertia",
     "outside_messages",
@@ -152,17 +153,43 @@ def _warn_outside(
             warnings.warn(line, LimitWarning, stacklevel=4)
 
 
+def demanded(
+    t: np.ndarray,
+    q: np.ndarray,
+    qd: np.ndarray,
+    tau: np.ndarray,
+    laws: Sequence[Any],
+    applied: Physical | None,
+) -> np.ndarray:
+    """The laws' efforts before saturation at the samples (B, T, nv) [N·m or N].
+
+    ``tau``: the efforts applied (the laws', saturated at ``applied``'s effort limits);
+    a variant's demand is computed again (its law's ``efforts_many``) only where some
+    effort is at its limit (the one rule: single runs' events use it too).
+    """
+    if applied is None or not np.isfinite(applied.effort).any():
+        return tau
+    out = tau
+    for b, law in enumerate(laws):
+        if law is None or not (np.abs(tau[b]) >= applied.effort).any():
+            continue
+        if out is tau:
+            out = tau.copy()
+        with np.errstate(all="ignore"):
+            out[b] = np.asarray(law.efforts_many(t, q[b], qd[b]), dtype=float)
+    return out
+
+
 def _demanded(
     t: np.ndarray, q: np.ndarray, qd: np.ndarray, tau: np.ndarray | None, law: Any, rp: RunPhysics
 ) -> np.ndarray | None:
-    """The law's demanded efforts at the samples (T, nv), recomputed only if some saturated."""
+    """One run's demanded efforts at the samples (T, nv) (:func:`demanded`), None if unneeded."""
     if not rp.needs_demand:
         return None
-    enforced = rp.applied is not None and bool(np.isfinite(rp.applied.effort).any())
-    if tau is not None and not (enforced and bool((np.abs(tau) >= rp.applied.effort).any())):
-        return tau
+    if tau is not None:
+        return demanded(t, q[None], qd[None], tau[None], [law], rp.applied)[0]
     if law is None:
-        return np.zeros_like(q) if tau is None else tau
+        return np.zeros_like(q)
     with np.errstate(all="ignore"):
         return np.asarray(law.efforts_many(t, q, qd), dtype=float)
 
@@ -188,12 +215,12 @@ def batch_limits(
     """Each variant's limit events from its samples (B, T, nv)."""
     if not rp.measures:
         return ()
-    demanded = None
-    if rp.needs_demand:
-        demanded = np.empty(q.shape)
-        for b, law in enumerate(laws):
-            demanded[b] = _demanded(t, q[b], qd[b], None if tau is None else tau[b], law, rp)
-    events = batch_limit_events(t, q, qd, demanded, rp.stated, rp.joints, rp.units)
+    demand = None
+    if rp.needs_demand and tau is not None:
+        demand = demanded(t, q, qd, tau, laws, rp.applied)
+    elif rp.needs_demand:
+        demand = np.array([_demanded(t, q[b], qd[b], None, law, rp) for b, law in enumerate(laws)])
+    events = batch_limit_events(t, q, qd, demand, rp.stated, rp.joints, rp.units)
     return tuple(events)
 
 

@@ -30,9 +30,9 @@ from rrt_pin.robot.robot import Robot
 from rrt_pin.robot.robots import chapter_arm
 from rrt_pin.simulate import codes, simulate, simulate_batch
 from rrt_pin.simulate.control import ChapterController, PDGravityController
-from rrt_pin.simulate.kept import demanded
 from rrt_pin.simulate.metrics import GROUPS, batch_metrics, column_names, metric_columns
 from rrt_pin.simulate.options import resolve
+from rrt_pin.simulate.physical_runs import demanded
 from rrt_pin.sweeps.spec import Spec, spec_from_dict
 
 __all__ = ["BLOCK", "Plan", "metric_names", "plan", "run_chunk"]
