@@ -171,12 +171,14 @@ def stage_lanes(phys, Y, K, A, s, h, lanes_w, wy, wo, wf, wfy, wft, wfo, gout, C
     # less a bound of |G|) and no joint is past a limit: clip(PD + G) − G is PD there, to
     # rounding, and G(q) is computed only if some lane is not (each lane's numbers depend
     # on its own state alone, not on its neighbours').
+    # The PD efforts go into wft first (the forward dynamics' efforts, completed below).
     folded = 0
     for lane in range(LANE_COUNT):
         fold[lane] = True
         for k in range(nv):
             q = wfy[k, lane]
             pd = -CL[nv + k, lane] * wfy[nv + k, lane] - CL[k, lane] * (q - CL[2 * nv + k, lane])
+            wft[k, lane] = pd
             if not (abs(pd) <= P[11, k] and P[0, k] <= q <= P[1, k]):
                 fold[lane] = False
         folded += fold[lane]
@@ -187,7 +189,7 @@ def stage_lanes(phys, Y, K, A, s, h, lanes_w, wy, wo, wf, wfy, wft, wfo, gout, C
         for lane in range(LANE_COUNT):
             q = wfy[k, lane]
             v = wfy[nv + k, lane]
-            pd = -CL[nv + k, lane] * v - CL[k, lane] * (q - CL[2 * nv + k, lane])
+            pd = wft[k, lane]
             if fold[lane]:
                 t = pd
             else:
