@@ -1,7 +1,18 @@
-"""Shared fixtures: the seed's parameters and model, seeded random states."""
+"""Shared fixtures: the seed's parameters and model, seeded random states.
+
+Two variables are set for the whole session (and the processes it starts):
+
+* ``RRT_PIN_BACKEND=pinocchio``: the default backend (``auto``) picks compiled code when
+  it is built, which depends on what earlier tests compiled; tests that do not name a
+  backend test the engine of record. ``tests/test_defaults.py`` tests ``auto`` itself
+  (the variable removed).
+* ``RRT_PIN_AOT=0``: no generated kernel is built ahead of time (7–9 s each, beside the
+  JIT's compilation); ``tests/test_defaults.py`` builds one on purpose.
+"""
 
 from __future__ import annotations
 
+import os
 import subprocess
 from pathlib import Path
 
@@ -10,6 +21,9 @@ import pytest
 
 from rrt_pin.robot.params import Params
 from tests.support import DERIVED, TIGHT, random_states  # noqa: F401  (re-exported for fixtures)
+
+os.environ["RRT_PIN_BACKEND"] = "pinocchio"
+os.environ["RRT_PIN_AOT"] = "0"
 
 
 @pytest.fixture(scope="session")

@@ -62,8 +62,11 @@ __all__ = [
     "machine_code",
     "mass_matrix",
     "nonlinear_effects",
+    "refusal",
+    "runs_arm_kernel",
     "simulate_batch_compiled",
     "simulate_compiled",
+    "state_for",
 ]
 
 
@@ -164,6 +167,79 @@ def build_state() -> tuple[bool, bool, bool]:
     aot = aot_built()
     loaded = is_loaded()
     return loaded, aot, loaded or aot or is_compiled()
+
+
+def state_for(
+    robot: Any, task: str, batch: bool = False, arm: bool = True
+) -> tuple[bool, bool, bool]:
+    """(loaded in this process, built ahead of time, ready without compiling) for one job.
+
+    ``arm``: the job runs the chapter arm's closed-form code (else ``robot``'s generated
+    code: its RNEA for ``inverse``, its integrators for ``simulate``). A ``batch`` runs
+    on the JIT's threads, never on code built ahead of time. Cheap: no numba import,
+    nothing generated or compiled.
+    """
+    if arm:
+        from rrt_pin.compiled import _aot
+
+        if not batch and _aot._loaded is not None:
+            return True, True, True  # loaded ahead of time: nothing to look at on disk
+        if is_loaded():
+            return True, False, True
+        aot = not batch and aot_built()
+        return False, aot, aot or is_compiled()
+    if importlib.util.find_spec("numba") is None:
+        return False, False, False
+    if task == "inverse":
+        from rrt_pin.compiled import rnea
+
+        return rnea.state(robot.model)
+    from rrt_pin.compiled import robot_code
+
+    return robot_code.state(robot.model, batch)
+
+
+def refusal(robot: Any, controllers: Any, params: Any = None) -> str | None:
+    """Why the compiled backend would refuse to simulate ``robot`` under ``controllers`` (None: it runs them).
+
+    Checks each law as the run would (the chapter's arm: :mod:`rrt_pin.compiled.integrate`;
+    another robot: :mod:`rrt_pin.compiled.robot_runs`), without compiling anything.
+    """
+    from rrt_pin.core.errors import InputError
+    from rrt_pin.robot.params import Params
+
+    laws = list(controllers)
+    try:
+        if runs_arm_kernel(robot, params, laws):
+            from rrt_pin.compiled import integrate
+
+            given = list(params) if isinstance(params, (list, tuple)) else [params]
+            candidates = [*given, robot.params, *(getattr(c, "params", None) for c in laws)]
+            plant = next((p for p in candidates if isinstance(p, Params)), None)
+            if plant is None:
+                return "the chapter's arm runs compiled from its Params"
+            for law in laws:
+                integrate._law(law, plant)
+        else:
+            from rrt_pin.compiled import robot_runs
+
+            robot_runs._laws(robot, laws)
+    except InputError as e:
+        return str(e)
+    return None
+
+
+def runs_arm_kernel(robot: Any, params: Any, controllers: Any) -> bool:
+    """Whether a compiled run of ``robot`` runs the arm's closed-form code (not generated code).
+
+    The chapter's arm, or any robot given the arm's Params (``params=``, a list of them,
+    or a chapter law's).
+    """
+    from rrt_pin.robot.params import Params
+
+    if robot.supports("compiled") or params is not None:
+        return True
+    return any(isinstance(getattr(c, "params", None), Params) for c in controllers)
 
 
 def ensure_compiled() -> CompileReport:

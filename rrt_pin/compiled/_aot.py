@@ -13,6 +13,12 @@ a process that loads it and runs the chapter's 15,001 samples costs what
 ``import numpy`` does, against 0.82 s with the JIT cache, at the same ns/sample and
 with the same efforts bit for bit.
 
+The generated RNEA of any other robot (:mod:`rrt_pin.compiled.rnea`) is built the same
+way when its JIT kernel is first compiled (:func:`build_kernel`, ~7–9 s for UR5 and
+Panda): a module a source, under ``generated/aot/`` named by the source's SHA-256 and the
+toolchain, checked bit for bit against the JIT kernel before it is kept, and loaded by
+:func:`load_kernel` in about a millisecond, without numba.
+
 Threaded batches keep the JIT: its functions release the GIL, ``pycc``'s do not.
 The build needs numba (with its ``pycc``) and a C compiler; it runs in a child
 process, writes into a temporary file renamed into place (a crash leaves no
@@ -41,10 +47,15 @@ import os
 import subprocess
 import sys
 import tempfile
+from collections.abc import Callable
 from pathlib import Path
 from types import ModuleType
+from typing import Any
 
-__all__ = ["EXPORTS", "build", "can_build", "damage", "is_built", "load", "module_path"]
+__all__ = [
+    "EXPORTS", "build", "build_kernel", "can_build", "damage", "is_built", "kernel_built",
+    "can_build_kernel", "kernel_path", "load", "load_kernel", "module_path",
+]  # fmt: skip
 
 #: The functions the module exports, by JIT module (each with its JIT signature).
 EXPORTS = {
@@ -207,25 +218,45 @@ def build(timeout: float = 600.0) -> bool:
         return False
     if is_built():
         return True
-    if (path.parent / _FAILED).exists():
+    return _build_into(path, _NAME, [], timeout)
+
+
+def _build_into(
+    path: Path,
+    name: str,
+    args: list[str],
+    timeout: float,
+    check: Callable[[Path], bool] | None = None,
+) -> bool:
+    """Run the child that builds module ``name`` (``args`` after its work directory) into ``path``.
+
+    ``check(built)`` may refuse the module built (it is then not kept). A failed build
+    leaves a marker beside ``path`` so that later processes do not retry.
+    """
+    marker = path.parent / _FAILED if name == _NAME else path.with_name(path.name + ".failed")
+    if marker.exists():
         return False
     path.parent.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(dir=path.parent, prefix=".aot-") as work:
         env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
         try:
             done = subprocess.run(
-                [sys.executable, "-m", "rrt_pin.compiled._aot", work],
+                [sys.executable, "-m", "rrt_pin.compiled._aot", work, *args],
                 capture_output=True, text=True, timeout=timeout, env=env, check=False,
             )  # fmt: skip
         except (OSError, subprocess.TimeoutExpired) as e:
             _logger.debug("ahead-of-time build failed: %s", e)
             return False
-        built = Path(work) / (_NAME + importlib.machinery.EXTENSION_SUFFIXES[0])
-        if done.returncode != 0 or not built.is_file():
+        built = Path(work) / (name + importlib.machinery.EXTENSION_SUFFIXES[0])
+        failed = done.returncode != 0 or not built.is_file()
+        if not failed and check is not None and not check(built):
+            done = subprocess.CompletedProcess(done.args, 1, "", "it differs from the JIT's")
+            failed = True
+        if failed:
             last = (done.stderr.strip().splitlines() or ["no output"])[-1]
             _logger.debug("ahead-of-time build failed: %s", last)
             try:
-                (path.parent / _FAILED).write_text(last + "\n", encoding="utf-8")
+                marker.write_text(last + "\n", encoding="utf-8")
             except OSError:
                 pass
             return False
@@ -246,6 +277,145 @@ def build(timeout: float = 600.0) -> bool:
                     pass
             return False
     return True
+
+
+# ---------------------------------------------------------------- generated kernels
+def _toolchain() -> str:
+    """Python, numba, llvmlite and the CPU (12 hex digits): a generated module's other key."""
+    from rrt_pin.compiled._cache import _cpu, _version
+
+    parts = (sys.version, _version("numba"), _version("llvmlite"), _cpu())
+    return hashlib.sha256("\n".join(parts).encode()).hexdigest()[:12]
+
+
+def _kernel_name(digest: str) -> str:
+    return f"rrt_pin_rnea_aot_{digest[:24]}"
+
+
+#: Set to ``0`` to build no generated kernel ahead of time (their JIT kernels serve alone).
+ENABLE_VARIABLE = "RRT_PIN_AOT"
+
+
+def enabled() -> bool:
+    """Whether generated kernels are built ahead of time (``$RRT_PIN_AOT`` is not ``0``)."""
+    return os.environ.get(ENABLE_VARIABLE, "1").strip() != "0"
+
+
+def kernel_path(digest: str) -> Path | None:
+    """Where the ahead-of-time module of the generated RNEA of source ``digest`` lives."""
+    from rrt_pin.compiled._cache import generated_dir
+
+    where = generated_dir()
+    if where is None:
+        return None
+    name = f"{_kernel_name(digest)}-{_toolchain()}"
+    return where / "aot" / (name + importlib.machinery.EXTENSION_SUFFIXES[0])
+
+
+def kernel_built(digest: str) -> bool:
+    """Whether the generated RNEA of source ``digest`` is built ahead of time (cheap: no hashing)."""
+    path = kernel_path(digest)
+    if path is None or not path.is_file():
+        return False
+    problem = damage(path, contents=False)
+    if problem is not None:
+        _discard(path, problem)
+        return False
+    return True
+
+
+def can_build_kernel(digest: str) -> bool:
+    """Whether :func:`build_kernel` would try (a cache directory, no failed build of it)."""
+    path = kernel_path(digest)
+    return path is not None and not path.with_name(path.name + ".failed").exists()
+
+
+#: Generated kernels loaded ahead of time in this process, by source digest.
+_KERNELS: dict[str, Any] = {}
+
+
+def load_kernel(digest: str) -> Any:
+    """The ahead-of-time ``kernel`` of the generated RNEA of source ``digest``, or None.
+
+    Checked against its record first (size and SHA-256), as the chapter's module is.
+    """
+    found = _KERNELS.get(digest)
+    if found is not None:
+        return found
+    path = kernel_path(digest)
+    if path is None or not path.is_file():
+        return None
+    problem = damage(path)
+    if problem is not None:
+        _discard(path, problem)
+        return None
+    try:
+        kernel = _import_kernel(path, _kernel_name(digest))
+    except Exception as e:  # a damaged file: the JIT path takes over
+        _discard(path, f"it does not import ({e})")
+        return None
+    _KERNELS[digest] = kernel
+    return kernel
+
+
+def _import_kernel(path: Path, name: str) -> Any:
+    spec = importlib.util.spec_from_file_location(name, path)
+    if spec is None or spec.loader is None:
+        raise ImportError(f"no loader for {path}")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    kernel = getattr(module, "kernel", None)
+    if not callable(kernel):
+        raise ImportError("its kernel is missing")
+    return kernel
+
+
+def build_kernel(
+    source: Path, digest: str, agrees: Callable[[Any], bool], timeout: float = 600.0
+) -> bool:
+    """Build the generated RNEA of ``source`` (SHA-256 ``digest``) ahead of time; whether it is.
+
+    ``agrees(kernel)`` compares the module's kernel with the JIT's (bit for bit) before
+    it is kept. Never raises: the JIT kernel stays in use when this fails.
+    """
+    path = kernel_path(digest)
+    if path is None:
+        return False
+    if kernel_built(digest):
+        return True
+    name = _kernel_name(digest)
+
+    def check(built: Path) -> bool:
+        try:
+            return bool(agrees(_import_kernel(built, name)))
+        except Exception as e:  # noqa: BLE001 - any failure: not kept
+            _logger.debug("ahead-of-time kernel %s not kept: %s", name, e)
+            return False
+
+    return _build_into(path, name, ["--kernel", str(source), name], timeout, check)
+
+
+def _compile_kernel_into(out_dir: str, source: str, name: str) -> None:
+    """Compile the generated module ``source``'s ``kernel`` with ``numba.pycc`` (in the child)."""
+    import warnings
+
+    import numba
+    from numba.pycc import CC
+
+    from rrt_pin.compiled.rnea_vector import kernel_signature
+
+    warnings.simplefilter("ignore")
+    spec = importlib.util.spec_from_file_location(f"{name}_source", source)
+    if spec is None or spec.loader is None:
+        raise SystemExit(f"cannot read {source}")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    cc = CC(name)
+    cc.output_dir = out_dir
+    cc.target_cpu = "host"
+    cc.verbose = False
+    cc.export("kernel", kernel_signature(numba))(module.kernel)
+    cc.compile()
 
 
 def _compile_into(out_dir: str) -> None:
@@ -284,4 +454,7 @@ def _compile_into(out_dir: str) -> None:
 
 
 if __name__ == "__main__":
-    _compile_into(sys.argv[1])
+    if len(sys.argv) == 5 and sys.argv[2] == "--kernel":
+        _compile_kernel_into(sys.argv[1], sys.argv[3], sys.argv[4])
+    else:
+        _compile_into(sys.argv[1])

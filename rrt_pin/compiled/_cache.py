@@ -53,6 +53,7 @@ __all__ = [
     "JIT_MODULES",
     "CacheWarning",
     "cache_dir",
+    "generated_dir",
     "discard_damaged",
     "fingerprint",
     "is_cached",
@@ -427,3 +428,12 @@ def warn_once(message: str) -> None:
         warnings.warn_explicit(
             message, CacheWarning, filename="rrt_pin.compiled", lineno=0, module=__name__
         )
+
+
+def generated_dir() -> Path | None:
+    """The writable directory of the generated modules (created), or None."""
+    for base in _base_candidates():
+        path = base / "generated"
+        if _writable(path):
+            return path
+    return None

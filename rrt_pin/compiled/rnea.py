@@ -44,8 +44,9 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from rrt_pin.compiled import rnea_vector
+from rrt_pin.compiled import _models, rnea_vector
 from rrt_pin.core import backends, cpus
+from rrt_pin.core._logging import note
 from rrt_pin.core.errors import InputError
 from rrt_pin.core.identity import IdentityCache
 from rrt_pin.dynamics import rnea_source
@@ -90,7 +91,8 @@ class Kernel:
         flops: arithmetic operations a sample (sines and cosines apart).
         transcendentals: sines and cosines a sample.
         path: the module's file, or None (compiled in memory only).
-        origin: ``loaded`` (numba's disk cache), ``compiled`` (and saved) or ``memory``.
+        origin: ``loaded`` (numba's disk cache), ``compiled`` (and saved), ``memory`` or
+            ``ahead of time`` (:mod:`rrt_pin.compiled._aot`: no numba, one thread).
         seconds: what importing and compiling (or loading) took [s].
         vectorised: the kernel runs several samples an instruction (the RNEA's).
         sincos: angles a sample whose sine and cosine the kernel computes by polynomial
@@ -153,13 +155,9 @@ def module_source(gen: rnea_source.GeneratedRnea) -> str:
 
 def generated_dir() -> Path | None:
     """The writable directory of the generated modules (created), or None."""
-    from rrt_pin.compiled import _cache
+    from rrt_pin.compiled._cache import generated_dir as found
 
-    for base in _cache._base_candidates():
-        path = base / "generated"
-        if _cache._writable(path):
-            return path
-    return None
+    return found()
 
 
 def _write(path: Path, text: str) -> bool:
@@ -244,11 +242,7 @@ def _discard_unverified(path: Path, files: Callable[[], list[Path]]) -> None:
     )
 
 
-def _signature(numba: Any) -> Any:
-    """kernel(Q, V, A, out) -> float64: inputs C-ordered and read-only accepted (no copy)."""
-    f8 = numba.float64
-    read = numba.types.Array(f8, 2, "C", readonly=True)
-    return f8(read, read, read, f8[:, ::1])
+_signature = rnea_vector.kernel_signature
 
 
 def _compile(
@@ -289,6 +283,8 @@ def _compile(
             origin = "loaded" if sum(dispatcher.stats.cache_hits.values()) else "compiled"
             if origin == "compiled":
                 _record(path, files)
+            if kind == "rnea":
+                _build_ahead(path, digest, dispatcher, gen.nq, gen.nv)
         except Exception as exc:  # a damaged or unwritable numba cache: compile in memory
             from rrt_pin.compiled._cache import warn_once
 
@@ -318,11 +314,42 @@ def _compile(
     )
 
 
+def _build_ahead(path: Path, digest: str, jit: Any, nq: int, nv: int) -> None:
+    """Build the kernel just compiled ahead of time too (unless ``RRT_PIN_AOT=0``).
+
+    The module is kept only if it gives the JIT kernel's efforts bit for bit on random
+    samples; when it cannot be built (no C compiler), the JIT kernel serves as before.
+    """
+    from rrt_pin.compiled import _aot
+
+    if not _aot.enabled() or _aot.kernel_built(digest) or not _aot.can_build_kernel(digest):
+        return
+    note(f"building the generated inverse dynamics ({nv} joints) ahead of time once (~8 s)")
+    rng = np.random.default_rng(0)
+    Q, V, A = rng.uniform(-2.0, 2.0, (67, nq)), *rng.uniform(-2.0, 2.0, (2, 67, nv))
+
+    def agrees(kernel: Any) -> bool:
+        a, b = np.empty((67, nv)), np.empty((67, nv))
+        jit(Q, V, A, a)
+        kernel(Q, V, A, b)
+        return bool(np.array_equal(a, b))
+
+    start = time.perf_counter()
+    built = _aot.build_kernel(path, digest, agrees)
+    _logger.info(
+        "generated RNEA %s ahead of time: %s in %.1f s",
+        digest[:12], "built" if built else "not built", time.perf_counter() - start,
+    )  # fmt: skip
+
+
 def kernel_for(model: pin.Model) -> Kernel:
     """The compiled RNEA of ``model`` (generated, written, loaded or compiled once per process).
 
     A model seen before and unchanged (compared with a copy kept) costs a dict
-    look-up and a model comparison (a few microseconds).
+    look-up and a model comparison (a few microseconds). A model whose kernel was
+    built ahead of time (:func:`rrt_pin.compiled._aot.build_kernel`, when its JIT
+    kernel was first compiled) loads that module, without numba and without
+    generating its source (:mod:`rrt_pin.compiled._models` says which it is).
 
     Raises:
         UnsupportedJoint: a joint is not revolute, prismatic or continuous.
@@ -333,15 +360,75 @@ def kernel_for(model: pin.Model) -> Kernel:
         return entry[1]
     import pinocchio as pin
 
-    gen = rnea_source.rnea_source(model)
-    source, sincos = rnea_vector.vector_source(gen)
-    digest = hashlib.sha256(source.encode()).hexdigest()
-    with _lock:
-        kernel = _KERNELS.get(digest)
-        if kernel is None:
-            kernel = _KERNELS[digest] = _compile(source, digest, gen, sincos=sincos)
+    kernel = _ahead_of_time(model)
+    if kernel is None:
+        gen = rnea_source.rnea_source(model)
+        source, sincos = rnea_vector.vector_source(gen)
+        digest = hashlib.sha256(source.encode()).hexdigest()
+        with _lock:
+            kernel = _KERNELS.get(digest)
+            if kernel is None:
+                kernel = _KERNELS[digest] = _compile(source, digest, gen, sincos=sincos)
+        sizes = ("nq", "nv", "flops", "transcendentals", "sincos")
+        _models.remember(
+            "rnea", model, {"digest": digest, **{k: getattr(kernel, k) for k in sizes}}
+        )
     _MODELS.put(model, value=(pin.Model(model), kernel))
     return kernel
+
+
+def _ahead_of_time(model: pin.Model) -> Kernel | None:
+    """``model``'s kernel built ahead of time, if the index knows it and it loads."""
+    from rrt_pin.compiled import _aot
+
+    record = _models.recall("rnea", model)
+    if record is None:
+        return None
+    digest = record["digest"]
+    found = _KERNELS.get(digest)
+    if found is not None:
+        return found
+    start = time.perf_counter()
+    fn = _aot.load_kernel(digest)
+    if fn is None:
+        return None
+    try:
+        sizes = {k: int(record[k]) for k in ("nq", "nv", "flops", "transcendentals", "sincos")}
+    except (KeyError, TypeError, ValueError):
+        return None
+    if sizes["nq"] != model.nq or sizes["nv"] != model.nv:
+        return None
+    seconds = time.perf_counter() - start
+    _logger.info("generated RNEA %s: ahead of time in %.3f s", digest[:12], seconds)
+    kernel = Kernel(
+        digest=digest, kernel=fn, path=None, origin="ahead of time", seconds=seconds,
+        vectorised=True, **sizes,
+    )  # fmt: skip
+    with _lock:
+        return _KERNELS.setdefault(digest, kernel)
+
+
+def state(model: pin.Model) -> tuple[bool, bool, bool]:
+    """(loaded in this process, built ahead of time, ready without compiling) for ``model``'s RNEA.
+
+    Cheap: no numba import, no source generated (the index of :mod:`rrt_pin.compiled._models`).
+    """
+    entry = _MODELS.get(model)
+    if entry is not None and bool(entry[0] == model):
+        return True, entry[1].origin == "ahead of time", True
+    record = _models.recall("rnea", model)
+    if record is None:
+        return False, False, False
+    from rrt_pin.compiled import _aot
+
+    digest = record["digest"]
+    if digest in _KERNELS:
+        return True, _KERNELS[digest].origin == "ahead of time", True
+    if _aot.kernel_built(digest):
+        return False, True, True
+    where = generated_dir()
+    jit = where is not None and _record_path(where / f"rnea_{digest[:24]}.py").is_file()
+    return False, False, jit
 
 
 def _c_array(x: np.ndarray) -> np.ndarray:
@@ -365,7 +452,7 @@ def inverse_dynamics(
         qdd: accelerations (N, nv) [rad/s² or m/s²].
         num_threads: threads; default: the CPUs free now
             (:func:`rrt_pin.core.cpus.threads_for`); never a thread with fewer samples
-            than :attr:`Kernel.min_per_thread`.
+            than :attr:`Kernel.min_per_thread`; one for a kernel built ahead of time.
 
     Returns:
         The efforts (N, nv) [N·m or N] and whether every input and effort is finite
@@ -391,6 +478,8 @@ def inverse_dynamics(
         if num_threads < 1:
             raise InputError(f"num_threads={num_threads!r} must be >= 1")
         threads = int(max(1, min(num_threads, n // kernel.min_per_thread)))
+    if kernel.origin == "ahead of time":
+        threads = 1  # numba.pycc's functions hold the GIL: a second thread would wait
     out = np.empty((n, kernel.nv))
     if n == 0:
         return out, True

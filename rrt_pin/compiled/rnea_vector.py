@@ -28,10 +28,13 @@ from __future__ import annotations
 
 import re
 from collections.abc import Callable
+from typing import Any
 
 from rrt_pin.dynamics.rnea_source import GeneratedRnea
 
-__all__ = ["BLOCK", "SINCOS_LIMIT", "pairwise_sum", "sincos_lines", "vector_source"]
+__all__ = [
+    "BLOCK", "SINCOS_LIMIT", "kernel_signature", "pairwise_sum", "sincos_lines", "vector_source",
+]  # fmt: skip
 
 #: Samples a block: its scratch rows (inputs, sines and cosines, efforts) stay in L1.
 BLOCK = 128
@@ -223,3 +226,10 @@ def _sincos_block(
             out += [f"{indent}{line}" for line in sincos_lines("x", "sv", "cv", "p")]
             out += [f"{indent}{s} = sv", f"{indent}{c} = cv"]
     return out
+
+
+def kernel_signature(numba: Any) -> Any:
+    """kernel(Q, V, A, out) -> float64: inputs C-ordered and read-only accepted (no copy)."""
+    f8 = numba.float64
+    read = numba.types.Array(f8, 2, "C", readonly=True)
+    return f8(read, read, read, f8[:, ::1])

@@ -25,7 +25,7 @@ import types
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from rrt_pin.compiled import rnea, rnea_vector
+from rrt_pin.compiled import _models, rnea, rnea_vector
 from rrt_pin.core import backends
 from rrt_pin.core._logging import note
 from rrt_pin.core.identity import IdentityCache
@@ -545,5 +545,25 @@ def integrators_for(model: pin.Model, name: str | None = None) -> RobotCode:
         code = _CODE.get(digest)
         if code is None:
             code = _CODE[digest] = _load(source, digest, label, int(model.nv), flops)
+    _models.remember("robot", model, {"digest": digest})
     _MODELS.put(model, value=(pin.Model(model), code))
     return code
+
+
+def state(model: pin.Model, batch: bool = False) -> tuple[bool, bool, bool]:
+    """(loaded in this process, built ahead of time, ready without compiling): ``model``'s integrators.
+
+    A single run's ``run_many``; a batch's ``run_lanes`` or ``run_many``. Cheap: no numba import, no source generated (the index of :mod:`rrt_pin.compiled._models`).
+    Integrators are never built ahead of time.
+    """
+    entries = ("run_many", "run_lanes") if batch else ("run_many",)
+    found = _MODELS.get(model)
+    if found is not None and bool(found[0] == model):
+        if any(e in found[1]._entries for e in entries):
+            return True, False, True
+    record = _models.recall("robot", model)
+    where = rnea.generated_dir()
+    if record is None or where is None:
+        return False, False, False
+    stem = f"robot_{record['digest'][:24]}"
+    return False, False, any((where / f"{stem}.{e}.cache.json").is_file() for e in entries)

@@ -8,14 +8,21 @@ from __future__ import annotations
 
 import importlib
 import importlib.util
+import logging
+import os
 import sys
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
 from rrt_pin.core.errors import InputError
 from rrt_pin.core.extras import MissingExtra
+from rrt_pin.core.text import duration
 
-__all__ = ["BACKENDS", "Backend", "Choice", "choose", "estimated_seconds", "get", "names"]
+__all__ = [
+    "BACKENDS", "DEFAULT_VARIABLE", "Backend", "Choice", "choose", "default",
+    "estimated_seconds", "get", "names", "resolve",
+]  # fmt: skip
 
 
 #: The packages :meth:`Backend.available` has found.
@@ -38,22 +45,26 @@ class Backend:
         default_method: the integration method ``simulate`` uses when none is given.
         requires: the module that must import (``pinocchio``, ``numpy``, ``numba``).
         extra: the pip extra that installs it.
-        startup: what a process pays once before the first use [s] (numba's import and
-            the machine code's load from the disk cache), beyond what every run pays.
+        startup: what a process pays once before the first use [s] (Pinocchio's
+            import; numba's import and the machine code's load from the disk cache),
+            beyond what every run pays.
         aot_startup: the same when the dynamics and single runs are built ahead of
             time (:func:`rrt_pin.compiled.aot_built`: the module's load, no numba) [s].
         inverse_cost: inverse dynamics of the chapter's arm [s per sample] (for
-            ``compiled``, its closed-form kernel: other robots' generated kernels
-            have no cost here, so ``auto`` does not choose them).
+            ``compiled``, its closed-form kernel).
         simulate_cost: the chapter's direct run with the backend's default method
             [s per simulated second].
+        robot_inverse_cost: inverse dynamics of another robot [s per sample and
+            coordinate] (UR5's and Panda's, per coordinate: the larger).
+        robot_simulate_cost: another robot's run under PD + gravity with the
+            default method at the default accuracy [s per simulated second and coordinate].
         entries: where its code for each job lives, ``(job, "module:name")`` (or
             ``"module"``): the front doors (:func:`rrt_pin.inverse_dynamics`,
             :func:`rrt_pin.simulate`, the metrics and energy checks) reach a backend
             only through :meth:`entry`, so the layers below ``rrt_pin.compiled``
             never import it.
 
-    The three costs are medians on the reference machine (``docs/benchmarks.md``,
+    The costs are medians on the reference machine (``docs/benchmarks.md``,
     ``scripts/bench/auto.py`` measures them); ``auto`` compares them, nothing else.
     """
 
@@ -68,6 +79,8 @@ class Backend:
     aot_startup: float = 0.0
     inverse_cost: float | None = None
     simulate_cost: float | None = None
+    robot_inverse_cost: float | None = None
+    robot_simulate_cost: float | None = None
     entries: tuple[tuple[str, str], ...] = ()
 
     def available(self) -> bool:
@@ -130,8 +143,11 @@ BACKENDS: dict[str, Backend] = {
             tasks=("inverse", "simulate"),
             default_method="odepack",
             requires="pinocchio",
-            inverse_cost=300e-9,
-            simulate_cost=0.21e-3,
+            startup=0.06,
+            inverse_cost=220e-9,
+            simulate_cost=0.48e-3,
+            robot_inverse_cost=76e-9,
+            robot_simulate_cost=2.7e-3,
         ),
         Backend(
             "symbolic",
@@ -151,10 +167,12 @@ BACKENDS: dict[str, Backend] = {
             default_method="DOP853",
             requires="numba",
             extra="fast",
-            startup=0.8,
-            aot_startup=0.02,
-            inverse_cost=14e-9,
-            simulate_cost=0.0086e-3,
+            startup=0.7,
+            aot_startup=0.017,
+            inverse_cost=10e-9,
+            simulate_cost=0.04e-3,
+            robot_inverse_cost=5e-9,
+            robot_simulate_cost=0.21e-3,
             entries=(
                 ("inverse", "rrt_pin.compiled:inverse_dynamics"),  # the arm's kernel
                 ("inverse_generated", "rrt_pin.compiled.rnea:inverse_dynamics"),
@@ -165,7 +183,9 @@ BACKENDS: dict[str, Backend] = {
                 ("load_single", "rrt_pin.compiled:machine_code"),
                 ("mass_matrix", "rrt_pin.compiled.dynamics:mass_matrix"),
                 ("metrics", "rrt_pin.compiled._jit_metrics:run"),
-                ("state", "rrt_pin.compiled:build_state"),  # (loaded, ahead of time, built)
+                ("state", "rrt_pin.compiled:state_for"),  # (loaded, ahead of time, built)
+                ("refusal", "rrt_pin.compiled:refusal"),  # why a law would not run compiled
+                ("arm_kernel", "rrt_pin.compiled:runs_arm_kernel"),
             ),
         ),
     )
@@ -186,7 +206,13 @@ def get(name: object, task: str | None = None) -> Backend:
 
 
 def estimated_seconds(
-    backend: Backend, task: str, work: float, started: bool, aot: bool = False
+    backend: Backend,
+    task: str,
+    work: float,
+    started: bool,
+    aot: bool = False,
+    arm: bool = True,
+    nv: int = 3,
 ) -> float | None:
     """What ``task`` would take on ``backend`` [s]; None when its costs are not known.
 
@@ -196,8 +222,15 @@ def estimated_seconds(
         work: samples (``inverse``) or simulated seconds (``simulate``).
         started: the process already paid the backend's start-up.
         aot: the code is built ahead of time (a cheaper start-up).
+        arm: the chapter's arm (its closed-form costs), else a robot of ``nv``
+            coordinates (the per-coordinate costs of generated code or Pinocchio).
+        nv: the robot's coordinates.
     """
-    rate = backend.inverse_cost if task == "inverse" else backend.simulate_cost
+    if arm:
+        rate = backend.inverse_cost if task == "inverse" else backend.simulate_cost
+    else:
+        per = backend.robot_inverse_cost if task == "inverse" else backend.robot_simulate_cost
+        rate = None if per is None else per * nv
     if rate is None:
         return None
     startup = backend.aot_startup if aot else backend.startup
@@ -211,7 +244,7 @@ def names(task: str | None = None) -> tuple[str, ...]:
 
 @dataclass(frozen=True)
 class Choice:
-    """What ``auto`` chose, and why (for ``-v``).
+    """What ``auto`` chose, and why (for ``-v`` and the run's metadata).
 
     Attributes:
         name: the backend.
@@ -225,45 +258,121 @@ class Choice:
     estimates: tuple[tuple[str, float | None], ...] = ()
 
 
-def choose(robot: Any, task: str, method: str | None = None, work: float = 0.0) -> Choice:
-    """The one ``auto`` policy: the backend a job of ``work`` should run on.
+#: The variable that sets the library's and the CLI's default backend (``auto`` when unset).
+DEFAULT_VARIABLE = "RRT_PIN_BACKEND"
 
-    ``compiled`` is chosen only for a robot whose closed-form kernels it has (the
-    chapter's arm: their costs are known; other robots' generated kernels are left
-    to an explicit ``compiled``), for a method it runs (``auto`` never changes the
-    method or the tolerances), when its machine code is already built (in this
-    process, ahead of time or in the disk cache: looked at without importing numba),
-    and when the whole job, start-up included, is estimated at most half of
-    ``pinocchio``'s (:func:`estimated_seconds`; ``work``: samples for ``inverse``,
-    simulated seconds for ``simulate``). Otherwise ``pinocchio``, the engine of record.
+
+def default() -> str:
+    """The default backend: ``$RRT_PIN_BACKEND`` if set (a backend's name or ``auto``), else ``auto``.
+
+    Raises:
+        InputError: the variable names no backend.
+    """
+    value = os.environ.get(DEFAULT_VARIABLE, "").strip() or "auto"
+    if value != "auto" and value not in BACKENDS:
+        raise InputError(f"{DEFAULT_VARIABLE}={value!r} is not one of {', '.join(BACKENDS)}, auto")
+    return value
+
+
+def choose(
+    robot: Any,
+    task: str,
+    method: str | None = None,
+    work: float = 0.0,
+    *,
+    controllers: Sequence[Any] = (),
+    params: Any = None,
+    batch: bool = False,
+) -> Choice:
+    """The one ``auto`` policy (the default backend): the backend a job of ``work`` runs on.
+
+    ``compiled`` is chosen when it computes the job the same way within the accuracy
+    asked (the robot's joints, the method if one is named, every law in
+    ``controllers``: :func:`rrt_pin.compiled.refusal`) and its machine code is built
+    (looked at without importing numba; ``auto`` never compiles): always when it is
+    already loaded in this process or built ahead of time (it loads in milliseconds);
+    from the JIT's disk cache (numba's import and the load: :attr:`Backend.startup`) only when the whole
+    job, start-ups included, is estimated no slower than on ``pinocchio``
+    (:func:`estimated_seconds`: ``work`` is samples for ``inverse``, simulated
+    seconds for ``simulate``, all variants' for a ``batch``). Otherwise ``pinocchio``,
+    the engine of record. A method left unnamed is the chosen backend's default, at
+    the tolerances chosen for the accuracy asked.
 
     Args:
         robot: a :class:`~rrt_pin.robot.robot.Robot`.
         task: ``inverse`` or ``simulate``.
-        method: the integration method asked for (None: the backend's default).
+        method: the integration method asked for (None: the chosen backend's default).
         work: the job's size (see above).
+        controllers: the laws of a simulation (one a variant).
+        params: the chapter arm's Params given with the job, if any.
+        batch: a ``simulate_batch`` (its compiled code is never built ahead of time).
     """
     engine, fast = BACKENDS["pinocchio"], BACKENDS["compiled"]
-    wanted = method or (engine.default_method if task == "simulate" else None)
-    runs = wanted is None or _method_runs(wanted, fast.name)
-    started = aot = built = False
-    if robot.supports(fast.name) and runs and fast.available():
-        started, aot, built = fast.entry("state")()
-    if not built:
-        if robot.supports(fast.name) and runs:
-            why = "compiled code not built"
-        elif robot.supports(fast.name, task):
-            why = "auto leaves this robot's generated inverse dynamics to backend 'compiled'"
-        else:
-            why = "compiled cannot run this robot or method"
+    why = _cannot(fast, robot, task, method, controllers, params)
+    if why is not None:
         return Choice(engine.name, why)
-    mine = estimated_seconds(fast, task, work, started, aot)
-    theirs = estimated_seconds(engine, task, work, True)
-    saves = mine is not None and theirs is not None and 2.0 * mine <= theirs
+    arm = task == "inverse" and robot.supports(fast.name)
+    if task == "simulate":
+        arm = fast.entry("arm_kernel")(robot, params, controllers)
+    loaded, aot, built = fast.entry("state")(robot, task, batch, arm)
+    if not built:
+        return Choice(
+            engine.name, "compiled code not built (auto never compiles: ask for backend 'compiled')"
+        )
+    mine = estimated_seconds(fast, task, work, loaded, aot, arm, robot.nv)
+    theirs = estimated_seconds(engine, task, work, "pinocchio" in sys.modules, False, arm, robot.nv)
     estimates = ((fast.name, mine), (engine.name, theirs))
-    if saves:
-        return Choice(fast.name, "faster by the estimate", estimates)
-    return Choice(engine.name, "compiled would not be faster", estimates)
+    if loaded or aot:
+        why = "already loaded" if loaded else "built ahead of time (loads in milliseconds)"
+        return Choice(fast.name, why, estimates)
+    if mine is not None and theirs is not None and mine <= theirs:
+        return Choice(fast.name, "in the disk cache, and faster by the estimate", estimates)
+    return Choice(engine.name, "compiled would not be faster (numba's start-up)", estimates)
+
+
+def resolve(
+    robot: Any,
+    requested: str | None,
+    task: str,
+    method: str | None = None,
+    work: float = 0.0,
+    **job: Any,
+) -> str:
+    """The backend a job runs on: ``requested``, or the default (:func:`default`) if None.
+
+    ``auto`` is decided by :func:`choose` (``job``: its keyword arguments) and said on
+    the ``rrt_pin`` logger at INFO (``-v``) with the estimates.
+
+    Raises:
+        InputError: ``$RRT_PIN_BACKEND`` names no backend.
+    """
+    name = default() if requested is None else requested
+    if name != "auto":
+        return name
+    choice = choose(robot, task, method, work, **job)
+    log = logging.getLogger("rrt_pin")
+    if choice.estimates and log.isEnabledFor(logging.INFO):
+        costs = ", ".join(
+            f"{b} ~{'?' if sec is None else duration(sec)}" for b, sec in choice.estimates
+        )
+        log.info("backend auto: %s", costs)
+    log.info("backend auto chose %s (%s)", choice.name, choice.reason)
+    return choice.name
+
+
+def _cannot(
+    fast: Backend, robot: Any, task: str, method: str | None, controllers: Any, params: Any
+) -> str | None:
+    """Why ``fast`` cannot compute this job as asked (None: it can)."""
+    if not fast.available():
+        return f"{fast.requires} is not installed (pip extra {fast.extra!r})"
+    if not robot.supports(fast.name, task):
+        return "compiled does not handle one of this robot's joints"
+    if method is not None and not _method_runs(method, fast.name):
+        return f"method {method!r} does not run compiled"
+    if task == "simulate":
+        return fast.entry("refusal")(robot, controllers, params)
+    return None
 
 
 def _method_runs(method: str, backend: str) -> bool:

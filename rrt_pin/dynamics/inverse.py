@@ -140,7 +140,7 @@ def inverse_dynamics(
     qd: np.ndarray | None = None,
     qdd: np.ndarray | None = None,
     *,
-    backend: str = "pinocchio",
+    backend: str | None = None,
     params: Params | None = None,
     num_threads: int | None = None,
 ) -> np.ndarray:
@@ -166,7 +166,11 @@ def inverse_dynamics(
             for one sample.
         qd: velocities, shape (N, nv) [rad/s or m/s] (None with a motion as ``q``).
         qdd: accelerations, shape (N, nv) [rad/s² or m/s²] (None with a motion).
-        backend: a backend of :mod:`rrt_pin.core.backends` that computes ``inverse``.
+        backend: a backend of :mod:`rrt_pin.core.backends` that computes ``inverse``, or
+            ``auto``: for a Robot, the default (or ``$RRT_PIN_BACKEND``): ``compiled``
+            when its code is built (the same efforts to ~1e-13), else ``pinocchio``
+            (:func:`rrt_pin.core.backends.choose`; ``-v`` logs which and why); for a
+            bare model, ``pinocchio``.
         params: the chapter arm's parameters (``symbolic``/``compiled`` with a model);
             deprecated: pass ``chapter_arm(params)`` as the robot.
         num_threads: threads for the Pinocchio backend and the generated
@@ -190,7 +194,10 @@ def inverse_dynamics(
     """
     if qd is None or qdd is None:
         q, qd, qdd = _motion(model, q, qd, qdd)
-    b = backends.get(backend, "inverse")
+    if isinstance(model, Robot):  # the default (auto) by the one policy
+        count = float(np.shape(q)[0]) if np.ndim(q) > 1 else 1.0
+        backend = backends.resolve(model, backend, "inverse", None, count)
+    b = backends.get("pinocchio" if backend is None else backend, "inverse")
     bare_model("inverse_dynamics", model)
     params_given("inverse_dynamics", params)
     _check_model_and_params(model, params, b.name)

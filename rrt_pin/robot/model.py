@@ -9,12 +9,12 @@ from __future__ import annotations
 import functools
 import math
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from rrt_pin.core._quiet import captured_stderr, native_message
-from rrt_pin.core.errors import UrdfError
+from rrt_pin.core.errors import InputError, UrdfError
 from rrt_pin.io._read import read_text_capped
-from rrt_pin.robot.params import PLANT_FIELDS, Params
+from rrt_pin.robot.params import PLANT_FIELDS, Params, plant_difference
 from rrt_pin.robot.urdf import MOUNT_ROTATION, urdf_xml
 from rrt_pin.robot.urdf_check import MAX_URDF_BYTES, MimicPolicy, check_urdf_xml
 
@@ -22,6 +22,7 @@ if TYPE_CHECKING:
     import pinocchio as pin
 
 __all__ = [
+    "refuse_ignored",
     "build_geometry", "build_model", "chapter_model", "load_urdf_model", "model_from_xml",
     "rrt_model",
 ]  # fmt: skip
@@ -203,3 +204,36 @@ def _check_model(model: pin.Model) -> None:
     for j in range(1, model.njoints):
         if model.joints[j].nv > 0 and subtree_mass[j] <= 0.0:
             raise UrdfError(f"joint {model.names[j]!r} moves no mass (a URDF without inertials?)")
+
+
+def refuse_ignored(robot: Any, params: Any, backend: str) -> None:
+    """Refuse ``params`` that the Pinocchio backend would ignore.
+
+    The Pinocchio backend simulates the model given; ``params`` may only name that
+    model's own arm (its plant fields, :data:`rrt_pin.robot.params.PLANT_FIELDS`). A list of
+    Params (one a variant) runs on the compiled backend only.
+
+    Raises:
+        InputError: ``params`` describe another arm than the model, or a list of
+            them is given to the Pinocchio backend.
+    """
+    if params is None or backend == "compiled":
+        return
+    if isinstance(params, list):
+        raise InputError(
+            "params as one Params a variant runs on backend='compiled' only; backend "
+            f"{backend!r} simulates the model given (pass chapter_arm(params) as the model)"
+        )
+
+    differs = None
+    if robot.params is None:
+        if not bool(robot.model == chapter_model(params)):
+            differs = "is not the chapter's arm built from them"
+    else:
+        diff = plant_difference(params, robot.params)
+        differs = f"differs from the robot's own parameters ({diff})" if diff else None
+    if differs:
+        raise InputError(
+            f"params= would be ignored: backend {backend!r} simulates the model given, which "
+            f"{differs}; pass rrt_pin.robot.robots.chapter_arm(params) as the model instead"
+        )

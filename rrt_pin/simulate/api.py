@@ -12,7 +12,8 @@ import numpy as np
 from rrt_pin.core import backends, cpus, memory, validate
 from rrt_pin.core.errors import DivergenceError, InputError
 from rrt_pin.core.identity import IdentityCache
-from rrt_pin.robot.params import Params, check_params, plant_difference
+from rrt_pin.robot.model import refuse_ignored
+from rrt_pin.robot.params import Params, check_params
 from rrt_pin.robot.robot import Robot, bare_model, params_given
 from rrt_pin.robot.robots import chapter_arm
 from rrt_pin.simulate import methods
@@ -121,7 +122,7 @@ def simulate(
     method: str | None = None,
     rtol: float | None = None,
     atol: float | None = None,
-    backend: str = "pinocchio",
+    backend: str | None = None,
     step: float | None = None,
     jacobian: str = "analytic",
     params: Params | None = None,
@@ -152,7 +153,10 @@ def simulate(
             chosen for ``accuracy``); given alone it sets atol to rtol/100 too.
         atol: absolute tolerance [rad, m, rad/s, m/s], in (0, 1) (default:
             chosen for ``accuracy``, rtol/100).
-        backend: ``pinocchio`` (any robot) or ``compiled`` (the chapter's arm).
+        backend: ``pinocchio``, ``compiled`` or ``auto``; default ``auto`` (or
+            ``$RRT_PIN_BACKEND``): compiled when its code is built and it runs this
+            robot, law and method, else pinocchio (:func:`rrt_pin.core.backends.choose`;
+            ``result.backend`` says which, ``-v`` logging why).
         step: longest step of the fixed-step methods [s]; default the shortest
             interval of ``t_eval``.
         jacobian: ``analytic`` or ``finite-difference`` for LSODA, Radau, BDF.
@@ -193,18 +197,20 @@ def simulate(
     bare_model("simulate", model)
     params_given("simulate", params)
     robot = as_robot(model, _checked_params(params))
+    t = validate.times(t_eval)
+    backend = backends.resolve(robot, backend, "simulate", method, float(t[-1] - t[0]),
+                               controllers=[controller], params=params)  # fmt: skip
     _prepare(robot, backend, method)
     start = time.perf_counter()
     q0 = robot.as_coordinates("q0", q0)
     qd0 = (
         np.zeros(robot.nv) if qd0 is None else validate.vector("qd0", qd0, robot.nv, "rad/s or m/s")
     )
-    t = validate.times(t_eval)
     options = resolve(
         t, backend=backend, method=method, rtol=rtol, atol=atol, step=step, jacobian=jacobian,
         accuracy=accuracy,
     )  # fmt: skip
-    _same_plant(robot, params, options.backend)
+    refuse_ignored(robot, params, options.backend)
     # the same checks on both backends; the law's results are checked (rrt_pin.simulate.control)
     checked = (
         None if controller is None else as_controller(controller, robot.nv, robot.effort_names)
@@ -247,41 +253,6 @@ def _checked_params(params: Any, name: str = "params") -> Any:
         return None
 
     return check_params(params, name)
-
-
-def _same_plant(robot: Robot, params: Any, backend: str) -> None:
-    """Refuse ``params`` that the Pinocchio backend would ignore.
-
-    The Pinocchio backend simulates the model given; ``params`` may only name that
-    model's own arm (its plant fields, :data:`rrt_pin.robot.params.PLANT_FIELDS`). A list of
-    Params (one a variant) runs on the compiled backend only.
-
-    Raises:
-        InputError: ``params`` describe another arm than the model, or a list of
-            them is given to the Pinocchio backend.
-    """
-    if params is None or backend == "compiled":
-        return
-    if isinstance(params, list):
-        raise InputError(
-            "params as one Params a variant runs on backend='compiled' only; backend "
-            f"{backend!r} simulates the model given (pass chapter_arm(params) as the model)"
-        )
-
-    differs = None
-    if robot.params is None:
-        from rrt_pin.robot.model import chapter_model
-
-        if not bool(robot.model == chapter_model(params)):
-            differs = "is not the chapter's arm built from them"
-    else:
-        diff = plant_difference(params, robot.params)
-        differs = f"differs from the robot's own parameters ({diff})" if diff else None
-    if differs:
-        raise InputError(
-            f"params= would be ignored: backend {backend!r} simulates the model given, which "
-            f"{differs}; pass rrt_pin.robot.robots.chapter_arm(params) as the model instead"
-        )
 
 
 def _with_estimate(result: Any, options: Options, run: Any) -> Any:
@@ -364,7 +335,7 @@ def simulate_batch(
     method: str | None = None,
     rtol: float | None = None,
     atol: float | None = None,
-    backend: str = "pinocchio",
+    backend: str | None = None,
     step: float | None = None,
     threads: int | None = None,
     efforts: bool = True,
@@ -401,7 +372,7 @@ def simulate_batch(
             :func:`simulate`).
         atol: absolute tolerance [rad, m, rad/s, m/s], in (0, 1) (default: chosen
             for ``accuracy``).
-        backend: ``pinocchio`` or ``compiled``.
+        backend: ``pinocchio``, ``compiled`` or ``auto`` (the default, as :func:`simulate`'s).
         step: longest step of the fixed-step methods [s].
         threads: threads of the batch, at most :func:`rrt_pin.core.cpus.max_threads`
             (256); default: the CPUs free now (compiled: all, they share the work), none with
@@ -463,8 +434,6 @@ def simulate_batch(
         params = _checked_params(params)
     first_params = params[0] if isinstance(params, list) and params else params
     robot = as_robot(model, first_params)  # type: ignore[arg-type]
-    _prepare(robot, backend, method, batch=True)
-    start = time.perf_counter()
     n = robot.nv
     q0s = validate.states("q0s", q0s, n, "rad or m")
     B = q0s.shape[0]
@@ -477,12 +446,16 @@ def simulate_batch(
     if len(controllers) != B:
         raise InputError(f"{len(controllers)} controllers for {B} initial states")
     t = validate.times(t_eval)
+    backend = backends.resolve(robot, backend, "simulate", method, B * float(t[-1] - t[0]),
+                               controllers=controllers, params=params, batch=True)  # fmt: skip
+    _prepare(robot, backend, method, batch=True)
+    start = time.perf_counter()
     options = resolve(
         t, backend=backend, method=method, rtol=rtol, atol=atol, step=step, batch=True,
         accuracy=accuracy,
     )  # fmt: skip
     keep = validate.choice("keep", keep, KEEPS)
-    _same_plant(robot, params, options.backend)
+    refuse_ignored(robot, params, options.backend)
     chosen = None if threads is None else _threads(threads)
     laws = []
     for i, c in enumerate(controllers):

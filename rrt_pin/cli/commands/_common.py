@@ -470,21 +470,29 @@ def _load_generated(robot: Robot, task: str) -> str:
             what, where = "integrators", ""
     except ImportError as e:
         raise InputError(f"backend 'compiled' is not available: {e}") from e
-    how = {"loaded": "loaded from the cache", "compiled": "compiled"}.get(
-        kernel.origin, "compiled (memory only, no cache)"
-    )
+    how = {
+        "loaded": "loaded from the cache",
+        "compiled": "compiled",
+        "ahead of time": "loaded (built ahead of time)",
+    }.get(kernel.origin, "compiled (memory only, no cache)")
     note(f"generated {what} of {robot.name} {how} in {kernel.seconds:.2f} s{where}")
     return "compiled"
 
 
 def resolve_backend(
-    requested: str, robot: Robot, task: str, method: str | None = None, work: float = 0.0
+    requested: str | None,
+    robot: Robot,
+    task: str,
+    method: str | None = None,
+    work: float = 0.0,
+    **job: Any,
 ) -> str:
     """The backend a run uses, loading the compiled one first so its cost is reported apart.
 
-    ``auto`` is :func:`rrt_pin.core.backends.choose`, the one policy (``work``: the
-    number of samples for ``inverse``, the simulated seconds for ``simulate``);
-    ``-v`` says which and why. A backend the robot does not
+    ``auto`` (the default, unless ``$RRT_PIN_BACKEND`` says otherwise) is
+    :func:`rrt_pin.core.backends.choose`, the one policy (``work``: the number of samples
+    for ``inverse``, the simulated seconds for ``simulate``; ``job``: its laws and
+    whether it is a batch); ``-v`` says which and why. A backend the robot does not
     support is refused (a robot with a joint the generated RNEA does not handle:
     the message names it). With ``compiled``, importing numba and loading (or
     compiling) the code happens here (for another robot than the chapter's arm:
@@ -496,24 +504,10 @@ def resolve_backend(
     Raises:
         InputError: ``compiled`` was asked for but numba is missing.
     """
-    import logging
-
     from rrt_pin.core import backends
     from rrt_pin.core.errors import InputError
 
-    if requested == "auto":
-        choice = backends.choose(robot, task, method, work)
-        if choice.estimates:
-            from rrt_pin.core.text import duration
-
-            costs = ", ".join(
-                f"{name} ~{'?' if sec is None else duration(sec)}" for name, sec in choice.estimates
-            )
-            logging.getLogger("rrt_pin").info("--backend auto: %s", costs)
-        logging.getLogger("rrt_pin").info(
-            "--backend auto chose %s (%s)", choice.name, choice.reason
-        )
-        requested = choice.name
+    requested = backends.resolve(robot, requested, task, method, work, **job)
     if requested == "compiled" and not robot.supports(requested, task):
         from rrt_pin.dynamics.rnea_source import unsupported_joint
 

@@ -117,15 +117,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--backend",
         choices=(*backends.names("inverse"), "auto"),
-        default="pinocchio",
+        default=None,
         help="; ".join(
             f"{b.name}: {b.summary}" for b in backends.BACKENDS.values() if b.runs("inverse")
         )
         + " (compiled: loaded per process and reported on stderr; another robot's "
-        "kernel is compiled once, then loaded from the disk cache); auto: compiled "
-        "only for the chapter's arm, when its code is already built and the job is large "
-        "enough for it to be at least twice as fast, start-up included (docs/benchmarks.md "
-        "gives the threshold), else pinocchio; -v says why (default: pinocchio)",
+        "kernel is compiled once, built ahead of time, then loaded from the disk cache); "
+        "auto: compiled when its code is already built (auto never compiles) and it is "
+        "estimated faster, start-up included (docs/benchmarks.md gives the costs), else "
+        "pinocchio; -v says which and why (default: auto, or $RRT_PIN_BACKEND)",
     )
     add_frame_arguments(parser)
     add_robot_arguments(parser, "inverse")

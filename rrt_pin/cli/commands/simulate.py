@@ -247,15 +247,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--backend",
         choices=(*backends.names("simulate"), "auto"),
-        default="pinocchio",
+        default=None,
         help="; ".join(
             f"{b.name}: {b.summary}" for b in backends.BACKENDS.values() if b.runs("simulate")
         )
         + " (compiled: built once, loaded per process, both reported on stderr; its run "
-        "times against pinocchio's are in docs/benchmarks.md); auto: compiled only when its "
-        "code is already built, it runs the method asked for (auto never changes the "
-        "method or tolerances) and the job is long enough for it to be at least twice as "
-        "fast, start-up included, else pinocchio; -v says why (default: pinocchio)",
+        "times against pinocchio's are in docs/benchmarks.md); auto: compiled when its code "
+        "is already built (auto never compiles), it runs the robot, the law and the method "
+        "asked for (none named: the chosen backend's, at the tolerances for --accuracy), and "
+        "it is estimated faster, start-up included, else pinocchio; -v says which and why "
+        "(default: auto, or $RRT_PIN_BACKEND)",
     )
     add_frame_arguments(parser)
     add_robot_arguments(parser, "simulate")
@@ -293,8 +294,14 @@ def run(args: argparse.Namespace) -> int:
     frame_units = frame_columns(frames, frame_velocities)
     columns = 1 + 3 * robot.nv + len(frame_units)
     check_space(args.csv, estimate_bytes(fmt, grid.size, columns), "--csv")
+    from rrt_pin.simulate.control import regulator
+
+    passive = source is not None
+    law, law_name, start = (
+        law_from_args(args, robot, source) if passive else (regulator(robot), robot.regulator, None)
+    )
     args.backend = resolve_backend(
-        args.backend, robot, "simulate", args.method, work=float(args.tf)
+        args.backend, robot, "simulate", args.method, work=float(args.tf), controllers=[law]
     )
     method = args.method or backends.get(args.backend).default_method
     fixed = not methods.get(method).adaptive
@@ -309,7 +316,6 @@ def run(args: argparse.Namespace) -> int:
     import numpy as np
 
     from rrt_pin.simulate import AccuracyWarning, simulate
-    from rrt_pin.simulate.control import regulator
     from rrt_pin.simulate.options import resolve
 
     accuracy = getattr(args, "accuracy", None)
@@ -319,10 +325,6 @@ def run(args: argparse.Namespace) -> int:
                      step=step, accuracy=accuracy)  # fmt: skip
 
     d = robot.defaults
-    passive = source is not None
-    law, law_name, start = (
-        law_from_args(args, robot, source) if passive else (regulator(robot), robot.regulator, None)
-    )
     q0 = d.q0 if d.q0 is not None else np.zeros(robot.nv)
     qd0 = d.qd0
     if start is not None:  # a tracked motion starts the run on it unless told otherwise
