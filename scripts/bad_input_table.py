@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import contextlib
 import io
+import os
 import re
 import sys
 import tempfile
@@ -24,13 +25,17 @@ DOC = ROOT / "docs" / "bad-input.md"
 
 
 def table() -> str:
+    os.environ.setdefault("RRT_PIN_BACKEND", "pinocchio")  # see the page's introduction
     rows = [
         "# Bad input and what it gets",
         "",
         "Every case prints one line on stderr, exits with status 2 and writes nothing",
         "(`tests/test_bad_inputs.py` checks each; `python scripts/bad_input_table.py`",
         'regenerates this page). `TMP` stands for the folder holding the files; "…"',
-        "stands for figures of the machine it ran on (its free memory).",
+        "stands for figures of the machine it ran on (its free memory). The default",
+        "backend is Pinocchio here (`RRT_PIN_BACKEND=pinocchio`, as on a machine where",
+        "no compiled code is built yet); once it is, the default runs compiled and a",
+        "message may name its method (DOP853) instead of odepack.",
         "",
         "| problem | command | exit | message |",
         "| --- | --- | --- | --- |",
@@ -42,10 +47,17 @@ def table() -> str:
             err = io.StringIO()
             saved = {m: sys.modules.get(m) for m in case.missing}
             sys.modules.update(dict.fromkeys(case.missing))  # None: the import fails
+            environ = {name: os.environ.get(name) for name, _ in case.env}
+            os.environ.update(dict(case.env))
             try:
                 with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
                     code = main(case.args(tmp))
             finally:
+                for name, value in environ.items():
+                    if value is None:
+                        os.environ.pop(name, None)
+                    else:
+                        os.environ[name] = value
                 for m, module in saved.items():
                     if module is None:
                         sys.modules.pop(m, None)
@@ -55,7 +67,8 @@ def table() -> str:
             for pattern in case.machine:  # figures of this machine (its free memory)
                 message = re.sub(pattern, "…", message)
             message = message.replace(str(tmp), "TMP").replace("|", "\\|")
-            command = "rrt-pin " + " ".join(case.argv).replace("{tmp}", "TMP")
+            variables = "".join(f"{name}={value} " for name, value in case.env)
+            command = variables + "rrt-pin " + " ".join(case.argv).replace("{tmp}", "TMP")
             rows.append(f"| {case.problem} | `{command}` | {code} | `{message}` |")
     return "\n".join(rows) + "\n"
 

@@ -192,6 +192,8 @@ class Case:
     #: Patterns of the message that depend on the machine (its free memory): the table
     #: in docs/bad-input.md shows "…" in their place; ``words`` must not overlap them.
     machine: tuple[str, ...] = ()
+    #: Environment variables set for the case (name, value).
+    env: tuple[tuple[str, str], ...] = ()
 
     def args(self, tmp: Path) -> list[str]:
         """The argv with ``{tmp}`` filled in."""
@@ -655,6 +657,18 @@ CASES = (
         "numba not found (needed for backend 'compiled'): ",
         missing=("numba",),
     ),
+    Case(
+        "a default backend that does not exist",
+        ("inverse", "--csv", OUT),
+        "RRT_PIN_BACKEND='fastest' is not one of pinocchio, symbolic, compiled, auto",
+        env=(("RRT_PIN_BACKEND", "fastest"),),
+    ),
+    Case(
+        "a default backend that is not a name",
+        ("simulate", "--tf", "1", "--csv", OUT),
+        "RRT_PIN_BACKEND='1e9' is not one of pinocchio, symbolic, compiled, auto",
+        env=(("RRT_PIN_BACKEND", "1e9"),),
+    ),
     # plots: the format follows the suffix
     Case(
         "--plot with a suffix no writer has",
@@ -1080,26 +1094,58 @@ CASES = (
     # limits, damping and friction
     Case(
         "URDF limit lower > upper",
-        ("simulate", "--urdf", "{tmp}/limit_lower_above.urdf", "--passive", "--q0", "0,0,0",
-         "--csv", OUT),  # fmt: skip
+        (
+            "simulate",
+            "--urdf",
+            "{tmp}/limit_lower_above.urdf",
+            "--passive",
+            "--q0",
+            "0,0,0",
+            "--csv",
+            OUT,
+        ),  # fmt: skip
         "joint 'q1' <limit lower upper>: lower 912.566 is above upper 12.5664",
     ),
     Case(
         "URDF negative damping",
-        ("simulate", "--urdf", "{tmp}/damping_negative.urdf", "--passive", "--q0", "0,0,0",
-         "--csv", OUT),  # fmt: skip
+        (
+            "simulate",
+            "--urdf",
+            "{tmp}/damping_negative.urdf",
+            "--passive",
+            "--q0",
+            "0,0,0",
+            "--csv",
+            OUT,
+        ),  # fmt: skip
         "joint 'q1' <dynamics damping>: negative, -0.5",
     ),
     Case(
         "URDF negative friction",
-        ("simulate", "--urdf", "{tmp}/friction_negative.urdf", "--passive", "--q0", "0,0,0",
-         "--csv", OUT),  # fmt: skip
+        (
+            "simulate",
+            "--urdf",
+            "{tmp}/friction_negative.urdf",
+            "--passive",
+            "--q0",
+            "0,0,0",
+            "--csv",
+            OUT,
+        ),  # fmt: skip
         "joint 'q1' <dynamics friction>: negative, -0.5",
     ),
     Case(
         "URDF NaN limit",
-        ("simulate", "--urdf", "{tmp}/limit_nan.urdf", "--passive", "--q0", "0,0,0",
-         "--csv", OUT),  # fmt: skip
+        (
+            "simulate",
+            "--urdf",
+            "{tmp}/limit_nan.urdf",
+            "--passive",
+            "--q0",
+            "0,0,0",
+            "--csv",
+            OUT,
+        ),  # fmt: skip
         "joint 'q1' <limit effort=\"nan\">: not finite",
     ),
 )

@@ -37,6 +37,8 @@ def test_bad_input(case, tmp_path, capsys, monkeypatch):
     make_files(tmp_path)
     for module in case.missing:  # None in sys.modules makes ``import module`` fail
         monkeypatch.setitem(sys.modules, module, None)
+    for name, value in case.env:
+        monkeypatch.setenv(name, value)
     before = sorted(p.name for p in tmp_path.rglob("*"))
     code = main(case.args(tmp_path))
     out, err = capsys.readouterr()
