@@ -71,40 +71,40 @@ def _loosest(side, reference):
 
 
 def simulations(repeat: int) -> list[dict]:
-    rows = []
-    for name in ("chapter", "ur5", "panda"):
-        if name == "chapter":
-            robot, law, q0 = _arm_scene()
-            t, loop = rrt_pin.time_grid(15.0, 0.01), _arm_loop
-        else:
-            robot, law, q0, _ = scene(name)
-            t, loop = rrt_pin.time_grid(5.0, 0.01), robot_loop
-        # the compiled code loaded (compiled once if needed) before any timing
-        rrt_pin.simulate(robot, law, q0, None, t[:3], backend="compiled", estimate_error=False)
-        reference = rrt_pin.simulate(robot, law, q0, None, t, backend="compiled",
-                                     method="DOP853", rtol=1e-13, atol=1e-15,
-                                     estimate_error=False).q  # fmt: skip
-        rtol, loop_err = _loosest(lambda r: loop(robot, law, q0, t, r), reference)
-        runs = {
-            "loop": lambda: loop(robot, law, q0, t, rtol),
-            "pinocchio": lambda: rrt_pin.simulate(robot, law, q0, None, t, backend="pinocchio"),
-            "default": lambda: rrt_pin.simulate(robot, law, q0, None, t),
-            "default, no estimate": lambda: rrt_pin.simulate(
-                robot, law, q0, None, t, estimate_error=False
-            ),
-        }
-        default = runs["default"]()
-        pin_run = runs["pinocchio"]()
-        med = interleaved(runs, repeat, inner=1)
-        rows.append({
-            "scene": name, "loop_rtol": rtol, "loop_err": loop_err,
-            "backend": default.backend, "method": default.method,
-            "err_default": float(np.abs(default.q - reference).max()),
-            "err_pinocchio": float(np.abs(pin_run.q - reference).max()),
-            "estimate": float(default.error_estimate),
-            **{f"t_{k}": v for k, v in med.items()},
-        })  # fmt: skip
-    return rows
+    return [_scene_row(name, repeat) for name in ("chapter", "ur5", "panda")]
+
+
+def _scene_row(name: str, repeat: int) -> dict:
+    if name == "chapter":
+        robot, law, q0 = _arm_scene()
+        t, loop = rrt_pin.time_grid(15.0, 0.01), _arm_loop
+    else:
+        robot, law, q0, _ = scene(name)
+        t, loop = rrt_pin.time_grid(5.0, 0.01), robot_loop
+    # the compiled code loaded (compiled once if needed) before any timing
+    rrt_pin.simulate(robot, law, q0, None, t[:3], backend="compiled", estimate_error=False)
+    reference = rrt_pin.simulate(robot, law, q0, None, t, backend="compiled", method="DOP853",
+                                 rtol=1e-13, atol=1e-15, estimate_error=False).q  # fmt: skip
+    rtol, loop_err = _loosest(lambda r: loop(robot, law, q0, t, r), reference)
+    runs = {
+        "loop": lambda: loop(robot, law, q0, t, rtol),
+        "pinocchio": lambda: rrt_pin.simulate(robot, law, q0, None, t, backend="pinocchio"),
+        "default": lambda: rrt_pin.simulate(robot, law, q0, None, t),
+        "default, no estimate": lambda: rrt_pin.simulate(
+            robot, law, q0, None, t, estimate_error=False
+        ),
+    }
+    default = runs["default"]()
+    pin_run = runs["pinocchio"]()
+    med = interleaved(runs, repeat, inner=1)
+    return {
+        "scene": name, "loop_rtol": rtol, "loop_err": loop_err,
+        "backend": default.backend, "method": default.method,
+        "err_default": float(np.abs(default.q - reference).max()),
+        "err_pinocchio": float(np.abs(pin_run.q - reference).max()),
+        "estimate": float(default.error_estimate),
+        **{f"t_{k}": v for k, v in med.items()},
+    }  # fmt: skip
 
 
 _INVERSE = """
