@@ -2,7 +2,9 @@
 """Defaults against what a user would write: ``simulate`` and ``inverse_dynamics`` as called plainly.
 
 **Simulations.** For the chapter's run (eq. (31), 15 s) and UR5 and Panda (5 s under PD +
-gravity from 0.3 rad off, the scene of ``scripts/bench/robot_sim.py``): the default
+gravity from 0.3 rad off, the scene of ``scripts/bench/robot_sim.py``; the loop applies
+the URDF's damping, friction and effort limits, as rrt-pin does by default; position
+limits are off on both sides, as a finger of Panda touches its stop): the default
 ``simulate`` (accuracy 1e-8, its error estimate included) on the Pinocchio backend and
 on the default backend (``auto``: compiled once its code is loaded), against a SciPy
 DOP853 + ``pin.aba`` loop at the loosest rtol (a ladder of half decades) that keeps max
@@ -12,7 +14,10 @@ medians; ratios are the loop's time over each.
 **Inverse dynamics**, in a fresh process per robot (the compiled code built beforehand,
 ahead of time where it can be): the default ``inverse_dynamics`` of 15,001 samples (its
 first call, the module's load included, and the median of the next calls) against a
-``pin.rnea`` loop over the same samples in the same process.
+``pin.rnea`` loop over the same samples in the same process. Calls are timed back to
+back, the first of each round not counted (as :func:`scripts.bench.common.interleaved`
+does): a sub-millisecond call right after the loop or a pause runs 2–4× slower
+(caches, the CPU's clock), which would measure the machine, not the kernel.
 
     .venv/bin/python -m scripts.bench.defaults [--repeat 7] [--markdown]
 """
@@ -34,7 +39,6 @@ from rrt_pin.robot import robots
 from rrt_pin.simulate.control import chapter_controller
 from scripts.bench.common import interleaved, verdict
 from scripts.bench.robot_sim import scene
-from scripts.bench.robot_sim import scipy_loop as robot_loop
 
 ACCURACY = 1e-8
 LADDER = [10.0 ** (-k / 2) for k in range(6, 27)]  # 1e-3 … 1e-13
@@ -62,6 +66,28 @@ def _arm_loop(robot, law, q0, t, rtol):
     return s.y[:3].T
 
 
+def robot_loop(robot, law, q0, t, rtol):
+    """PD + gravity with the URDF's damping, friction and effort limits, as rrt-pin's default."""
+    from scipy.integrate import solve_ivp
+
+    model, data = robot.model, robot.model.createData()
+    kp, kd, qf = np.array(law.kp), np.array(law.kd), np.array(law.qf)
+    damping, friction = np.array(model.damping), np.array(model.friction)
+    limit = np.where(np.array(model.effortLimit) > 0, np.array(model.effortLimit), np.inf)
+    nv = robot.nv
+
+    def f(_t, y):
+        q, v = y[:nv], y[nv:]
+        c = robot.configuration(q)
+        tau = -kd * v - kp * (q - qf) + pin.computeGeneralizedGravity(model, data, c)
+        tau = np.clip(tau, -limit, limit) - damping * v - friction * np.tanh(v / 1e-3)
+        return np.concatenate([v, pin.aba(model, data, c, v, tau)])
+
+    y0 = np.concatenate([q0, np.zeros(nv)])
+    s = solve_ivp(f, (t[0], t[-1]), y0, method="DOP853", t_eval=t, rtol=rtol, atol=rtol / 100)
+    return s.y[:nv].T
+
+
 def _loosest(side, reference):
     for rtol in LADDER:
         err = float(np.abs(side(rtol) - reference).max())
@@ -81,17 +107,19 @@ def _scene_row(name: str, repeat: int) -> dict:
     else:
         robot, law, q0, _ = scene(name)
         t, loop = rrt_pin.time_grid(5.0, 0.01), robot_loop
+    # Panda's finger touches its stop: the loop has no compliant limits, so neither side does
+    kw = {"position_limits": False}
     # the compiled code loaded (compiled once if needed) before any timing
     rrt_pin.simulate(robot, law, q0, None, t[:3], backend="compiled", estimate_error=False)
     reference = rrt_pin.simulate(robot, law, q0, None, t, backend="compiled", method="DOP853",
-                                 rtol=1e-13, atol=1e-15, estimate_error=False).q  # fmt: skip
+                                 rtol=1e-13, atol=1e-15, estimate_error=False, **kw).q  # fmt: skip
     rtol, loop_err = _loosest(lambda r: loop(robot, law, q0, t, r), reference)
     runs = {
         "loop": lambda: loop(robot, law, q0, t, rtol),
-        "pinocchio": lambda: rrt_pin.simulate(robot, law, q0, None, t, backend="pinocchio"),
-        "default": lambda: rrt_pin.simulate(robot, law, q0, None, t),
+        "pinocchio": lambda: rrt_pin.simulate(robot, law, q0, None, t, backend="pinocchio", **kw),
+        "default": lambda: rrt_pin.simulate(robot, law, q0, None, t, **kw),
         "default, no estimate": lambda: rrt_pin.simulate(
-            robot, law, q0, None, t, estimate_error=False
+            robot, law, q0, None, t, estimate_error=False, **kw
         ),
     }
     default = runs["default"]()
@@ -127,8 +155,10 @@ start = time.perf_counter(); tau = inverse_dynamics(robot, q, qd, qdd)
 first = time.perf_counter() - start
 calls, loops = [], []
 for _ in range(int(sys.argv[2])):
-    start = time.perf_counter(); inverse_dynamics(robot, q, qd, qdd)
-    calls.append(time.perf_counter() - start)
+    for k in range(3):  # back to back, the first not counted (common.interleaved's rule)
+        start = time.perf_counter(); inverse_dynamics(robot, q, qd, qdd)
+        if k:
+            calls.append(time.perf_counter() - start)
     start = time.perf_counter()
     ref = np.array([pin.rnea(model, data, x[i], qd[i], qdd[i]) for i in range(len(q))])
     loops.append(time.perf_counter() - start)
