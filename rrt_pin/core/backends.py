@@ -156,6 +156,7 @@ BACKENDS: dict[str, Backend] = {
             tasks=("inverse",),
             default_method=None,
             requires="numpy",
+            inverse_cost=100e-9,
         ),
         Backend(
             "compiled",
@@ -294,8 +295,10 @@ def choose(
     from the JIT's disk cache (numba's import and the load: :attr:`Backend.startup`) only when the whole
     job, start-ups included, is estimated no slower than on ``pinocchio``
     (:func:`estimated_seconds`: ``work`` is samples for ``inverse``, simulated
-    seconds for ``simulate``, all variants' for a ``batch``). Otherwise ``pinocchio``,
-    the engine of record. A method left unnamed is the chosen backend's default, at
+    seconds for ``simulate``, all variants' for a ``batch``). Otherwise the cheaper by the
+    estimate of ``pinocchio``, the engine of record, and (the chapter arm's inverse
+    dynamics) ``symbolic``, its numpy kernel: the same efforts without Pinocchio's import.
+    A method left unnamed is the chosen backend's default, at
     the tolerances chosen for the accuracy asked.
 
     Args:
@@ -307,27 +310,36 @@ def choose(
         params: the chapter arm's Params given with the job, if any.
         batch: a ``simulate_batch`` (its compiled code is never built ahead of time).
     """
-    engine, fast = BACKENDS["pinocchio"], BACKENDS["compiled"]
+    engine, fast, numpy_kernel = BACKENDS["pinocchio"], BACKENDS["compiled"], BACKENDS["symbolic"]
     why = _cannot(fast, robot, task, method, controllers, params)
-    if why is not None:
-        return Choice(engine.name, why)
     arm = task == "inverse" and robot.supports(fast.name)
-    if task == "simulate":
-        arm = fast.entry("arm_kernel")(robot, params, controllers)
-    loaded, aot, built = fast.entry("state")(robot, task, batch, arm)
-    if not built:
-        return Choice(
-            engine.name, "compiled code not built (auto never compiles: ask for backend 'compiled')"
-        )
-    mine = estimated_seconds(fast, task, work, loaded, aot, arm, robot.nv)
-    theirs = estimated_seconds(engine, task, work, "pinocchio" in sys.modules, False, arm, robot.nv)
-    estimates = ((fast.name, mine), (engine.name, theirs))
-    if loaded or aot:
+    loaded = aot = built = False
+    if why is None:
+        if task == "simulate":
+            arm = fast.entry("arm_kernel")(robot, params, controllers)
+        loaded, aot, built = fast.entry("state")(robot, task, batch, arm)
+        if not built:
+            why = "compiled code not built (auto never compiles: ask for backend 'compiled')"
+    # every backend that can run the job as asked, with its estimate (start-up included)
+    found = [(engine, estimated_seconds(engine, task, work, "pinocchio" in sys.modules, False,
+                                        arm, robot.nv))]  # fmt: skip
+    if numpy_kernel.runs(task) and robot.supports(numpy_kernel.name):
+        found.append((numpy_kernel, estimated_seconds(numpy_kernel, task, work, True)))
+    if why is None:
+        found.append((fast, estimated_seconds(fast, task, work, loaded, aot, arm, robot.nv)))
+    estimates = tuple((b.name, sec) for b, sec in found)
+    if why is None and (loaded or aot):
         why = "already loaded" if loaded else "built ahead of time (loads in milliseconds)"
         return Choice(fast.name, why, estimates)
-    if mine is not None and theirs is not None and mine <= theirs:
+    known = [(sec, i) for i, (_, sec) in enumerate(found) if sec is not None]
+    best = found[min(known)[1]][0] if known else engine
+    if best is fast:
         return Choice(fast.name, "in the disk cache, and faster by the estimate", estimates)
-    return Choice(engine.name, "compiled would not be faster (numba's start-up)", estimates)
+    if best is numpy_kernel:
+        return Choice(best.name, "the same efforts, faster by the estimate (no import)", estimates)
+    if why is None:
+        why = "compiled would not be faster (numba's start-up)"
+    return Choice(engine.name, why, estimates)
 
 
 def resolve(

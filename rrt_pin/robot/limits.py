@@ -227,8 +227,10 @@ def physical_model(
             velocity limit, or a NaN (the joint named).
     """
     nv = robot.nv
+    if robot.is_chapter_arm:  # before robot.model: the arm's needs no Pinocchio model
+        return inactive(nv)
     m = robot.model if model is None else model
-    if robot.is_chapter_arm or _chapter_urdf(robot, m):
+    if _chapter_urdf(robot, m):
         return inactive(nv)
     names = joint_names(robot)
     lower, upper = np.full(nv, -np.inf), np.full(nv, np.inf)
