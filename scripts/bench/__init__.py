@@ -6,8 +6,9 @@ the figures in docs/benchmarks.md come from these. Shared timing helpers are in
 
 - ``accuracy``: the accuracy catalogue: the defaults' global error, its estimate and cost;
 - ``aot``: ahead-of-time compiled code against the JIT cache: what a process pays;
-- ``auto``: the costs ``--backend auto`` compares, next to the registry's values;
+- ``auto``: the costs the default backend (``auto``) compares, next to the registry's values;
 - ``batch_threads``: compiled batches on one thread, two and the default (a busy core too);
+- ``defaults``: ``simulate`` and ``inverse_dynamics`` as called plainly (the default backend);
 - ``cache``: the compiled backend's import, cache load and compilation;
 - ``compiled``: the compiled backend against its baselines (direct, inverse, batches);
 - ``direct``: direct dynamics of the chapter's run against the plain scipy baseline;
@@ -23,4 +24,13 @@ the figures in docs/benchmarks.md come from these. Shared timing helpers are in
 - ``stream``: peak memory and rows/s of streamed ``rrt-pin inverse`` outputs;
 - ``sweep``: throughput, scaling and memory of sweeps;
 - ``threads``: batched Pinocchio inverse dynamics and its thread choice.
+
+Every benchmark times the backend it names; a call that names none times the engine of
+record: importing this package sets ``RRT_PIN_BACKEND=pinocchio`` unless it is set (the
+default backend, ``auto``, would run compiled code wherever it is built, which depends on
+the machine's cache). ``defaults`` removes it, as it times the default itself.
 """
+
+import os
+
+os.environ.setdefault("RRT_PIN_BACKEND", "pinocchio")
