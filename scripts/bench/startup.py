@@ -64,8 +64,8 @@ print(len(compiled), len(mine), file=sys.__stderr__)
 
 
 def _environments(prefix: str) -> dict[str, dict[str, str]]:
-    base = {k: v for k, v in os.environ.items()
-            if k not in ("PYTHONDONTWRITEBYTECODE", "PYTHONPYCACHEPREFIX")}  # fmt: skip
+    base = {k: v for k, v in os.environ.items()  # the default backend is what is timed
+            if k not in ("PYTHONDONTWRITEBYTECODE", "PYTHONPYCACHEPREFIX", "RRT_PIN_BACKEND")}  # fmt: skip
     return {
         ".pyc written": {**base, "PYTHONPYCACHEPREFIX": prefix},
         "PYTHONDONTWRITEBYTECODE=1": {**base, "PYTHONDONTWRITEBYTECODE": "1"},
