@@ -178,3 +178,19 @@ def test_auto_keeps_what_compiled_cannot_run_on_pinocchio(monkeypatch):
     assert without.name == "pinocchio" and "numba is not installed" in without.reason
     # the arm's inverse dynamics then goes to its numpy kernel: no import, the same efforts
     assert backends.choose(arm, "inverse", None, 1e9).name == "symbolic"
+
+
+def test_the_cli_records_which_backend_ran_and_why(tmp_path):
+    out = tmp_path / "run.json"
+    for env, backend, why in (
+        (_env(tmp_path / "cache"), "symbolic", "auto: the same efforts"),  # nothing built
+        ({**_env(), "RRT_PIN_BACKEND": "pinocchio"}, "pinocchio", "RRT_PIN_BACKEND=pinocchio"),
+    ):
+        proc = subprocess.run(
+            [sys.executable, "-m", "rrt_pin", "inverse", "--tf", "1", "--dt", "0.5",
+             "--json", str(out)],
+            capture_output=True, text=True, env=env, cwd=tmp_path,
+        )  # fmt: skip
+        assert proc.returncode == 0, proc.stderr
+        meta = json.loads(out.read_text())["metadata"]
+        assert meta["backend"] == backend and meta["backend_reason"].startswith(why), meta

@@ -20,7 +20,7 @@ from rrt_pin.core.extras import MissingExtra
 from rrt_pin.core.text import duration
 
 __all__ = [
-    "BACKENDS", "DEFAULT_VARIABLE", "Backend", "Choice", "choose", "default",
+    "BACKENDS", "DEFAULT_VARIABLE", "Backend", "Choice", "choose", "decide", "default",
     "estimated_seconds", "get", "names", "resolve",
 ]  # fmt: skip
 
@@ -350,17 +350,30 @@ def resolve(
     work: float = 0.0,
     **job: Any,
 ) -> str:
-    """The backend a job runs on: ``requested``, or the default (:func:`default`) if None.
+    """The backend a job runs on: :func:`decide`'s name."""
+    return decide(robot, requested, task, method, work, **job).name
+
+
+def decide(
+    robot: Any,
+    requested: str | None,
+    task: str,
+    method: str | None = None,
+    work: float = 0.0,
+    **job: Any,
+) -> Choice:
+    """The backend a job runs on and why: ``requested``, or the default (:func:`default`) if None.
 
     ``auto`` is decided by :func:`choose` (``job``: its keyword arguments) and said on
-    the ``rrt_pin`` logger at INFO (``-v``) with the estimates.
+    the ``rrt_pin`` logger at INFO (``-v``) with the estimates; a backend named is
+    "asked for" (by ``$RRT_PIN_BACKEND`` when that named it).
 
     Raises:
         InputError: ``$RRT_PIN_BACKEND`` names no backend.
     """
     name = default() if requested is None else requested
     if name != "auto":
-        return name
+        return Choice(name, f"{DEFAULT_VARIABLE}={name}" if requested is None else "asked for")
     choice = choose(robot, task, method, work, **job)
     log = logging.getLogger("rrt_pin")
     if choice.estimates and log.isEnabledFor(logging.INFO):
@@ -369,7 +382,7 @@ def resolve(
         )
         log.info("backend auto: %s", costs)
     log.info("backend auto chose %s (%s)", choice.name, choice.reason)
-    return choice.name
+    return Choice(choice.name, f"auto: {choice.reason}", choice.estimates)
 
 
 def _cannot(

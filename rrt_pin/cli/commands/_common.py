@@ -402,6 +402,7 @@ def run_metadata(args: argparse.Namespace, robot: Robot, params: Params, **run: 
         "rrt_pin_version": __version__,
         "command_line": list(getattr(args, "argv", None) or ["rrt-pin", *sys.argv[1:]]),
         **run,
+        **({"backend_reason": args.backend_reason} if hasattr(args, "backend_reason") else {}),
         "robot": robot.name,
         "urdf": getattr(args, "urdf", None),
         "joints": [j.name for j in robot.joints],
@@ -485,6 +486,7 @@ def resolve_backend(
     task: str,
     method: str | None = None,
     work: float = 0.0,
+    args: argparse.Namespace | None = None,
     **job: Any,
 ) -> str:
     """The backend a run uses, loading the compiled one first so its cost is reported apart.
@@ -492,7 +494,8 @@ def resolve_backend(
     ``auto`` (the default, unless ``$RRT_PIN_BACKEND`` says otherwise) is
     :func:`rrt_pin.core.backends.choose`, the one policy (``work``: the number of samples
     for ``inverse``, the simulated seconds for ``simulate``; ``job``: its laws and
-    whether it is a batch); ``-v`` says which and why. A backend the robot does not
+    whether it is a batch); ``-v`` says which and why, and so does the run's metadata
+    (``backend_reason``, kept on ``args`` when given). A backend the robot does not
     support is refused (a robot with a joint the generated RNEA does not handle:
     the message names it). With ``compiled``, importing numba and loading (or
     compiling) the code happens here (for another robot than the chapter's arm:
@@ -507,7 +510,10 @@ def resolve_backend(
     from rrt_pin.core import backends
     from rrt_pin.core.errors import InputError
 
-    requested = backends.resolve(robot, requested, task, method, work, **job)
+    choice = backends.decide(robot, requested, task, method, work, **job)
+    requested = choice.name
+    if args is not None:
+        args.backend_reason = choice.reason  # the run's metadata says why
     if requested == "compiled" and not robot.supports(requested, task):
         from rrt_pin.dynamics.rnea_source import unsupported_joint
 

@@ -164,7 +164,7 @@ def run(args: argparse.Namespace) -> int:
     job = InverseJob(robot, motion, args.wrenches, *frames_from_args(args, robot))
     job.keep_plot = bool(args.plot)
     check_space(args.csv, estimate_bytes(fmt, motion.size, len(job.header)), "--csv")
-    args.backend = resolve_backend(args.backend, robot, "inverse", work=motion.size)
+    args.backend = resolve_backend(args.backend, robot, "inverse", work=motion.size, args=args)
     job.backend = args.backend
     meta = run_metadata(
         args, robot, params, command="inverse", backend=args.backend, tf=tf, dt=dt,

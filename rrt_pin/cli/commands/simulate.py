@@ -301,8 +301,9 @@ def run(args: argparse.Namespace) -> int:
         law_from_args(args, robot, source) if passive else (regulator(robot), robot.regulator, None)
     )
     args.backend = resolve_backend(
-        args.backend, robot, "simulate", args.method, work=float(args.tf), controllers=[law]
-    )
+        args.backend, robot, "simulate", args.method, work=float(args.tf), args=args,
+        controllers=[law],
+    )  # fmt: skip
     method = args.method or backends.get(args.backend).default_method
     fixed = not methods.get(method).adaptive
     if args.step is not None and not fixed:
