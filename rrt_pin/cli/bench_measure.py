@@ -208,7 +208,7 @@ def inverse_backends(
 
     candidates: list[tuple[str, str, Callable[[], np.ndarray]]] = [
         ("pinocchio", "rnea-loop", loop),
-        ("pinocchio", "rnea-batch", lambda: inverse_dynamics(arm, q, qd, qdd)),
+        ("pinocchio", "rnea-batch", lambda: inverse_dynamics(arm, q, qd, qdd, backend="pinocchio")),
         ("symbolic", "numpy-kernel", lambda: kernel.inverse_dynamics(q, qd, qdd, p)),
     ]
     try:
@@ -418,7 +418,7 @@ def energy_drift(
 
         def run(method=method, rtol=rtol):
             r = simulate(arm, passive, p.q0, p.qd0, t, method=method, rtol=rtol, atol=rtol * 1e-2,
-                         estimate_error=False)  # fmt: skip
+                         backend="pinocchio", estimate_error=False)  # fmt: skip
             return r.q, r.qd, r.n_evals
 
         runs.append((method, f"rtol={rtol:.0e}", run))
@@ -426,7 +426,8 @@ def energy_drift(
     for method in ("rk4", "verlet", "symplectic_euler", "leapfrog"):
 
         def run(method=method):
-            r = simulate(arm, passive, p.q0, p.qd0, t, method=method, step=h, estimate_error=False)
+            r = simulate(arm, passive, p.q0, p.qd0, t, method=method, step=h,
+                         backend="pinocchio", estimate_error=False)  # fmt: skip
             return r.q, r.qd, r.n_evals
 
         runs.append((method, f"dt={h:g}", run))

@@ -287,7 +287,7 @@ def _arm_one_by_one(p, table, bad, why, qf, count, rows):  # noqa: ANN001, ANN20
         try:
             run = simulate(chapter_arm(params), law, params.q0, params.qd0, p.t,
                            method=p.method, rtol=p.rtol, atol=p.atol, step=p.step,
-                           estimate_error=False)  # fmt: skip
+                           backend=p.backend, estimate_error=False)  # fmt: skip
         except DivergenceError as e:
             failures[i] = e
             continue
@@ -477,7 +477,8 @@ def _inverse(p: Plan, values: dict[str, np.ndarray], count: int, rows: list[int]
             traj = rest_to_rest(cols["q0"][i], cols["qf"][i], Tp, p.t)
             q[i], qd[i] = traj.q, traj.qd
             try:
-                tau[i] = inverse_dynamics(robot, traj.q, traj.qd, traj.qdd, num_threads=1)
+                tau[i] = inverse_dynamics(robot, traj.q, traj.qd, traj.qdd, num_threads=1,
+                                          backend=p.backend)  # fmt: skip
             except InputError as e:
                 failures[i] = _Failure(math.nan, "efforts", str(e))
         qf = cols["qf"]
