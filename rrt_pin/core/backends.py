@@ -311,7 +311,7 @@ def choose(
         batch: a ``simulate_batch`` (its compiled code is never built ahead of time).
     """
     engine, fast, numpy_kernel = BACKENDS["pinocchio"], BACKENDS["compiled"], BACKENDS["symbolic"]
-    why = _cannot(fast, robot, task, method, controllers, params)
+    why = _cannot(fast, robot, task, method)
     arm = task == "inverse" and robot.supports(fast.name)
     loaded = aot = built = False
     if why is None:
@@ -320,6 +320,8 @@ def choose(
         loaded, aot, built = fast.entry("state")(robot, task, batch, arm)
         if not built:
             why = "compiled code not built (auto never compiles: ask for backend 'compiled')"
+        elif task == "simulate":  # the laws last: checking them imports the integrators
+            why = fast.entry("refusal")(robot, controllers, params)
     # every backend that can run the job as asked, with its estimate (start-up included)
     found = [(engine, estimated_seconds(engine, task, work, "pinocchio" in sys.modules, False,
                                         arm, robot.nv))]  # fmt: skip
@@ -385,18 +387,14 @@ def decide(
     return Choice(choice.name, f"auto: {choice.reason}", choice.estimates)
 
 
-def _cannot(
-    fast: Backend, robot: Any, task: str, method: str | None, controllers: Any, params: Any
-) -> str | None:
-    """Why ``fast`` cannot compute this job as asked (None: it can)."""
+def _cannot(fast: Backend, robot: Any, task: str, method: str | None) -> str | None:
+    """Why ``fast`` cannot compute this job as asked, its laws apart (None: it can)."""
     if not fast.available():
         return f"{fast.requires} is not installed (pip extra {fast.extra!r})"
     if not robot.supports(fast.name, task):
         return "compiled does not handle one of this robot's joints"
     if method is not None and not _method_runs(method, fast.name):
         return f"method {method!r} does not run compiled"
-    if task == "simulate":
-        return fast.entry("refusal")(robot, controllers, params)
     return None
 
 
