@@ -237,7 +237,7 @@ def runs_arm_kernel(robot: Any, params: Any, controllers: Any) -> bool:
     """
     from rrt_pin.robot.params import Params
 
-    if robot.supports("compiled") or params is not None:
+    if robot.is_chapter_arm or params is not None:
         return True
     return any(isinstance(getattr(c, "params", None), Params) for c in controllers)
 

@@ -101,9 +101,7 @@ def _generated(robot: Robot, params: Any, controllers: Sequence[Any]) -> bool:
     Raises:
         InputError: the generated code does not handle one of its joints.
     """
-    if robot.is_chapter_arm or params is not None:
-        return False
-    if any(isinstance(getattr(c, "params", None), Params) for c in controllers):
+    if _compiled("arm_kernel")(robot, params, controllers):  # the one rule, with auto's
         return False
     if not robot.supports("compiled", "simulate"):
         from rrt_pin.dynamics.rnea_source import unsupported_joint
