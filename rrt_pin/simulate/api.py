@@ -101,7 +101,7 @@ def _generated(robot: Robot, params: Any, controllers: Sequence[Any]) -> bool:
     Raises:
         InputError: the generated code does not handle one of its joints.
     """
-    if _compiled("arm_kernel")(robot, params, controllers):  # the one rule, with auto's
+    if backends.get("compiled").entry("arm_kernel")(robot, params, controllers):  # auto's rule
         return False
     if not robot.supports("compiled", "simulate"):
         from rrt_pin.dynamics.rnea_source import unsupported_joint
