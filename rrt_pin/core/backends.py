@@ -292,14 +292,14 @@ def choose(
     ``controllers``: :func:`rrt_pin.compiled.refusal`) and its machine code is built
     (looked at without importing numba; ``auto`` never compiles): always when it is
     already loaded in this process or built ahead of time (it loads in milliseconds);
-    from the JIT's disk cache (numba's import and the load: :attr:`Backend.startup`) only when the whole
-    job, start-ups included, is estimated no slower than on ``pinocchio``
-    (:func:`estimated_seconds`: ``work`` is samples for ``inverse``, simulated
-    seconds for ``simulate``, all variants' for a ``batch``). Otherwise the cheaper by the
-    estimate of ``pinocchio``, the engine of record, and (the chapter arm's inverse
-    dynamics) ``symbolic``, its numpy kernel: the same efforts without Pinocchio's import.
-    A method left unnamed is the chosen backend's default, at
-    the tolerances chosen for the accuracy asked.
+    from the JIT's disk cache (numba's import and the load: :attr:`Backend.startup`)
+    only when the whole job, start-ups included, is estimated no slower than the
+    others (:func:`estimated_seconds`: ``work`` is samples for ``inverse``, simulated
+    seconds for ``simulate``, all variants' for a ``batch``). Otherwise the cheaper by
+    the estimate of ``pinocchio``, the engine of record, and (the chapter arm's inverse
+    dynamics) ``symbolic``, its numpy kernel: the same efforts without Pinocchio's
+    import. A method left unnamed is the chosen backend's default, at the tolerances
+    chosen for the accuracy asked.
 
     Args:
         robot: a :class:`~rrt_pin.robot.robot.Robot`.
