@@ -12,7 +12,6 @@ import numpy as np
 from rrt_pin.core import backends, cpus, memory, validate
 from rrt_pin.core.errors import DivergenceError, InputError
 from rrt_pin.core.identity import IdentityCache
-from rrt_pin.robot.model import refuse_ignored
 from rrt_pin.robot.params import Params, check_params
 from rrt_pin.robot.robot import Robot, bare_model, params_given
 from rrt_pin.robot.robots import chapter_arm
@@ -208,7 +207,7 @@ def simulate(
         t, backend=backend, method=method, rtol=rtol, atol=atol, step=step, jacobian=jacobian,
         accuracy=accuracy,
     )  # fmt: skip
-    refuse_ignored(robot, params, options.backend)
+    _refuse_ignored(robot, params, options.backend)
     # the same checks on both backends; the law's results are checked (rrt_pin.simulate.control)
     checked = (
         None if controller is None else as_controller(controller, robot.nv, robot.effort_names)
@@ -251,6 +250,14 @@ def _checked_params(params: Any, name: str = "params") -> Any:
         return None
 
     return check_params(params, name)
+
+
+def _refuse_ignored(robot: Robot, params: Any, backend: str) -> None:
+    """:func:`rrt_pin.robot.model.refuse_ignored`, imported only when ``params`` are given."""
+    if params is not None:
+        from rrt_pin.robot.model import refuse_ignored  # XML and models: not for every run
+
+        refuse_ignored(robot, params, backend)
 
 
 def _with_estimate(result: Any, options: Options, run: Any) -> Any:
@@ -453,7 +460,7 @@ def simulate_batch(
         accuracy=accuracy,
     )  # fmt: skip
     keep = validate.choice("keep", keep, KEEPS)
-    refuse_ignored(robot, params, options.backend)
+    _refuse_ignored(robot, params, options.backend)
     chosen = None if threads is None else _threads(threads)
     laws = []
     for i, c in enumerate(controllers):
