@@ -12,6 +12,7 @@ the figures in docs/benchmarks.md come from these. Shared timing helpers are in
 - ``cache``: the compiled backend's import, cache load and compilation;
 - ``compiled``: the compiled backend against its baselines (direct, inverse, batches);
 - ``direct``: direct dynamics of the chapter's run against the plain scipy baseline;
+- ``estimate_grid``: a candidate error estimate (Richardson on DOP853's step grid), measured;
 - ``forward``: generated forward dynamics of UR5 and Panda: ABA, CRBA + LDLᵀ, ``pin.aba``;
 - ``inverse``: inverse dynamics of the chapter's run: speed and agreement;
 - ``kernel``: the inverse-dynamics kernels: ns a sample, flops, the FMA rate;
