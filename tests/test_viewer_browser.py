@@ -244,12 +244,12 @@ def test_cli_screenshot_is_written_and_leaves_no_process(tmp_path, chromium_path
     try:
         while proc.poll() is None:
             for p in _descendants(proc.pid):
-                if p.pid not in seen:
-                    seen[p.pid] = p
-                    try:
-                        names.add(p.name())
-                    except psutil.NoSuchProcess:
-                        pass
+                seen.setdefault(p.pid, p)
+            for p in seen.values():  # a name read mid-exec is the launcher's ("exe"): read again
+                try:
+                    names.add(p.name())
+                except psutil.NoSuchProcess:
+                    pass
             time.sleep(0.05)
         assert proc.returncode == 0, proc.stderr.read()
     finally:
@@ -281,12 +281,12 @@ def test_sigint_during_a_screenshot_ends_chromium_too(tmp_path, chromium_paths):
             assert proc.poll() is None, proc.stderr.read()
             assert time.monotonic() < deadline
             for p in _descendants(proc.pid):
-                if p.pid not in seen:
-                    seen[p.pid] = p
-                    try:
-                        names.add(p.name())
-                    except psutil.NoSuchProcess:
-                        pass
+                seen.setdefault(p.pid, p)
+            for p in seen.values():  # a name read mid-exec is the launcher's ("exe"): read again
+                try:
+                    names.add(p.name())
+                except psutil.NoSuchProcess:
+                    pass
             time.sleep(0.02)
         for p in _descendants(proc.pid):
             seen.setdefault(p.pid, p)

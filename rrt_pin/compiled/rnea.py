@@ -190,8 +190,9 @@ def _numba_files(dispatcher: Any) -> Callable[[], list[Path]]:
     index = Path(dispatcher._cache._cache_file._index_path)
     stem = index.name[: -len(".nbi")]
 
-    def files() -> list[Path]:
-        return sorted([index, *index.parent.glob(glob.escape(stem) + ".*.nbc")])
+    def files() -> list[Path]:  # those on disk now (the index too, once written)
+        found = [index, *index.parent.glob(glob.escape(stem) + ".*.nbc")]
+        return sorted(f for f in found if f.is_file())
 
     return files
 
