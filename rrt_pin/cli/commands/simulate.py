@@ -134,8 +134,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--method",
         default=None,
         metavar="NAME",
-        help=f"integration method: {', '.join(methods.METHODS)} (default odepack; "
-        "--backend compiled: DOP853; see below)",
+        help=f"integration method: {', '.join(methods.METHODS)} (default: the backend's, "
+        "odepack on pinocchio, DOP853 compiled; see below)",
     )
     parser.add_argument(
         "--accuracy",
