@@ -21,7 +21,7 @@ from rrt_pin.core.text import duration
 
 __all__ = [
     "BACKENDS", "DEFAULT_VARIABLE", "Backend", "Choice", "choose", "decide", "default",
-    "estimated_seconds", "get", "names", "resolve",
+    "estimated_seconds", "get", "names",
 ]  # fmt: skip
 
 
@@ -342,18 +342,6 @@ def choose(
     if why is None:
         why = "compiled would not be faster (numba's start-up)"
     return Choice(engine.name, why, estimates)
-
-
-def resolve(
-    robot: Any,
-    requested: str | None,
-    task: str,
-    method: str | None = None,
-    work: float = 0.0,
-    **job: Any,
-) -> str:
-    """The backend a job runs on: :func:`decide`'s name."""
-    return decide(robot, requested, task, method, work, **job).name
 
 
 def decide(

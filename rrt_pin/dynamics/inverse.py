@@ -196,7 +196,7 @@ def inverse_dynamics(
         q, qd, qdd = _motion(model, q, qd, qdd)
     if isinstance(model, Robot):  # the default (auto) by the one policy
         count = float(np.shape(q)[0]) if np.ndim(q) > 1 else 1.0
-        backend = backends.resolve(model, backend, "inverse", None, count)
+        backend = backends.decide(model, backend, "inverse", None, count).name
     b = backends.get("pinocchio" if backend is None else backend, "inverse")
     bare_model("inverse_dynamics", model)
     params_given("inverse_dynamics", params)

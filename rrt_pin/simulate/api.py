@@ -195,8 +195,8 @@ def simulate(
     params_given("simulate", params)
     robot = as_robot(model, _checked_params(params))
     t = validate.times(t_eval)
-    backend = backends.resolve(robot, backend, "simulate", method, float(t[-1] - t[0]),
-                               controllers=[controller], params=params)  # fmt: skip
+    backend = backends.decide(robot, backend, "simulate", method, float(t[-1] - t[0]),
+                              controllers=[controller], params=params).name  # fmt: skip
     _prepare(robot, backend, method)
     start = time.perf_counter()
     q0 = robot.as_coordinates("q0", q0)
@@ -451,8 +451,8 @@ def simulate_batch(
     if len(controllers) != B:
         raise InputError(f"{len(controllers)} controllers for {B} initial states")
     t = validate.times(t_eval)
-    backend = backends.resolve(robot, backend, "simulate", method, B * float(t[-1] - t[0]),
-                               controllers=controllers, params=params, batch=True)  # fmt: skip
+    backend = backends.decide(robot, backend, "simulate", method, B * float(t[-1] - t[0]),
+                              controllers=controllers, params=params, batch=True).name  # fmt: skip
     _prepare(robot, backend, method, batch=True)
     start = time.perf_counter()
     options = resolve(
