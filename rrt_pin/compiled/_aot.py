@@ -160,7 +160,11 @@ def is_built() -> bool:
 
     Cheap (no import, no numba, no hashing): :func:`load` checks the contents too.
     """
-    path = module_path()
+    return _intact(module_path())
+
+
+def _intact(path: Path | None) -> bool:
+    """Whether a module file is there with its record, of the recorded size (else discarded)."""
     if path is None or not path.is_file():
         return False
     problem = damage(path, contents=False)
@@ -314,14 +318,7 @@ def kernel_path(digest: str) -> Path | None:
 
 def kernel_built(digest: str) -> bool:
     """Whether the generated RNEA of source ``digest`` is built ahead of time (cheap: no hashing)."""
-    path = kernel_path(digest)
-    if path is None or not path.is_file():
-        return False
-    problem = damage(path, contents=False)
-    if problem is not None:
-        _discard(path, problem)
-        return False
-    return True
+    return _intact(kernel_path(digest))
 
 
 def can_build_kernel(digest: str) -> bool:

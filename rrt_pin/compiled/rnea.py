@@ -389,15 +389,15 @@ def _ahead_of_time(model: pin.Model) -> Kernel | None:
     found = _KERNELS.get(digest)
     if found is not None:
         return found
-    start = time.perf_counter()
-    fn = _aot.load_kernel(digest)
-    if fn is None:
-        return None
     try:
         sizes = {k: int(record[k]) for k in ("nq", "nv", "flops", "transcendentals", "sincos")}
     except (KeyError, TypeError, ValueError):
         return None
     if sizes["nq"] != model.nq or sizes["nv"] != model.nv:
+        return None
+    start = time.perf_counter()
+    fn = _aot.load_kernel(digest)  # the sizes first: a record that does not fit loads nothing
+    if fn is None:
         return None
     seconds = time.perf_counter() - start
     _logger.info("generated RNEA %s: ahead of time in %.3f s", digest[:12], seconds)
