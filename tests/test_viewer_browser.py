@@ -208,6 +208,22 @@ def _descendants(pid: int):
         return []
 
 
+def _watch(pid: int, seen: dict, names: set[str]) -> None:
+    """Add ``pid``'s descendants to ``seen`` and every one's name now to ``names``.
+
+    Every name is read again at each call: one read mid-exec is the launcher's ("exe").
+    """
+    import psutil
+
+    for p in _descendants(pid):
+        seen.setdefault(p.pid, p)
+    for p in seen.values():
+        try:
+            names.add(p.name())
+        except psutil.NoSuchProcess:
+            pass
+
+
 def _all_gone(procs, timeout: float = 15.0) -> list:
     import psutil
 
@@ -243,13 +259,7 @@ def test_cli_screenshot_is_written_and_leaves_no_process(tmp_path, chromium_path
     names: set[str] = set()
     try:
         while proc.poll() is None:
-            for p in _descendants(proc.pid):
-                seen.setdefault(p.pid, p)
-            for p in seen.values():  # a name read mid-exec is the launcher's ("exe"): read again
-                try:
-                    names.add(p.name())
-                except psutil.NoSuchProcess:
-                    pass
+            _watch(proc.pid, seen, names)
             time.sleep(0.05)
         assert proc.returncode == 0, proc.stderr.read()
     finally:
@@ -280,13 +290,7 @@ def test_sigint_during_a_screenshot_ends_chromium_too(tmp_path, chromium_paths):
         while "chromium" not in names:
             assert proc.poll() is None, proc.stderr.read()
             assert time.monotonic() < deadline
-            for p in _descendants(proc.pid):
-                seen.setdefault(p.pid, p)
-            for p in seen.values():  # a name read mid-exec is the launcher's ("exe"): read again
-                try:
-                    names.add(p.name())
-                except psutil.NoSuchProcess:
-                    pass
+            _watch(proc.pid, seen, names)
             time.sleep(0.02)
         for p in _descendants(proc.pid):
             seen.setdefault(p.pid, p)
