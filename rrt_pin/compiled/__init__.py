@@ -200,7 +200,7 @@ def state_for(
 
 
 def refusal(robot: Any, controllers: Any, params: Any = None) -> str | None:
-    """Why the compiled backend would refuse to simulate ``robot`` under ``controllers`` (None: it runs them).
+    """Why compiled code would refuse to simulate ``robot`` under ``controllers`` (None: it would not).
 
     Checks each law as the run would (the chapter's arm: :mod:`rrt_pin.compiled.integrate`;
     another robot: :mod:`rrt_pin.compiled.robot_runs`), without compiling anything.

@@ -553,7 +553,8 @@ def integrators_for(model: pin.Model, name: str | None = None) -> RobotCode:
 def state(model: pin.Model, batch: bool = False) -> tuple[bool, bool, bool]:
     """(loaded in this process, built ahead of time, ready without compiling): ``model``'s integrators.
 
-    A single run's ``run_many``; a batch's ``run_lanes`` or ``run_many``. Cheap: no numba import, no source generated (the index of :mod:`rrt_pin.compiled._models`).
+    A single run's ``run_many``; a batch's ``run_lanes`` or ``run_many``. Cheap: no numba
+    import, no source generated (the index of :mod:`rrt_pin.compiled._models`).
     Integrators are never built ahead of time.
     """
     entries = ("run_many", "run_lanes") if batch else ("run_many",)

@@ -168,7 +168,8 @@ def inverse_dynamics(
         qdd: accelerations, shape (N, nv) [rad/s² or m/s²] (None with a motion).
         backend: a backend of :mod:`rrt_pin.core.backends` that computes ``inverse``, or
             ``auto``: for a Robot, the default (or ``$RRT_PIN_BACKEND``): ``compiled``
-            when its code is built (the same efforts to ~1e-13), else ``pinocchio``
+            when its code is built (the same efforts to ~1e-13), else the cheaper of
+            ``pinocchio`` and, for the chapter's arm, ``symbolic``
             (:func:`rrt_pin.core.backends.choose`; ``-v`` logs which and why); for a
             bare model, ``pinocchio``.
         params: the chapter arm's parameters (``symbolic``/``compiled`` with a model);
