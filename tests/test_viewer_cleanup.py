@@ -240,8 +240,12 @@ def _is_browser(pid: int) -> bool:
         return False
 
 
-def _environ(pid: int) -> dict[str, str]:
-    raw = Path(f"/proc/{pid}/environ").read_bytes()
+def _environ(pid: int) -> dict[str, str] | None:
+    """The environment of process ``pid``, or None when it has ended since it was listed."""
+    try:
+        raw = Path(f"/proc/{pid}/environ").read_bytes()
+    except (FileNotFoundError, ProcessLookupError):
+        return None
     pairs = (item.split(b"=", 1) for item in raw.split(b"\0") if b"=" in item)
     return {k.decode(): v.decode(errors="replace") for k, v in pairs}
 
@@ -311,8 +315,9 @@ def test_a_killed_screenshot_leaves_its_temporary_folder_empty(private_tmp, sig)
         pytest.fail("the screenshot never had its browser running long enough to be killed")
     # Chromium's own temporary files go into the run's private folder
     (folder,) = tmp.glob(FOLDER_PREFIX + "*")
-    for pid in pids:
-        with_env = _environ(pid)
+    envs = [e for e in map(_environ, pids) if e is not None]  # a helper may end meanwhile
+    assert len(envs) >= 2, pids  # chromedriver and Chromium at least
+    for with_env in envs:
         assert with_env["TMPDIR"] == str(folder), with_env.get("TMPDIR")
         assert with_env["XDG_CONFIG_HOME"].startswith(str(folder) + "/")
     proc.send_signal(sig)
