@@ -111,7 +111,7 @@ def test_methods_listed_by_the_command_are_the_librarys(capsys):
         main(["simulate", "--help"])
     text = capsys.readouterr().out
     for name, m in METHODS.items():
-        line = next(x for x in text.splitlines() if x.strip().startswith(name + " "))
+        line = next(x for x in text.splitlines() if x.startswith(f"  {name} "))  # the epilog's
         assert ("--rtol" in line) == m.adaptive and ("--step" in line) != m.adaptive
 
 

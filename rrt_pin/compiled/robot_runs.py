@@ -133,10 +133,13 @@ def _laws(robot: Robot, controllers: Sequence[Any]) -> tuple[np.ndarray, np.ndar
 
 
 def _entry(count: int, options: Options, laws: np.ndarray) -> str:
-    """The compiled entry a batch runs on: ``run_lanes`` or ``run_many``.
+    """The compiled entry a batch runs on: ``run_lanes``, ``run_adams`` or ``run_many``.
 
-    Adaptive PD variants run side by side in lanes; anything else one after the other.
+    Adaptive PD variants run side by side in lanes; Adams's method and anything else
+    one after the other.
     """
+    if options.method.code == codes.METHOD_ADAMS:
+        return "run_adams"
     lanes = count >= 2 and options.method.code < codes.FIXED_STEP_FROM
     return "run_lanes" if lanes and bool(np.all(laws == codes.LAW_PD_GRAVITY)) else "run_many"
 
@@ -220,7 +223,7 @@ def _run(
         def run(a: int, b: int) -> None:
             lanes(*args, a, b, P, phys)
     else:
-        many = code.run_many
+        many = code.entry(_entry(count, options, laws))
         args = (
             method, Y0, t, step, atol, rtol, math.inf, max_steps, laws, C, rt, rv,
             keep_code, band, out_y, out_tau, metrics, info, reached,

@@ -22,6 +22,7 @@ __all__ = [
     "KEEP_METRICS",
     "KEEP_TRAJECTORIES",
     "KIND_PD_PLANT_GRAVITY",
+    "METHOD_ADAMS",
     "METHOD_DOP853",
     "METRIC_DEMAND",
     "METRIC_ENERGY",
@@ -53,6 +54,7 @@ __all__ = [
 # Integration methods: adaptive ones below 10, fixed-step ones from 10 on.
 METHOD_RK45 = 0
 METHOD_DOP853 = 1
+METHOD_ADAMS = 2  # Shampine–Gordon variable-order Adams (any robot's generated integrators only)
 METHOD_SYMPLECTIC_EULER = 10
 METHOD_RK4 = 11
 METHOD_VERLET = 12

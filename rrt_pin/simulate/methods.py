@@ -38,6 +38,7 @@ __all__ = [
 #: Families of methods.
 ODEPACK = "odepack"
 SCIPY = "scipy"
+ADAMS = "adams"  # Shampine and Gordon's DE/STEP/INTRP, compiled
 FIXED_STEP = "fixed-step"
 SYMPLECTIC = "symplectic"
 
@@ -65,7 +66,8 @@ class Method:
 
     Attributes:
         name: the name users type (``--method NAME``, ``method=NAME``).
-        family: ``odepack``, ``scipy`` (``solve_ivp``), ``fixed-step`` or ``symplectic``.
+        family: ``odepack``, ``scipy`` (``solve_ivp``), ``adams`` (compiled Shampine–Gordon),
+            ``fixed-step`` or ``symplectic``.
         summary: one line for help texts.
         adaptive: error-controlled (``rtol``/``atol`` apply); else fixed steps (``step``).
         implicit: takes a Jacobian (``jacobian="analytic"`` gives it one).
@@ -177,6 +179,16 @@ METHODS: dict[str, Method] = {
             backends=_BOTH,
             batch=_BOTH,
             code=codes.METHOD_DOP853,
+        ),
+        Method(
+            "adams",
+            ADAMS,
+            "Shampine–Gordon Adams PECE, orders 1–12, interpolated outputs (any robot but "
+            "the chapter's arm)",
+            adaptive=True,
+            backends=("compiled",),
+            batch=("compiled",),
+            code=codes.METHOD_ADAMS,
         ),
         Method("LSODA", SCIPY, "scipy's LSODA, analytic Jacobian", adaptive=True, implicit=True),
         Method("Radau", SCIPY, "implicit Runge–Kutta of order 5", adaptive=True, implicit=True),
