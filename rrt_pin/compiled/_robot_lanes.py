@@ -23,6 +23,9 @@ def jit(f):  # the module's header defines numba's
     return f
 
 
+jit_inline = jit  # and this one (numba's, inline="always")
+
+
 def rhs_sincos(w):  # generated: the sines and cosines of rhs_lanes's work array
     raise NotImplementedError
 
@@ -45,69 +48,105 @@ def free_lanes(w):  # generated: ẏ without gravity of LANE_COUNT states, effor
 
 LANE_COUNT = RHS_ROWS = RHS_LANES_OUT = PHYS_ROWS = GRAVITY_LANES_OUT = FREE_LANES_OUT = 0
 first_step_pd = adaptive = efforts_at = metrics_of_pd = samples_until = clip = losses = rhs_lanes
-SAFETY = MIN_FACTOR = MAX_FACTOR = 0.0
+SAFETY = MIN_FACTOR = MAX_FACTOR = FRICTION_VELOCITY = 0.0
 D8_NS = D8_A = D8_C = D8_E3 = D8_E5 = D8_D = RK45_AB = RK45_C = RK45_E = RK45_P = None
 LAW_PD_GRAVITY = METHOD_DOP853 = KEEP_FINAL = KEEP_METRICS = KEEP_TRAJECTORIES = 0
 STATUS_OK = STATUS_STEP_UNDERFLOW = STATUS_MAX_STEPS = STATUS_EFFORT_NONFINITE = 0
 # --- lanes ---
 
 
-@jit
+if LANE_COUNT not in (0, 8):  # pragma: no cover - the loops below are written for 8 lanes
+    raise RuntimeError(f"the lanes are written for 8, not {LANE_COUNT}")
+
+
+@jit_inline
 def combine_lanes(Y, K, A, s, h, out):
-    """out[:, l] = Y[:, l] + (Σ_{j<s} A[s, j] K[j, :, l]) · h[l] for every lane (combine's order)."""
-    n = Y.shape[0]
-    for i in range(n):
-        for lane in range(LANE_COUNT):
-            out[i, lane] = 0.0
+    """out[:, l] = Y[:, l] + (Σ_{j<s} A[s, j] K[j, :, l]) · h[l] for every lane (combine's order).
+
+    The 8 lanes' sums are 8 locals (in registers: no store and reload a term).
+    """
+    for i in range(Y.shape[0]):
+        a0 = a1 = a2 = a3 = a4 = a5 = a6 = a7 = 0.0
         for j in range(s):
             aj = A[s, j]
             if aj != 0.0:
-                for lane in range(LANE_COUNT):
-                    out[i, lane] += aj * K[j, i, lane]
-        for lane in range(LANE_COUNT):
-            out[i, lane] = Y[i, lane] + out[i, lane] * h[lane]
+                k = K[j, i]
+                a0 += aj * k[0]
+                a1 += aj * k[1]
+                a2 += aj * k[2]
+                a3 += aj * k[3]
+                a4 += aj * k[4]
+                a5 += aj * k[5]
+                a6 += aj * k[6]
+                a7 += aj * k[7]
+        o, y = out[i], Y[i]
+        o[0] = y[0] + a0 * h[0]
+        o[1] = y[1] + a1 * h[1]
+        o[2] = y[2] + a2 * h[2]
+        o[3] = y[3] + a3 * h[3]
+        o[4] = y[4] + a4 * h[4]
+        o[5] = y[5] + a5 * h[5]
+        o[6] = y[6] + a6 * h[6]
+        o[7] = y[7] + a7 * h[7]
 
 
 @jit
-def error_lanes(dop853, n_stages, K, Y, Ynew, h, atol, rtol, ERR, e5s, e3s):
+def error_lanes(dop853, n_stages, K, Y, Ynew, h, atol, rtol, ERR, e5s, e3s, acc3):
     """Each lane's scaled error components (ERR) and sums of squares (e5s, e3s), side by side.
 
     The operations, in order, of ``adaptive``'s error norm for one run: a lane's bits
-    are a single run's.
+    are a single run's. ``acc3`` (LANE_COUNT,): scratch.
     """
     n = Y.shape[0]
     L = LANE_COUNT
-    acc5 = np.zeros(L)
-    acc3 = np.zeros(L)
+    E = D8_E5 if dop853 else RK45_E
     for lane in range(L):
         e5s[lane] = 0.0
         e3s[lane] = 0.0
     for i in range(n):
-        for lane in range(L):
-            acc5[lane] = 0.0
-            acc3[lane] = 0.0
+        a0 = a1 = a2 = a3 = a4 = a5 = a6 = a7 = 0.0
+        b0 = b1 = b2 = b3 = b4 = b5 = b6 = b7 = 0.0
         for j in range(n_stages + 1):
+            k = K[j, i]
+            ej = E[j]
+            a0 += k[0] * ej
+            a1 += k[1] * ej
+            a2 += k[2] * ej
+            a3 += k[3] * ej
+            a4 += k[4] * ej
+            a5 += k[5] * ej
+            a6 += k[6] * ej
+            a7 += k[7] * ej
             if dop853:
-                e5j = D8_E5[j]
-                e3j = D8_E3[j]
-                for lane in range(L):
-                    acc5[lane] += K[j, i, lane] * e5j
-                    acc3[lane] += K[j, i, lane] * e3j
-            else:
-                ej = RK45_E[j]
-                for lane in range(L):
-                    acc5[lane] += K[j, i, lane] * ej
+                ej = D8_E3[j]
+                b0 += k[0] * ej
+                b1 += k[1] * ej
+                b2 += k[2] * ej
+                b3 += k[3] * ej
+                b4 += k[4] * ej
+                b5 += k[5] * ej
+                b6 += k[6] * ej
+                b7 += k[7] * ej
+        e = ERR[i]
+        e[0], e[1], e[2], e[3], e[4], e[5], e[6], e[7] = a0, a1, a2, a3, a4, a5, a6, a7
         ai = atol[i]
-        for lane in range(L):
-            sc = ai + max(abs(Y[i, lane]), abs(Ynew[i, lane])) * rtol
-            if dop853:
-                a5 = acc5[lane] / sc
+        y, yn = Y[i], Ynew[i]
+        if dop853:
+            acc3[0], acc3[1], acc3[2], acc3[3] = b0, b1, b2, b3
+            acc3[4], acc3[5], acc3[6], acc3[7] = b4, b5, b6, b7
+            for lane in range(L):
+                sc = ai + max(abs(y[lane]), abs(yn[lane])) * rtol
+                a5 = e[lane] / sc
                 a3 = acc3[lane] / sc
                 e3s[lane] += a3 * a3
-            else:
-                a5 = acc5[lane] * h[lane] / sc
-            ERR[i, lane] = a5
-            e5s[lane] += a5 * a5
+                e[lane] = a5
+                e5s[lane] += a5 * a5
+        else:
+            for lane in range(L):
+                sc = ai + max(abs(y[lane]), abs(yn[lane])) * rtol
+                a5 = e[lane] * h[lane] / sc
+                e[lane] = a5
+                e5s[lane] += a5 * a5
 
 
 @jit
@@ -115,7 +154,6 @@ def dense_lanes(dop853, n_stages, K, Y, Ynew, h, F):
     """Every lane's dense-output coefficients F (7, n, L) of its last step (SciPy's)."""
     n = Y.shape[0]
     L = LANE_COUNT
-    acc = np.zeros(L)
     if dop853:
         for i in range(n):
             for lane in range(L):
@@ -123,81 +161,131 @@ def dense_lanes(dop853, n_stages, K, Y, Ynew, h, F):
                 F[0, i, lane] = dy
                 F[1, i, lane] = h[lane] * K[0, i, lane] - dy
                 F[2, i, lane] = 2.0 * dy - h[lane] * (K[n_stages, i, lane] + K[0, i, lane])
-        for r in range(4):
-            for i in range(n):
-                for lane in range(L):
-                    acc[lane] = 0.0
-                for j in range(16):
-                    drj = D8_D[r, j]
-                    if drj != 0.0:
-                        for lane in range(L):
-                            acc[lane] += drj * K[j, i, lane]
-                for lane in range(L):
-                    F[3 + r, i, lane] = acc[lane] * h[lane]
-    else:
-        for r in range(4):
-            for i in range(n):
-                for lane in range(L):
-                    acc[lane] = 0.0
-                for j in range(n_stages + 1):
-                    pjr = RK45_P[j, r]
-                    if pjr != 0.0:
-                        for lane in range(L):
-                            acc[lane] += K[j, i, lane] * pjr
-                for lane in range(L):
-                    F[r, i, lane] = acc[lane]
+    rows = 4
+    for r in range(rows):
+        for i in range(n):
+            a0 = a1 = a2 = a3 = a4 = a5 = a6 = a7 = 0.0
+            for j in range(16 if dop853 else n_stages + 1):
+                c = D8_D[r, j] if dop853 else RK45_P[j, r]
+                if c != 0.0:
+                    k = K[j, i]
+                    if dop853:  # drj · K (SciPy's order), else K · p
+                        a0 += c * k[0]
+                        a1 += c * k[1]
+                        a2 += c * k[2]
+                        a3 += c * k[3]
+                        a4 += c * k[4]
+                        a5 += c * k[5]
+                        a6 += c * k[6]
+                        a7 += c * k[7]
+                    else:
+                        a0 += k[0] * c
+                        a1 += k[1] * c
+                        a2 += k[2] * c
+                        a3 += k[3] * c
+                        a4 += k[4] * c
+                        a5 += k[5] * c
+                        a6 += k[6] * c
+                        a7 += k[7] * c
+            if dop853:
+                f = F[3 + r, i]
+                f[0], f[1], f[2], f[3] = a0 * h[0], a1 * h[1], a2 * h[2], a3 * h[3]
+                f[4], f[5], f[6], f[7] = a4 * h[4], a5 * h[5], a6 * h[6], a7 * h[7]
+            else:
+                f = F[r, i]
+                f[0], f[1], f[2], f[3], f[4], f[5], f[6], f[7] = a0, a1, a2, a3, a4, a5, a6, a7
 
 
-@jit
-def stage_lanes(phys, Y, K, A, s, h, lanes_w, wy, wo, wf, wfy, wft, wfo, gout, CL, P, fold):
+@jit_inline
+def stage_lanes(phys, Y, K, A, s, h, lanes_w, wy, wo, wf, wfy, wft, wfo, gout, CL, P, fold, okay):
     """Stage s of every lane: its state into the work rows, ẏ into K[s]; the state's rows.
 
     Without a physical model (phys[0] == 0), ``rhs_lanes`` (PD with the gravity folded);
     else G(q) by ``gravity_lanes``, the PD-plus-G efforts saturated at the effort limits,
     less G, plus damping, friction and the compliant position limits (``passive``'s
     terms), then ``free_lanes``: the forward dynamics without gravity under them.
-    ``fold`` (LANE_COUNT,) booleans: scratch.
+    ``fold`` (LANE_COUNT,) booleans and ``okay`` (LANE_COUNT,) integers: scratch.
     """
+    n = Y.shape[0]
+    L = LANE_COUNT
+    Ks = K[s]
     if phys[0] == 0:
         combine_lanes(Y, K, A, s, h, wy)
         rhs_sincos(lanes_w)
         rhs_lanes(lanes_w)
-        K[s, :, :] = wo
+        for i in range(n):
+            for lane in range(L):
+                Ks[i, lane] = wo[i, lane]
         return wy
     combine_lanes(Y, K, A, s, h, wfy)
     phys_sincos(wf)  # once for G and the forward dynamics
-    nv = Y.shape[0] // 2
+    nv = n // 2
     # A lane is folded where no joint's PD effort exceeds its room (P[11]: the effort limit
     # less a bound of |G|) and no joint is past a limit: clip(PD + G) − G is PD there, to
     # rounding, and G(q) is computed only if some lane is not (each lane's numbers depend
-    # on its own state alone, not on its neighbours').
+    # on its own state alone, not on its neighbours).
     # The PD efforts go into wft first (the forward dynamics' efforts, completed below).
-    folded = 0
-    for lane in range(LANE_COUNT):
-        fold[lane] = True
-        for k in range(nv):
+    for lane in range(L):
+        okay[lane] = 0
+    for k in range(nv):
+        room, lo, hi = P[11, k], P[0, k], P[1, k]
+        for lane in range(L):
             q = wfy[k, lane]
             pd = -CL[nv + k, lane] * wfy[nv + k, lane] - CL[k, lane] * (q - CL[2 * nv + k, lane])
             wft[k, lane] = pd
-            if not (abs(pd) <= P[11, k] and P[0, k] <= q <= P[1, k]):
-                fold[lane] = False
+            okay[lane] += (abs(pd) <= room) & (lo <= q) & (q <= hi)
+    folded = 0
+    for lane in range(L):
+        fold[lane] = okay[lane] == nv
         folded += fold[lane]
-    if folded < LANE_COUNT:
-        gravity_lanes(wf)
+    if folded == L:  # within the limits: no limit's push, t = pd (the general case's bits)
+        for k in range(nv):
+            d, fr = P[3, k], P[4, k]
+            if fr != 0.0:
+                for lane in range(L):
+                    v = wfy[nv + k, lane]
+                    wft[k, lane] += -d * v - fr * math.tanh(v / FRICTION_VELOCITY)
+            else:
+                for lane in range(L):
+                    wft[k, lane] += -d * wfy[nv + k, lane]
+        free_lanes(wf)
+        for i in range(n):
+            for lane in range(L):
+                Ks[i, lane] = wfo[i, lane]
+        return wfy
+    gravity_lanes(wf)
     for k in range(nv):
         lo, hi, e, d, fr, kk, bb = P[0, k], P[1, k], P[2, k], P[3, k], P[4, k], P[5, k], P[6, k]
-        for lane in range(LANE_COUNT):
+        if fr != 0.0:
+            for lane in range(L):
+                q = wfy[k, lane]
+                v = wfy[nv + k, lane]
+                pd = wft[k, lane]
+                if fold[lane]:
+                    t = pd
+                else:
+                    g = gout[k, lane]
+                    t = clip(pd + g, e) - g
+                wft[k, lane] = t + losses(q, v, lo, hi, d, fr, kk, bb)
+            continue
+        # no friction: ``losses`` and ``clip`` without a call or a jump, lane by lane alike
+        for lane in range(L):
             q = wfy[k, lane]
             v = wfy[nv + k, lane]
             pd = wft[k, lane]
-            if fold[lane]:
-                t = pd
-            else:
-                g = gout[k, lane]
-                t = clip(pd + g, e) - g
-            wft[k, lane] = t + losses(q, v, lo, hi, d, fr, kk, bb)
+            g = gout[k, lane]
+            u = pd + g
+            u = e if u > e else (-e if u < -e else u)
+            t = pd if fold[lane] else u - g
+            f = -d * v
+            below = max(0.0, kk * (lo - q) - bb * v)
+            above = min(0.0, kk * (hi - q) - bb * v)
+            f = f + below if q < lo else (f + above if q > hi else f)
+            wft[k, lane] = t + f
     free_lanes(wf)
-    K[s, :, :] = wfo
+    for i in range(n):
+        for lane in range(L):
+            Ks[i, lane] = wfo[i, lane]
     return wfy
 
 
@@ -292,9 +380,11 @@ def run_lanes(
     wft = wf[n * L : (n + nv) * L].reshape((nv, L))
     wfo = wf[FREE_LANES_OUT * L : (FREE_LANES_OUT + n) * L].reshape((n, L))
     fold = np.zeros(L, dtype=np.bool_)
+    okay = np.zeros(L, dtype=np.int64)
     ERR = np.zeros((n, L))
     e5s = np.zeros(L)
     e3s = np.zeros(L)
+    acc3 = np.zeros(L)
     rt = np.zeros(1)
     rv = np.zeros((1, 1))
     next_b = first
@@ -367,11 +457,11 @@ def run_lanes(
             t_next[lane] = t_new
         for s in range(1, n_stages + 1):
             target = stage_lanes(
-                phys, Y, K, A, s, h, lanes_w, wy, wo, wf, wfy, wft, wfo, gout, CL, P, fold
+                phys, Y, K, A, s, h, lanes_w, wy, wo, wf, wfy, wft, wfo, gout, CL, P, fold, okay
             )
         Ynew[:, :] = target
         # Each lane's error norm: accepted, or rejected with a smaller step.
-        error_lanes(dop853, n_stages, K, Y, Ynew, h, atol, rtol, ERR, e5s, e3s)
+        error_lanes(dop853, n_stages, K, Y, Ynew, h, atol, rtol, ERR, e5s, e3s, acc3)
         any_dense = False
         for lane in range(L):
             accepted[lane] = False
@@ -432,7 +522,7 @@ def run_lanes(
             for s in range(n_stages + 1, 16):
                 stage_lanes(
                     phys, Y, K, D8_A, s, h, lanes_w, wy, wo, wf, wfy, wft, wfo, gout,
-                    CL, P, fold,
+                    CL, P, fold, okay,
                 )  # fmt: skip
         if any_dense:
             dense_lanes(dop853, n_stages, K, Y, Ynew, h, FL)
