@@ -62,12 +62,13 @@ ADAMS_INV = np.array([0.0] + [1.0 / i for i in range(1, 14)])
 
 
 @jit
-def adams_intrp(x, y, xout, out_y, row, kold, phi, psi, w, g):
+def adams_intrp(x, y, xout, out_y, row, kold, phi, psi, rpsi, w, g):
     """INTRP: the solution at ``xout`` into out_y[row], from the polynomial of the last step.
 
     ``x``, ``y``: the step's end and the solution there; ``kold`` its order; ``phi``
-    (17, n) and ``psi`` (13,) the differences and step history the step left;
-    ``w``, ``g`` (14,) scratch.
+    (17, n) and ``psi`` (13,) the differences and step history the step left, ``rpsi``
+    1/psi (a step's outputs share it: multiplications instead of divisions); ``w``,
+    ``g`` (14,) scratch.
     """
     n = y.shape[0]
     hi = xout - x
@@ -78,13 +79,12 @@ def adams_intrp(x, y, xout, out_y, row, kold, phi, psi, w, g):
     g[1] = 1.0
     term = 0.0
     for j in range(2, ki + 1):
-        psijm1 = psi[j - 1]
-        gamma = (hi + term) / psijm1
-        eta = hi / psijm1
+        gamma = (hi + term) * rpsi[j - 1]
+        eta = hi * rpsi[j - 1]
         for i in range(1, kip1 - j + 1):
             w[i] = gamma * w[i] - eta * w[i + 1]
         g[j] = w[1]
-        term = psijm1
+        term = psi[j - 1]
     for ix in range(n):
         out_y[row, ix] = 0.0
     for j in range(1, ki + 1):
@@ -97,11 +97,14 @@ def adams_intrp(x, y, xout, out_y, row, kold, phi, psi, w, g):
 
 
 @jit
-def adams_limiting(yp, phi, wt):
-    """The component of the largest weighted local error (the first non-finite one first)."""
+def adams_limiting(yp, phi, iw):
+    """The component of the largest weighted local error (the first non-finite one first).
+
+    ``iw``: the inverse weights (n,).
+    """
     worst, at = -1.0, 0
     for ix in range(yp.shape[0]):
-        e = abs((yp[ix] - phi[1, ix]) / wt[ix])
+        e = abs((yp[ix] - phi[1, ix]) * iw[ix])
         if not math.isfinite(e):
             return ix
         if e > worst:
@@ -124,7 +127,8 @@ def adams(method, y0, t_eval, atol, rtol, max_step, max_steps, law, c, rt, rv, d
     yy = y0.copy()
     p = np.empty(n)
     yp = np.empty(n)
-    wt = np.empty(n)
+    iw = np.empty(n)  # 1 / ode.f's weights
+    abseps = np.empty(n)
     phi = np.zeros((17, n))
     psi = np.zeros(13)
     alpha = np.zeros(13)
@@ -135,6 +139,7 @@ def adams(method, y0, t_eval, atol, rtol, max_step, max_steps, law, c, rt, rv, d
     g = np.zeros(14)
     wi = np.zeros(14)
     gi = np.zeros(14)
+    rpsi = np.zeros(13)
     x = t_eval[0]
     t_bound = t_eval[n_out - 1]
     eps = rtol
@@ -143,6 +148,8 @@ def adams(method, y0, t_eval, atol, rtol, max_step, max_steps, law, c, rt, rv, d
     if not eps > 0.0:
         return STATUS_STEP_UNDERFLOW, 0, 0, 0, x
     releps = rtol / eps
+    for ix in range(n):
+        abseps[ix] = atol[ix] / eps
     p5eps = 0.5 * eps
     fouru, twou = ADAMS_FOURU, ADAMS_TWOU
     h = max(t_bound - x, fouru * abs(x))
@@ -163,16 +170,16 @@ def adams(method, y0, t_eval, atol, rtol, max_step, max_steps, law, c, rt, rv, d
             i_out += 1
     while t_bound - x > fouru * abs(x):
         if n_steps >= max_steps:
-            return STATUS_MAX_STEPS, adams_limiting(yp, phi, wt), n_evals, i_out, x
+            return STATUS_MAX_STEPS, adams_limiting(yp, phi, iw), n_evals, i_out, x
         h = min(h, t_bound - x, max_step)
         for ix in range(n):
-            wt[ix] = max(releps * abs(yy[ix]) + atol[ix] / eps, 1e-300)
+            iw[ix] = 1.0 / max(releps * abs(yy[ix]) + abseps[ix], 1e-300)
         # ---- STEP, block 0: a step or tolerance too small; the first step's size
         if h < fouru * abs(x):
-            return STATUS_STEP_UNDERFLOW, adams_limiting(yp, phi, wt), n_evals, i_out, x
+            return STATUS_STEP_UNDERFLOW, adams_limiting(yp, phi, iw), n_evals, i_out, x
         s = 0.0
         for ix in range(n):
-            s += (yy[ix] / wt[ix]) ** 2
+            s += (yy[ix] * iw[ix]) ** 2
         rounding = twou * math.sqrt(s)
         if p5eps < rounding:
             return STATUS_STEP_UNDERFLOW, 0, n_evals, i_out, x
@@ -189,7 +196,7 @@ def adams(method, y0, t_eval, atol, rtol, max_step, max_steps, law, c, rt, rv, d
             for ix in range(n):
                 phi[1, ix] = yp[ix]
                 phi[2, ix] = 0.0
-                s += (yp[ix] / wt[ix]) ** 2
+                s += (yp[ix] * iw[ix]) ** 2
             s = math.sqrt(s)
             absh = h
             if eps < 16.0 * s * h * h:
@@ -284,7 +291,7 @@ def adams(method, y0, t_eval, atol, rtol, max_step, max_steps, law, c, rt, rv, d
             erkm1 = 0.0
             erk = 0.0
             for ix in range(n):
-                temp3 = 1.0 / wt[ix]
+                temp3 = iw[ix]
                 temp4 = yp[ix] - phi[1, ix]
                 if km2 > 0:
                     erkm2 += ((phi[km1, ix] + temp4) * temp3) ** 2
@@ -308,7 +315,7 @@ def adams(method, y0, t_eval, atol, rtol, max_step, max_steps, law, c, rt, rv, d
             if err <= eps:
                 break
             # ---- block 3: rejected (or not finite): restore, halve, order 1 on the third
-            limiting = adams_limiting(yp, phi, wt)
+            limiting = adams_limiting(yp, phi, iw)
             phase1 = False
             x = xold
             for i in range(1, k + 1):
@@ -368,7 +375,7 @@ def adams(method, y0, t_eval, atol, rtol, max_step, max_steps, law, c, rt, rv, d
         elif kp1 <= ns:
             erkp1 = 0.0
             for ix in range(n):
-                erkp1 += (phi[kp2, ix] / wt[ix]) ** 2
+                erkp1 += (phi[kp2, ix] * iw[ix]) ** 2
             erkp1 = absh * ADAMS_GSTR[kp1] * math.sqrt(erkp1)
             if k > 1:
                 if erkm1 <= min(erk, erkp1):
@@ -387,17 +394,21 @@ def adams(method, y0, t_eval, atol, rtol, max_step, max_steps, law, c, rt, rv, d
                 r = (p5eps / erk) ** (1.0 / (k + 1))
                 hnew = max(absh * max(0.5, min(0.9, r)), fouru * abs(x))
         h = hnew
-        if dense:
+        if dense and i_out < n_out and t_eval[i_out] <= x:
+            for j in range(1, kold + 1):
+                rpsi[j] = 1.0 / psi[j]
             while i_out < n_out and t_eval[i_out] <= x:
-                adams_intrp(x, yy, t_eval[i_out], out_y, i_out, kold, phi, psi, wi, gi)
+                adams_intrp(x, yy, t_eval[i_out], out_y, i_out, kold, phi, psi, rpsi, wi, gi)
                 i_out += 1
     # at the final time (to four units of roundoff): the outputs left, from the last step
     first = i_out if dense else n_out - 1
+    for j in range(1, kold + 1):
+        rpsi[j] = 1.0 / psi[j]
     for j in range(first, n_out):
         row = j if dense else 0
         if kold == 0:
             for ix in range(n):
                 out_y[row, ix] = yy[ix]
         else:
-            adams_intrp(x, yy, t_eval[j], out_y, row, kold, phi, psi, wi, gi)
+            adams_intrp(x, yy, t_eval[j], out_y, row, kold, phi, psi, rpsi, wi, gi)
     return STATUS_OK, -1, n_evals, n_out if dense else 1, t_bound
