@@ -82,11 +82,14 @@ def worst(a: np.ndarray, ref: np.ndarray) -> float:
     return float((err / np.abs(ref).reshape(n, -1).max(axis=1)).max())
 
 
-@pytest.fixture(scope="module", params=list(_models()))
+@pytest.fixture(
+    scope="module", params=[(m, v) for m in _models() for v in fds.VARIANTS], ids="-".join
+)
 def case(request):
     """(name, model, the generated q̈ and Jacobian along q, q̇, τ), generated once a module."""
-    model = _models()[request.param]()
-    return request.param, model, fds.forward_derivatives_source(model, wrt=("q", "v", "tau"))
+    name, variant = request.param
+    model = _models()[name]()
+    return name, model, fds.forward_derivatives_source(model, variant, wrt=fds.DIRECTIONS)
 
 
 def test_the_jacobian_agrees_with_compute_aba_derivatives(case):
@@ -100,9 +103,11 @@ def test_the_jacobian_agrees_with_compute_aba_derivatives(case):
         assert worst(a, ref) <= AGREEMENT, (name, what, worst(a, ref))
 
 
-def test_the_jacobian_agrees_with_central_differences_of_the_generated_forward_dynamics(case):
+@pytest.mark.parametrize("name", list(_models()))
+def test_the_jacobian_agrees_with_central_differences_of_the_generated_forward_dynamics(name):
     """Independent of Pinocchio: the generated ABA, moved along each coordinate and velocity."""
-    name, model, gen = case
+    model = _models()[name]()
+    gen = fds.forward_derivatives_source(model)
     nv = model.nv
     x, v, tau = states(nv, n=2, seed=5)
     jac = run(gen, x, v, tau)[:, :, 1:]
@@ -238,6 +243,8 @@ def test_bad_inputs_are_refused_naming_them(compiled):
         kernels.derivatives(x, huge, tau)
     with pytest.raises(InputError, match=r"kp has shape"):
         kernels.closed_loop_jac(np.ones(3), np.ones(2), np.zeros(2))
+    with pytest.raises(InputError, match="variant"):
+        kernels.derivatives(x, v, tau, variant="lu")
     with pytest.raises(InputError, match="wrt="):
         fds.forward_derivatives_source(model, wrt=("q", "a"))
     with pytest.raises(InputError, match="kind="):

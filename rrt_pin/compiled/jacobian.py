@@ -50,8 +50,14 @@ if TYPE_CHECKING:
 
 __all__ = ["KINDS", "DerivativeKernels", "derivative_kernel_for", "module_source"]
 
-#: The kernels a model gets: q̈ with ∂q̈/∂(q, q̇); with ∂q̈/∂τ too; the PD-plus-gravity loop's.
-KINDS = ("forward_derivatives", "forward_derivatives_minv", "closed_loop_derivatives")
+#: The kernels a model gets: q̈ with ∂q̈/∂(q, q̇) by each variant of
+#: :data:`~rrt_pin.dynamics.forward_derivatives_source.VARIANTS`; by the default variant
+#: with ∂q̈/∂τ = M⁻¹ too; and the PD-plus-gravity loop's.
+KINDS = (
+    *(f"forward_derivatives_{v}" for v in fds.VARIANTS),
+    "forward_derivatives_minv",
+    "closed_loop_derivatives",
+)
 #: What compiling takes, roughly, per generated operation [s] and per kernel (numba and
 #: LLVM on one core): for the announcement's estimate only.
 _COMPILE_S_PER_FLOP = 1.15e-3
@@ -72,9 +78,12 @@ _MODELS: IdentityCache[tuple[Any, DerivativeKernels]] = IdentityCache(16)
 
 def _generators() -> dict[str, Callable[[Any], GeneratedFunction]]:
     return {
-        "forward_derivatives": fds.forward_derivatives_source,
+        **{
+            f"forward_derivatives_{v}": (lambda m, v=v: fds.forward_derivatives_source(m, v))
+            for v in fds.VARIANTS
+        },
         "forward_derivatives_minv": lambda m: _renamed(
-            fds.forward_derivatives_source(m, wrt=("q", "v", "tau")), "forward_derivatives_minv"
+            fds.forward_derivatives_source(m, wrt=fds.DIRECTIONS), "forward_derivatives_minv"
         ),
         "closed_loop_derivatives": fds.closed_loop_derivatives_source,
     }
@@ -198,7 +207,14 @@ class DerivativeKernels:
         return {kind: self.source(kind).flops for kind in KINDS}
 
     def derivatives(
-        self, q: Any, qd: Any, tau: Any, *, minv: bool = False, num_threads: int | None = None
+        self,
+        q: Any,
+        qd: Any,
+        tau: Any,
+        *,
+        minv: bool = False,
+        variant: str | None = None,
+        num_threads: int | None = None,
     ) -> tuple[np.ndarray, ...]:
         """q̈ (N, nv), ∂q̈/∂q and ∂q̈/∂q̇ (N, nv, nv), and with ``minv`` M⁻¹ = ∂q̈/∂τ (N, nv, nv).
 
@@ -206,14 +222,20 @@ class DerivativeKernels:
             q: joint coordinates (N, nv) [rad or m].
             qd: joint velocities (N, nv) [rad/s or m/s].
             tau: joint efforts (N, nv) [N·m or N].
-            minv: also return ∂q̈/∂τ = M(q)⁻¹ (a larger kernel).
+            minv: also return ∂q̈/∂τ = M(q)⁻¹ (a larger kernel, of the default variant).
+            variant: how the kernel is generated, one of
+                :data:`~rrt_pin.dynamics.forward_derivatives_source.VARIANTS`; default
+                :data:`~rrt_pin.dynamics.forward_derivatives_source.DEFAULT_VARIANT`.
             num_threads: threads; default: the CPUs free now, never a thread with fewer
                 samples than the kernel's ``min_per_thread``.
 
         Raises:
-            InputError: bad shapes, a non-finite input or result.
+            InputError: bad shapes, a non-finite input or result, an unknown variant.
         """
-        kind = "forward_derivatives_minv" if minv else "forward_derivatives"
+        if variant is None:
+            variant = fds.DEFAULT_VARIANT
+        variant = validate.choice("variant", variant, fds.VARIANTS)
+        kind = "forward_derivatives_minv" if minv else f"forward_derivatives_{variant}"
         out = self._run(kind, (q, qd, tau), num_threads)
         return _split(out, self.nv)
 

@@ -31,10 +31,16 @@ from typing import TYPE_CHECKING
 
 from rrt_pin.core.errors import InputError
 from rrt_pin.dynamics.forward_source import (
-    VARIANTS,
     GeneratedFunction,
+    _Algebra,
+    _crba,
     _finish,
+    _gravity,
+    _ldlt_solve,
+    _links,
     _Ops,
+    _start,
+    _velocities,
     forward_source,
 )
 from rrt_pin.dynamics.rnea_source import Scalar
@@ -43,7 +49,9 @@ if TYPE_CHECKING:
     import pinocchio as pin
 
 __all__ = [
+    "DEFAULT_VARIANT",
     "DIRECTIONS",
+    "VARIANTS",
     "closed_loop_derivatives_source",
     "forward_derivatives_source",
     "replay",
@@ -51,6 +59,14 @@ __all__ = [
 
 #: The inputs :func:`forward_derivatives_source` may differentiate along, in their order.
 DIRECTIONS = ("q", "v", "tau")
+#: How the Jacobian is generated: ``"aba"``, ``"crba"``: the tangents of that generated
+#: forward dynamics, statement by statement; ``"rnea"``: q̈ by ABA, then
+#: ∂q̈/∂x = M⁻¹(∂τ/∂x − ∂ID/∂x) with the tangents of the generated inverse dynamics at
+#: a = q̈ and one sparse LDLᵀ of M (Carpentier and Mansard's identity, as Pinocchio's
+#: ``computeABADerivatives``).
+VARIANTS = ("aba", "crba", "rnea")
+#: The variant of the fewest operations on UR5 and Panda (``scripts/bench/forward_derivatives.py``).
+DEFAULT_VARIANT = "rnea"
 
 Tangent = dict  # direction index -> Scalar; a direction absent is a structural zero
 _BINARY = re.compile(r"^(\S+) ([-+*]) (\S+)$")
@@ -120,7 +136,7 @@ def replay(
             else:
                 tan = {}
         elif expr.startswith("-t"):
-            value, tan = t.neg(primal[expr[1:]]), _combine(t, [(-1.0, tangent[expr[1:]])])
+            value, tan = t.neg(primal[expr[1:]]), _combine(t, [(-1.0, tangent.get(expr[1:], {}))])
         else:  # pragma: no cover - the generators emit nothing else
             raise ValueError(f"cannot differentiate the statement {line!r}")
         primal[name] = value
@@ -162,38 +178,49 @@ def _jacobian_function(
     )
 
 
+def _check(variant: str, wrt: tuple[str, ...]) -> None:
+    if not wrt or any(x not in DIRECTIONS for x in wrt) or len(set(wrt)) != len(wrt):
+        raise InputError(f"wrt={wrt!r} must be distinct entries of {', '.join(DIRECTIONS)}")
+    if variant not in VARIANTS:
+        raise InputError(f"variant={variant!r} is unknown; known: {', '.join(VARIANTS)}")
+
+
 def forward_derivatives_source(
-    model: pin.Model, variant: str = "aba", wrt: tuple[str, ...] = ("q", "v")
+    model: pin.Model, variant: str = DEFAULT_VARIANT, wrt: tuple[str, ...] = ("q", "v")
 ) -> GeneratedFunction:
-    """q̈ and its Jacobian along ``wrt``: ``forward_derivatives(q, v, tau, out)``.
+    """q̈ and its Jacobian along ``wrt``: ``forward_derivatives_<variant>(q, v, tau, out)``.
 
     ``out`` is (nv, 1 + len(wrt)·nv): ``out[:, 0]`` q̈, then ∂q̈/∂q (``"q"``), ∂q̈/∂q̇
     (``"v"``) and ∂q̈/∂τ = M(q)⁻¹ (``"tau"``), nv columns each, in the order of ``wrt``.
 
     Args:
         model: a fixed-base Pinocchio model with supported joints.
-        variant: the forward dynamics differentiated, ``"aba"`` or ``"crba"``.
+        variant: ``"aba"`` or ``"crba"``: that forward dynamics, differentiated statement
+            by statement; ``"rnea"``: q̈ by ABA, then −M⁻¹ times the inverse dynamics'
+            tangents at a = q̈ (see :data:`VARIANTS`).
         wrt: the inputs to differentiate along, a subsequence of :data:`DIRECTIONS`.
 
     Raises:
         InputError: an unknown ``variant`` or ``wrt``.
         UnsupportedJoint: a joint is not revolute, prismatic or continuous.
     """
-    if not wrt or any(x not in DIRECTIONS for x in wrt) or len(set(wrt)) != len(wrt):
-        raise InputError(f"wrt={wrt!r} must be distinct entries of {', '.join(DIRECTIONS)}")
-    if variant not in VARIANTS:
-        raise InputError(f"variant={variant!r} is unknown; known: {', '.join(VARIANTS)}")
+    _check(variant, wrt)
     nv = model.nv
     t = _Ops()
     seeds = {key: (t.input(*key), {d: 1.0}) for key, d in _directions(nv, wrt).items()}
+    name = f"forward_derivatives_{variant}"
+    inputs = ("q", "v", "tau")
+    if variant == "rnea":
+        efforts = {("tau", k): (t.input("tau", k), {}) for k in range(nv)}
+        values, tangents, columns = _by_inverse_dynamics(t, model, wrt, efforts)
+        return _jacobian_function(name, model, t, inputs, values, tangents, columns)
     values, tangents = replay(t, forward_source(model, variant), seeds)
-    name = "forward_derivatives" if variant == "aba" else f"forward_derivatives_{variant}"
-    return _jacobian_function(
-        name, model, t, ("q", "v", "tau"), values, tangents, columns=len(wrt) * nv
-    )
+    return _jacobian_function(name, model, t, inputs, values, tangents, len(wrt) * nv)
 
 
-def closed_loop_derivatives_source(model: pin.Model) -> GeneratedFunction:
+def closed_loop_derivatives_source(
+    model: pin.Model, variant: str = DEFAULT_VARIANT
+) -> GeneratedFunction:
     """q̈ of PD plus gravity and its Jacobian: ``closed_loop_derivatives(q, v, kp, kd, qf, out)``.
 
     τ = G(q) − kd·q̇ − kp·(q − qf), each gain and target per joint [N·m/rad, N·m·s/rad,
@@ -201,10 +228,12 @@ def closed_loop_derivatives_source(model: pin.Model) -> GeneratedFunction:
     q̈, then ∂q̈/∂q and ∂q̈/∂q̇ of the loop (the law's derivatives included).
 
     Raises:
+        InputError: an unknown ``variant``.
         UnsupportedJoint: a joint is not revolute, prismatic or continuous.
     """
     import pinocchio as pin
 
+    _check(variant, ("q", "v"))
     free = pin.Model(model)
     free.gravity = pin.Motion.Zero()
     nv = model.nv
@@ -221,8 +250,74 @@ def closed_loop_derivatives_source(model: pin.Model) -> GeneratedFunction:
             pd,
             {directions[("q", k)]: t.neg(kp), directions[("v", k)]: t.neg(kd)},
         )
-    values, tangents = replay(t, forward_source(free, "aba"), bindings)
     inputs = ("q", "v", "kp", "kd", "qf")
-    return _jacobian_function(
-        "closed_loop_derivatives", model, t, inputs, values, tangents, columns=2 * nv
-    )
+    name = "closed_loop_derivatives"
+    if variant == "rnea":
+        efforts = {key: bindings[key] for key in bindings if key[0] == "tau"}
+        values, tangents, columns = _by_inverse_dynamics(t, free, ("q", "v"), efforts)
+        return _jacobian_function(name, model, t, inputs, values, tangents, columns)
+    values, tangents = replay(t, forward_source(free, variant), bindings)
+    return _jacobian_function(name, model, t, inputs, values, tangents, 2 * nv)
+
+
+def _rnea_with_acceleration(model: pin.Model) -> GeneratedFunction:
+    """τ = M(q)·a + b(q, q̇) (RNEA, armature included): ``inverse(q, v, a, out)``."""
+    t, sp, links = _start(model)
+    vel, vj = _velocities(sp, links, with_v=True)
+    acc: list = [_gravity(model)]
+    force: list = [None]
+    for i, link in enumerate(links[1:], start=1):
+        a_k = t.input("a", link.k)
+        joint = (sp.scale(a_k, link.s[0]), sp.scale(a_k, link.s[1]))
+        a = sp.madd(sp.madd(sp.down(link, acc[link.parent]), joint), sp.motion_cross(vel[i], vj[i]))
+        acc.append(a)
+        inertia_v = sp.body_times(link.inertia, vel[i])
+        force.append(sp.madd(sp.body_times(link.inertia, a), sp.force_cross(vel[i], inertia_v)))
+    tau: list[Scalar] = [0.0] * model.nv
+    for i in range(len(links) - 1, 0, -1):
+        link = links[i]
+        tau[link.k] = t.add(sp.sdot(link.s, force[i]), t.mul(link.armature, t.input("a", link.k)))
+        if link.parent > 0:
+            force[link.parent] = sp.madd(force[link.parent], sp.up(link, force[i]))
+    return _finish("inverse", model, t, ("q", "v", "a"), tau, matrix=False)
+
+
+def _by_inverse_dynamics(
+    t: _Ops,
+    model: pin.Model,
+    wrt: tuple[str, ...],
+    efforts: dict[tuple[str, int], tuple[Scalar, Tangent]],
+) -> tuple[list[Scalar], list[Tangent], int]:
+    """q̈ by ABA and ∂q̈/∂x = M⁻¹·(∂τ/∂x − ∂ID(q, q̇, a)/∂x) at a = q̈, as Pinocchio does.
+
+    ``efforts``: τ of each joint, ``("tau", k)``, its value on ``t`` and its tangent along
+    the q and q̇ directions (a law's derivatives; empty for efforts given). The inverse
+    dynamics are traced along q and q̇ with a held at q̈; M by CRBA and its tree-sparse
+    LDLᵀ serve every column (each distinct operation is emitted once); ∂q̈/∂τ (``"tau"`` in
+    ``wrt``) is M⁻¹, solved column by column. Returns q̈, the rows' tangents, the columns.
+    """
+    nv = model.nv
+    sp = _Algebra(t)
+    links = _links(model, t)
+    primal = {("q", k): (t.input("q", k), {}) for k in range(nv)}
+    primal.update({("v", k): (t.input("v", k), {}) for k in range(nv)})
+    qdd, _ = replay(t, forward_source(model, "aba"), {**primal, **efforts})
+    directions = _directions(nv, tuple(x for x in wrt if x != "tau"))
+    bindings = {key: (t.input(*key), {d: 1.0}) for key, d in directions.items()}
+    bindings.update({("a", k): (qdd[k], {}) for k in range(nv)})
+    _, id_tangents = replay(t, _rnea_with_acceleration(model), bindings)
+    m = _crba(model, sp, links)
+    parent = [-1] * nv
+    for link in links[1:]:
+        parent[link.k] = links[link.parent].k if link.parent > 0 else -1
+    columns: list[list[Scalar]] = []
+    for d in range(len(directions)):
+        rhs = [
+            t.sub(efforts[("tau", k)][1].get(d, 0.0), id_tangents[k].get(d, 0.0)) for k in range(nv)
+        ]
+        columns.append(_ldlt_solve(t, m, parent, rhs))
+    if "tau" in wrt:
+        for j in range(nv):
+            columns.append(_ldlt_solve(t, m, parent, [float(k == j) for k in range(nv)]))
+    rows = [{c: col[r] for c, col in enumerate(columns) if col[r] != 0.0} for r in range(nv)]
+    return qdd, rows, len(columns)

@@ -5,11 +5,13 @@ Times, in ONE run and interleaved round by round (in a round each side runs --in
 times, the first not counted), the median ns a state of, over --samples random states
 (joint angles uniform in ±3 rad, velocities and efforts normal):
 
-* jacobian kernel   the generated q̈, ∂q̈/∂q, ∂q̈/∂q̇ (tangent propagation of the
-                    generated ABA, ``rrt_pin.compiled.jacobian``) alone, one thread, into
-                    a preallocated output;
+* <variant> kernel  the generated q̈, ∂q̈/∂q, ∂q̈/∂q̇ (``rrt_pin.compiled.jacobian``) of
+                    each variant alone, one thread, into a preallocated output: ``aba``
+                    and ``crba`` the tangents of that generated forward dynamics,
+                    ``rnea`` ABA then −M⁻¹ times the generated inverse dynamics' tangents;
 * derivatives()     ``DerivativeKernels.derivatives`` on one thread: the whole call
-                    (conversions, shape checks, new outputs split in three);
+                    (conversions, shape checks, new outputs split in three) of the
+                    default variant;
 * closed-loop kernel q̈ and ∂q̈/∂(q, q̇) under PD plus gravity (the law's derivatives in);
 * pin loop          a Python loop calling ``pin.computeABADerivatives`` once a state and
                     copying ∂q̈/∂q, ∂q̈/∂q̇ out (the baseline; it computes M⁻¹ too).
@@ -41,6 +43,7 @@ import numpy as np
 import pinocchio as pin
 
 from rrt_pin.compiled.jacobian import derivative_kernel_for
+from rrt_pin.dynamics.forward_derivatives_source import DEFAULT_VARIANT, VARIANTS
 from rrt_pin.robot import robots
 from scripts.bench.common import interleaved
 
@@ -74,38 +77,49 @@ def bench(name: str, n: int, repeat: int, inner: int) -> dict[str, float]:
     robot = robots.get(name)
     model, nv = robot.model, robot.nv
     dk = derivative_kernel_for(model, name)
-    dk.compile("forward_derivatives", "closed_loop_derivatives")
+    variants = [f"forward_derivatives_{v}" for v in VARIANTS]
+    dk.compile(*variants, "closed_loop_derivatives")
     x, qd, tau = states(nv, n)
     q = robot.configuration(x)
     gains = np.full((n, nv), 100.0), np.full((n, nv), 20.0), np.zeros((n, nv))
     out = np.empty((n, nv, 1 + 2 * nv))
     out_loop = np.empty((n, nv, 1 + 2 * nv))
-    fwd = dk.kernel("forward_derivatives").kernel
     loop = dk.kernel("closed_loop_derivatives").kernel
-    sides: dict[str, Callable[[], object]] = {
-        "jacobian kernel": lambda: fwd(x, qd, tau, out),
-        "derivatives()": lambda: dk.derivatives(x, qd, tau, num_threads=1),
-        "closed-loop kernel": lambda: loop(x, qd, *gains, out_loop),
-        "pin loop": lambda: pin_loop(model, q, qd, tau),
-    }
+
+    def kernel_side(variant: str) -> Callable[[], object]:
+        fn = dk.kernel(f"forward_derivatives_{variant}").kernel
+        return lambda: fn(x, qd, tau, out)
+
+    sides: dict[str, Callable[[], object]] = {f"{v} kernel": kernel_side(v) for v in VARIANTS}
+    sides.update(
+        {
+            "derivatives()": lambda: dk.derivatives(x, qd, tau, num_threads=1),
+            "closed-loop kernel": lambda: loop(x, qd, *gains, out_loop),
+            "pin loop": lambda: pin_loop(model, q, qd, tau),
+        }
+    )
     ref = pin_loop(model, q, qd, tau)
     _, dq, dv = dk.derivatives(x, qd, tau, num_threads=1)
     medians = interleaved(sides, repeat, inner)
     ns = {k: 1e9 * t / n for k, t in medians.items()}
-    flops = {
-        "jacobian kernel": dk.source("forward_derivatives").flops,
-        "closed-loop kernel": dk.source("closed_loop_derivatives").flops,
-    }
-    print(f"\n{name}: nv={nv}, {n} states, median of {repeat} rounds x {inner} calls")
+    flops = {f"{v} kernel": dk.source(f"forward_derivatives_{v}").flops for v in VARIANTS}
+    flops["closed-loop kernel"] = dk.source("closed_loop_derivatives").flops
+    print(
+        f"\n{name}: nv={nv}, {n} states, median of {repeat} rounds x {inner} calls "
+        f"(derivatives() and the closed loop run {DEFAULT_VARIANT})"
+    )
     print(f"{'side':<19} {'ns/state':>9} {'vs pin':>7} {'flops':>6} {'ns/flop':>8}")
     for side, value in ns.items():
         fl = f"{flops[side]:>6}" if side in flops else f"{'':>6}"
         per = f"{value / flops[side]:>8.3f}" if side in flops else f"{'':>8}"
         print(f"{side:<19} {value:>9.1f} {ns['pin loop'] / value:>6.1f}x {fl} {per}")
     print(
-        f"worst relative difference from computeABADerivatives: ddq_dq {per_state(dq, ref[0]):.1e}, "
-        f"ddq_dv {per_state(dv, ref[1]):.1e}; kernel / pin loop = "
-        f"{ns['jacobian kernel'] / ns['pin loop']:.2f}"
+        f"worst relative difference from computeABADerivatives ({DEFAULT_VARIANT}): "
+        f"ddq_dq {per_state(dq, ref[0]):.1e}, ddq_dv {per_state(dv, ref[1]):.1e}"
+    )
+    fastest = min(VARIANTS, key=lambda v: ns[f"{v} kernel"])
+    print(
+        f"fastest variant: {fastest}, {ns['pin loop'] / ns[f'{fastest} kernel']:.2f}x the pin loop"
     )
     return ns
 
