@@ -155,6 +155,110 @@ def test_commands_hold_no_robot_specific_branch():
             assert name != "urdf is None", f"{path.name}:{line}"
 
 
+#: Names that, in a condition, ask which robot this is.
+IDENTITY = {
+    "is_rrt", "is_chapter_arm", "chapter_arm", "names_chapter_arm", "rrt_model", "shortname",
+    "layout", "urdf is None", "'rrt'",
+}  # fmt: skip
+#: The packages whose code runs every robot alike, and the one function each may ask in
+#: (the others call it: ``compiled.runs_arm_kernel`` through the backend's ``arm_kernel``).
+IDENTITY_PACKAGES = ("simulate", "sweeps", "viewer", "compiled", "cli/commands")
+ASKED_HERE = {
+    ("compiled/__init__.py", "runs_arm_kernel"),  # the arm's closed form, or generated code
+    ("sweeps/variants.py", "family_for"),  # what a sweep varies
+}
+
+
+def _identity_conditions(path: Path) -> list[tuple[int, str, str]]:
+    """(line, function, name) of every identity name inside a condition of ``path``.
+
+    Conditions: ``if``/``while``/conditional expressions, comprehension filters and the
+    operands of ``and``/``or``.
+    """
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    out = []
+
+    def visit(node: ast.AST, function: str) -> None:
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+            function = node.name
+        tests: list[ast.AST] = []
+        if isinstance(node, (ast.If, ast.IfExp, ast.While)):
+            tests.append(node.test)
+        elif isinstance(node, ast.comprehension):
+            tests += node.ifs
+        elif isinstance(node, ast.BoolOp):
+            tests += node.values
+        for test in tests:
+            for _, name in _code_names_of(test):
+                if name in IDENTITY:
+                    out.append((test.lineno, function, name))
+        for child in ast.iter_child_nodes(node):
+            visit(child, function)
+
+    visit(tree, "<module>")
+    return out
+
+
+def _code_names_of(node: ast.AST) -> list[tuple[int, str]]:
+    out = []
+    for sub in ast.walk(node):
+        if isinstance(sub, ast.Name):
+            out.append((sub.lineno, sub.id))
+        elif isinstance(sub, ast.Attribute):
+            out.append((sub.lineno, sub.attr))
+        elif isinstance(sub, ast.Constant) and sub.value == "rrt":
+            out.append((sub.lineno, "'rrt'"))
+        elif isinstance(sub, ast.Compare) and any(
+            isinstance(c, ast.Constant) and c.value is None for c in sub.comparators
+        ):
+            if isinstance(sub.left, ast.Attribute) and sub.left.attr == "urdf":
+                out.append((sub.lineno, "urdf is None"))
+    return out
+
+
+def test_which_robot_is_asked_in_one_place():
+    """Simulations, sweeps, the viewer, the compiled code and the commands run every robot
+    alike: "is this the chapter's arm" is asked in one function each where the answer
+    changes the code that runs (the arm's closed form; what a sweep varies)."""
+    found = []
+    for package in IDENTITY_PACKAGES:
+        for path in sorted((PACKAGE / package).rglob("*.py")):
+            where = path.relative_to(PACKAGE).as_posix()
+            for line, function, name in _identity_conditions(path):
+                if (where, function) not in ASKED_HERE:
+                    found.append(f"{where}:{line} ({function}): {name}")
+    assert not found, found
+    # each allowed place does ask (else it is stale)
+    for where, function in ASKED_HERE:
+        assert any(f == function for _, f, _ in _identity_conditions(PACKAGE / where)), where
+
+
+def test_auto_is_decided_in_one_place():
+    """``backends.choose`` is the one ``auto`` policy: no other module compares with "auto"."""
+    found = []
+    for path in sorted(PACKAGE.rglob("*.py")):
+        if path.relative_to(PACKAGE).as_posix() == "core/backends.py":
+            continue
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.Compare) and any(
+                isinstance(c, ast.Constant) and c.value == "auto"
+                for c in (node.left, *node.comparators)
+            ):
+                found.append(f"{path.name}:{node.lineno}")
+    assert not found, found
+
+
+def test_the_identity_detector_can_fail(tmp_path):
+    bad = tmp_path / "bad.py"
+    bad.write_text(
+        "def run(robot, spec):\n"
+        "    x = robot.is_chapter_arm and 1\n"
+        "    return [r for r in spec if r.robot == 'rrt'] if spec.urdf is None else x\n"
+    )
+    names = {n for _, _, n in _identity_conditions(bad)}
+    assert names == {"is_chapter_arm", "'rrt'", "urdf is None"}
+
+
 def test_the_branch_detector_can_fail(tmp_path):
     bad = tmp_path / "bad.py"
     bad.write_text("def run(args):\n    if args.urdf is None:\n        return rrt_model()\n")

@@ -223,7 +223,7 @@ def test_a_urdf_sweep_gives_the_same_bits_in_any_chunks_and_workers(tmp_path):
         "keep": {"metrics": ["final_error", "evaluations"]},
     }
     a = sweep(spec, tmp_path / "a", workers=1, progress=False)
-    assert a.chunks == 2  # chunks of 64 (a URDF sweep's block), whatever was asked
+    assert a.chunks == 7  # as asked: the compiled backend's variants are independent
     b_spec = {**spec, "sweep": {**spec["sweep"], "chunk": 200}}
     sweep(b_spec, tmp_path / "b", workers=2, progress=False)
     ra, rb = _rows(tmp_path / "a"), _rows(tmp_path / "b")
@@ -331,3 +331,71 @@ def test_bad_specs_are_one_line(tmp_path, change, words):
         sweep(spec, tmp_path / "out", workers=1, progress=False)
     assert words in str(info.value) and "\n" not in str(info.value)
     assert not (tmp_path / "out").exists()
+
+
+def _on_backend(monkeypatch, name: str) -> list:
+    """Make ``backends.choose`` pick ``name`` for sweeps; the calls it got."""
+    from rrt_pin.core import backends
+    from rrt_pin.sweeps import compute
+
+    calls: list = []
+
+    def fake(robot, task, method=None, work=0.0, **job):  # noqa: ANN001, ANN202
+        calls.append((robot.name, task, job.get("build"), job.get("batch")))
+        return backends.Choice(name, "a test's choice")
+
+    monkeypatch.setattr(backends, "choose", fake)
+    compute._plan.cache_clear()
+    return calls
+
+
+def test_a_sweep_runs_where_backends_choose_says(tmp_path, monkeypatch):
+    """``backends.choose`` (the one ``auto`` policy) decides, told the job may build its code.
+
+    On Pinocchio (whose batch holds its variants to one error test) a URDF sweep's chunks
+    are rounded to blocks of 64 so that no variant depends on its chunk; the metrics still
+    agree with the compiled backend's to the accuracy asked.
+    """
+    from rrt_pin.sweeps import compute
+    from tests.support import robot_urdf
+
+    spec = {
+        "sweep": {"urdf": str(robot_urdf("ur5")), "tf": 0.5, "dt": 0.05, "chunk": 10},
+        "base": {"q0": 0.0, "qf": [0.3, -0.4, 0.5, 0.0, 0.2, 0.1], "kp": 100.0, "kd": 20.0},
+        "vary": {"kp_1": {"linspace": [50.0, 150.0, 70]}},
+        "keep": {"metrics": ["final_error", "evaluations"]},
+    }
+    try:
+        calls = _on_backend(monkeypatch, "pinocchio")
+        slow = sweep(spec, tmp_path / "p", workers=1, progress=False)
+        assert calls and all(c[1:] == ("simulate", True, True) for c in calls), calls
+        assert slow.chunks == 2  # 64-variant blocks
+        manifest = (tmp_path / "p" / "manifest.json").read_text()
+        assert '"backend": "pinocchio"' in manifest and "a test's choice" in manifest
+        _on_backend(monkeypatch, "compiled")
+        fast = sweep(spec, tmp_path / "c", workers=1, progress=False)
+        assert fast.chunks == 7
+    finally:
+        compute._plan.cache_clear()
+    p, c = _rows(tmp_path / "p"), _rows(tmp_path / "c")
+    for name in p:
+        if name.startswith("final_error"):
+            np.testing.assert_allclose(p[name], c[name], rtol=0, atol=1e-8, err_msg=name)
+    assert not np.array_equal(p["evaluations"], c["evaluations"])  # two engines, truly
+
+
+def test_a_sweep_resumes_only_on_its_own_backend(tmp_path, monkeypatch):
+    from rrt_pin.core.errors import InputError
+    from rrt_pin.sweeps import compute
+
+    spec = {"sweep": {"tf": 0.2, "dt": 0.05}, "vary": {"m3": [40.0, 45.0]}}
+    try:
+        _on_backend(monkeypatch, "pinocchio")
+        sweep(spec, tmp_path / "s", workers=1, progress=False)
+        before = sorted(p.name for p in (tmp_path / "s").rglob("*"))
+        _on_backend(monkeypatch, "compiled")
+        with pytest.raises(InputError, match="ran on backend 'pinocchio'"):
+            sweep(spec, tmp_path / "s", workers=1, progress=False, resume=True)
+        assert sorted(p.name for p in (tmp_path / "s").rglob("*")) == before
+    finally:
+        compute._plan.cache_clear()

@@ -172,6 +172,15 @@ def _params(params: Any) -> Params:
     return params
 
 
+def _arm_method(method: methods.Method) -> None:
+    """Refuse a method the arm's kernel does not run (Adams's runs generated code only)."""
+    if method.code == codes.METHOD_ADAMS:
+        raise InputError(
+            f"method={method.name!r} runs the generated integrators of other robots, not the "
+            "chapter's arm's own kernel: use DOP853 or RK45 on backend 'compiled'"
+        )
+
+
 def check_model(model: Any, params: Params) -> None:
     """Refuse a ``model`` that is not the RRT arm of ``params`` (the kernel's arm)."""
     if model is not None and not bool(model == _rrt_model(params)):
@@ -269,6 +278,7 @@ def run_one(
         start: ``time.perf_counter()`` when the caller's call began (for ``wall_time``).
     """
     start = time.perf_counter() if start is None else start
+    _arm_method(options.method)
     kind, c, p = _law(controller, params)
     from rrt_pin.compiled import machine_code
 
@@ -426,14 +436,18 @@ def run_batch(
     band: float = SETTLING_BAND,
     max_steps: int = MAX_STEPS,
     start: float | None = None,
+    failures: str = "raise",
 ) -> BatchResult:
     """:func:`simulate_batch_compiled` on states, times and options already checked.
 
     ``q0s`` and ``qd0s`` as :func:`rrt_pin.core.validate.states` returns them (B, 3), ``t``
     as :func:`rrt_pin.core.validate.times`, ``options`` as :func:`rrt_pin.simulate.options.resolve`
-    for this backend; the other arguments are checked here.
+    for this backend; the other arguments are checked here. ``failures``: ``"raise"``
+    the first variant's failure, or ``"record"`` each variant's in ``result.failures``
+    (its rows NaN) and keep the others.
     """
     start = time.perf_counter() if start is None else start
+    _arm_method(options.method)
     count = q0s.shape[0]
     keep = validate.choice("keep", keep, KEEPS)
     band = validate.real("band", band, positive=True)
@@ -458,7 +472,15 @@ def run_batch(
         keep=keep, band=band, threads=threads, detail=True, fill=fill,
     )  # fmt: skip
     failed = np.flatnonzero(info[:, 0] != codes.STATUS_OK)
-    if failed.size:
+    recorded = None
+    if failures == "record":
+        recorded = [None] * count
+        for b in failed:
+            recorded[b] = failure(info[b], t_reached[b], method, step, max_steps)
+        y[failed], tau[failed] = np.nan, np.nan
+        if metrics is not None:
+            metrics[failed] = np.nan
+    elif failed.size:
         b = int(failed[0])
         _raise_status(info[b], t_reached[b], method, step, max_steps, b, tau[b])
     columns = None
@@ -479,6 +501,8 @@ def run_batch(
         threads=used,
         keep=keep,
         metrics=columns,
+        evaluations=info[:, 2].copy(),
+        failures=None if recorded is None else tuple(recorded),
     )
 
 

@@ -58,6 +58,12 @@ class Backend:
             coordinate] (UR5's and Panda's, per coordinate: the larger).
         robot_simulate_cost: another robot's run under PD + gravity with the
             default method at the default accuracy [s per simulated second and coordinate].
+        independent_variants: a batch's variant gets the same numbers whatever else is
+            in the batch (each its own steps; Pinocchio's batch holds them all to one
+            error test, so its numbers depend on the batch's composition).
+        variant_params: ``simulate_batch`` takes the chapter arm's Params a variant
+            (``params=[...]``); elsewhere a variant with parameters of its own is its own
+            model.
         entries: where its code for each job lives, ``(job, "module:name")`` (or
             ``"module"``): the front doors (:func:`rrt_pin.inverse_dynamics`,
             :func:`rrt_pin.simulate`, the metrics and energy checks) reach a backend
@@ -81,6 +87,8 @@ class Backend:
     simulate_cost: float | None = None
     robot_inverse_cost: float | None = None
     robot_simulate_cost: float | None = None
+    independent_variants: bool = False
+    variant_params: bool = False
     entries: tuple[tuple[str, str], ...] = ()
 
     def available(self) -> bool:
@@ -174,6 +182,8 @@ BACKENDS: dict[str, Backend] = {
             simulate_cost=0.04e-3,
             robot_inverse_cost=5e-9,
             robot_simulate_cost=0.21e-3,
+            independent_variants=True,
+            variant_params=True,
             entries=(
                 ("inverse", "rrt_pin.compiled:inverse_dynamics"),  # the arm's kernel
                 ("inverse_generated", "rrt_pin.compiled.rnea:inverse_dynamics"),
@@ -284,6 +294,7 @@ def choose(
     controllers: Sequence[Any] = (),
     params: Any = None,
     batch: bool = False,
+    build: bool = False,
 ) -> Choice:
     """The one ``auto`` policy (the default backend): the backend a job of ``work`` runs on.
 
@@ -309,12 +320,19 @@ def choose(
         controllers: the laws of a simulation (one a variant).
         params: the chapter arm's Params given with the job, if any.
         batch: a ``simulate_batch`` (its compiled code is never built ahead of time).
+        build: the job may build the compiled code (a sweep: long, and it says so when
+            it compiles): ``compiled`` whenever it computes the job as asked, whatever
+            is built, so that every process of the job chooses alike.
     """
     engine, fast, numpy_kernel = BACKENDS["pinocchio"], BACKENDS["compiled"], BACKENDS["symbolic"]
     why = _cannot(fast, robot, task, method)
     arm = task == "inverse" and robot.supports(fast.name)
     loaded = aot = built = False
-    if why is None:
+    if why is None and build:  # nothing looked up that differs between processes
+        why = fast.entry("refusal")(robot, controllers, params) if task == "simulate" else None
+        if why is None:
+            return Choice(fast.name, "the job may build it (long; it says so when it does)")
+    elif why is None:
         if task == "simulate":
             arm = fast.entry("arm_kernel")(robot, params, controllers)
         loaded, aot, built = fast.entry("state")(robot, task, batch, arm)

@@ -8,6 +8,7 @@ times [s], gains in N·m·s/rad and N·m/rad (joints 1, 2) or N·s/m and N/m
 
 from __future__ import annotations
 
+import functools
 import math
 import numbers
 from collections.abc import Mapping
@@ -127,11 +128,13 @@ class Params:
     gamma23: float = 50.0
 
     def __post_init__(self) -> None:
-        for f in fields(self):
-            value = getattr(self, f.name)
-            if value is None and f.name in _ROD_DEFAULTS:
+        for name in _names():
+            value = getattr(self, name)
+            if type(value) is float and value - value == 0.0:  # finite: the common case
                 continue
-            object.__setattr__(self, f.name, _real(f.name, value))
+            if value is None and name in _ROD_DEFAULTS:
+                continue
+            object.__setattr__(self, name, _real(name, value))
         for name in _POSITIVE:
             if getattr(self, name) <= 0.0:
                 raise ParameterError(name, getattr(self, name), "must be > 0")
@@ -246,6 +249,12 @@ def _rod_moment(p: Params, mass: str, length: str, name: str) -> float:
             f"too large: the rod inertia {name} = {mass}·{length}²/3 overflows ({length}={L!r})",
         )
     return value
+
+
+@functools.cache
+def _names() -> tuple[str, ...]:
+    """The fields' names, in order (``dataclasses.fields`` builds them at every call)."""
+    return tuple(f.name for f in fields(Params))
 
 
 def _real(name: str, value: object) -> float:

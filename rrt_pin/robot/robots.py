@@ -86,6 +86,24 @@ EXAMPLE_ROBOT_DATA = {
 
 
 @functools.cache
+def names_chapter_arm(urdf: object, name: object) -> bool:
+    """Whether a URDF and a robot's name (each may be None) name the chapter's arm: neither, or ``rrt``."""
+    return urdf is None and name in (None, "rrt")
+
+
+def of_model(model: Any, params: Params | None = None) -> Robot:
+    """The robot of a model: the chapter's arm when the model is the arm built from ``params``.
+
+    Anything else (or no ``params``) is :meth:`Robot.from_model` of it.
+    """
+    robot = Robot.from_model(model)
+    if params is not None and robot.layout == "chapter":
+        arm = chapter_arm(params)
+        if bool(arm.model == model):
+            return arm
+    return robot
+
+
 def example_robot_data_dir() -> Path | None:
     """``…/share/example-robot-data/robots`` of the installed package, or None."""
     from importlib.metadata import PackageNotFoundError, distribution

@@ -12,9 +12,9 @@ import numpy as np
 from rrt_pin.core import backends, cpus, memory, validate
 from rrt_pin.core.errors import DivergenceError, InputError
 from rrt_pin.core.identity import IdentityCache
+from rrt_pin.robot import robots
 from rrt_pin.robot.params import Params, check_params
 from rrt_pin.robot.robot import Robot, bare_model, params_given
-from rrt_pin.robot.robots import chapter_arm
 from rrt_pin.simulate import methods
 from rrt_pin.simulate.control import Controller, as_controller
 from rrt_pin.simulate.energy import check_energy, check_energy_batch
@@ -55,13 +55,7 @@ _ROBOTS: IdentityCache[Robot] = IdentityCache(8)
 
 
 def _as_robot(model: Any, params: Params | None) -> Robot:
-
-    robot = Robot.from_model(model)
-    if params is not None and robot.layout == "chapter":
-        arm = chapter_arm(params)
-        if bool(arm.model == model):
-            return arm
-    return robot
+    return robots.of_model(model, params)
 
 
 def default_threads() -> int:
@@ -197,7 +191,7 @@ def simulate(
     t = validate.times(t_eval)
     backend = backends.decide(robot, backend, "simulate", method, float(t[-1] - t[0]),
                               controllers=[controller], params=params).name  # fmt: skip
-    _prepare(robot, backend, method)
+    _prepare(robot, backend, method, params=params, controllers=[controller])
     start = time.perf_counter()
     q0 = robot.as_coordinates("q0", q0)
     qd0 = (
@@ -288,12 +282,16 @@ def _with_units(result: Any, robot: Robot) -> Any:
     return result
 
 
-def _prepare(robot: Robot, backend: Any, method: Any = None, batch: bool = False) -> None:
+def _prepare(
+    robot: Robot, backend: Any, method: Any = None, batch: bool = False, *, params: Any = None,
+    controllers: Sequence[Any] = (),
+) -> None:  # fmt: skip
     """Imports and model building, which are not simulation time.
 
     Only what the method runs on is imported: ODEPACK's extension alone for
     ``odepack``, all of ``scipy.integrate`` (much slower to import) for ``solve_ivp``'s
-    methods.
+    methods; the arm's machine code for a compiled run of its kernel (``params``,
+    ``controllers``: as :func:`_generated` takes them).
     """
     if backend == "pinocchio":
         family = methods.get(method).family if method in methods.METHODS else "odepack"
@@ -307,9 +305,9 @@ def _prepare(robot: Robot, backend: Any, method: Any = None, batch: bool = False
         import rrt_pin.simulate.pinocchio_backend  # noqa: F401
 
         robot.model  # noqa: B018  (builds the generated arm's model once)
-    elif backend == "compiled" and robot.is_chapter_arm:
+    elif backend == "compiled":
         compiled = backends.get("compiled")
-        if compiled.available():
+        if compiled.available() and compiled.entry("arm_kernel")(robot, params, controllers):
             compiled.entry("simulate")
             # A single run takes the module built ahead of time when there is one;
             # batches run on threads, which need the JIT's (GIL-free) functions.
@@ -453,7 +451,7 @@ def simulate_batch(
     t = validate.times(t_eval)
     backend = backends.decide(robot, backend, "simulate", method, B * float(t[-1] - t[0]),
                               controllers=controllers, params=params, batch=True).name  # fmt: skip
-    _prepare(robot, backend, method, batch=True)
+    _prepare(robot, backend, method, batch=True, params=params, controllers=controllers)
     start = time.perf_counter()
     options = resolve(
         t, backend=backend, method=method, rtol=rtol, atol=atol, step=step, batch=True,
@@ -493,7 +491,7 @@ def simulate_batch(
         def run(o: Options, began: float, tau: bool, kept: str, main: bool = True) -> BatchResult:
             return integrate.run_batch(
                 plants, controllers, q0s, qd0s, t, o, tau, keep=kept, threads=chosen,
-                start=began,
+                start=began, failures=failures,
             )  # fmt: skip
     else:
         from rrt_pin.simulate.pinocchio_backend import run_batch
@@ -509,7 +507,7 @@ def simulate_batch(
             full = run_batch(robot, laws, q0s, qd0s, t, o, chosen, wants, began, rp.applied)
             return reduced(full, kept, qf, tau, measured if main else None, rp, laws)
 
-    if failures == "record" and not generated:
+    if failures == "record" and options.backend != "compiled":
         try:
             result = run(options, start, efforts, keep)
         except DivergenceError:  # which: each variant alone

@@ -117,7 +117,7 @@ def run_physics(
     joints = joint_names(robot)
     stated = physical_model(robot)
     run = RunPhysics(None, stated, joints, list(robot.coordinate_units))
-    if robot.is_chapter_arm:
+    if not stated.active:  # nothing stated (the chapter's arm): nothing to apply or warn of
         return run
     p = stated if all(switches.values()) else physical_model(robot, **switches)
     if p.active:
@@ -290,8 +290,8 @@ def limit_inertia(robot: Robot, q0: Any) -> np.ndarray:
 
 def physics_facts(robot: Robot, q0: Any, **switches: bool) -> dict:
     """The run's physical model for metadata: switches, parameters, what was not given."""
-    if robot.is_chapter_arm:
-        return {"applied": False, "why": "the chapter's arm states no binding limit"}
+    if not physical_model(robot).active:  # the chapter's arm, or a URDF that states none
+        return {"applied": False, "why": f"{robot.name} states no binding limit"}
     p = physical_model(robot, **switches)
     if p.active:
         p = p.at(limit_inertia(robot, q0))

@@ -29,10 +29,9 @@ from typing import Any
 import numpy as np
 
 from rrt_pin.core import cpus
-from rrt_pin.core.errors import ArgumentTypeError, ClusterError, InputError, RrtPinError, SpecError
+from rrt_pin.core.errors import ArgumentTypeError, ClusterError, InputError, SpecError
 from rrt_pin.core.extras import MissingExtra
 from rrt_pin.core.text import duration
-from rrt_pin.robot.params import PARAM_DOCS, Params
 from rrt_pin.simulate.metrics import column_units
 from rrt_pin.sweeps.spec import Spec, load_spec, spec_from_dict
 
@@ -141,21 +140,9 @@ def _check_extremes(spec: Spec) -> None:
     """Refuse, before any work, a range whose ends make a parameter invalid (a negative mass)."""
     from rrt_pin.sweeps.compute import plan
 
-    p = plan(spec)
-    if not spec.chapter_arm:
-        for a in spec.axes:
-            low = float(np.min(_ends(spec, a)))
-            if a.name.startswith(("kp", "kd")) and low < 0:
-                raise SpecError(f"[vary] {a.name} reaches {low:g}: a gain must be >= 0")
-        return
-    base = dict(spec.base)
+    family = plan(spec).family
     for a in spec.axes:
-        for value in _ends(spec, a):
-            try:
-                Params(**{**base, a.name: float(value)})
-            except RrtPinError as e:
-                raise SpecError(f"[vary] {a.name} reaches {float(value):g}: {e}") from e
-    del p
+        family.check_ends(spec, a.name, _ends(spec, a))
 
 
 def _ends(spec: Spec, axis: Any) -> np.ndarray:
@@ -191,12 +178,7 @@ def _units(spec: Spec) -> dict[str, str]:
     robot = plan(spec).robot
     out = {"variant": ""}
     out.update(column_units(spec.metrics, robot.q_names, robot.effort_names, robot.units))
-    if spec.chapter_arm:
-        for name, doc in PARAM_DOCS.items():
-            out[name] = doc.rsplit("[", 1)[-1].split("]")[0] if "[" in doc else ""
-    else:
-        for a in spec.axes:
-            out[a.name] = ""
+    out.update(plan(spec).family.units(spec))
     return out
 
 
@@ -448,17 +430,17 @@ def sweep(
             ``worker_timeout`` s; a chunk killed every worker that ran it.
         ArgumentTypeError: ``spec`` is not a Spec, a dict or a path.
     """
-    from rrt_pin.sweeps.compute import BLOCK, plan
+    from rrt_pin.sweeps.compute import block, plan
     from rrt_pin.sweeps.store import Store, folder_path
 
     out = folder_path(out)  # None, a list or "" refused before any work
     start_time = time.perf_counter()
     spec = _spec(spec)
-    p = plan(spec)
-    if not spec.chapter_arm and spec.chunk % BLOCK:
+    size = block(plan(spec))
+    if size is not None and spec.chunk % size:
         from dataclasses import replace
 
-        spec = replace(spec, chunk=BLOCK * math.ceil(spec.chunk / BLOCK))
+        spec = replace(spec, chunk=size * math.ceil(spec.chunk / size))
     _check_extremes(spec)
     if workers is not None:  # numpy integers too; never a bool, a float or a string
         if isinstance(workers, (bool, np.bool_)) or not isinstance(workers, numbers.Integral):
@@ -471,10 +453,13 @@ def sweep(
         raise InputError(f"worker_timeout={worker_timeout!r} must be a number > 0 [s]")
 
     n_workers = workers or cpus.available()
+    p = plan(spec)
     robot = p.robot
     manifest = {
         "spec": spec.source,
         "spec_hash": spec.digest(),
+        "backend": p.backend,  # a resumed sweep runs on the same one
+        "backend_reason": p.reason,
         "variants": spec.variants,
         "chunk": spec.chunk,
         "chunks": len(spec.chunks),

@@ -248,7 +248,7 @@ class Spec:
     @property
     def chapter_arm(self) -> bool:
         """Whether the sweep's robot is the chapter's arm (its Params are what vary)."""
-        return self.urdf is None and self.robot in (None, "rrt")
+        return robots.names_chapter_arm(self.urdf, self.robot)
 
     def urdf_file(self) -> str:
         """The URDF of a robot other than the chapter's arm (given, or found by its name).
@@ -256,10 +256,8 @@ class Spec:
         Raises:
             SpecError: the robot's URDF cannot be found (example-robot-data missing).
         """
-        if self.urdf is not None:
-            return self.urdf
         try:
-            return str(robots.urdf_path(str(self.robot)))
+            return self.urdf or str(robots.urdf_path(str(self.robot)))
         except InputError as e:
             raise SpecError(f"[sweep] robot: {e}") from e
 
@@ -478,7 +476,7 @@ def spec_from_dict(data: Mapping[str, Any], where: str = "spec") -> Spec:
         raise SpecError(f"{where}: robot={_show(robot)} is not one of {', '.join(robots.names())}")
     if robot is not None and urdf is not None:
         raise SpecError(f"{where}: [sweep] names a robot and a urdf: give one")
-    arm = urdf is None and robot in (None, "rrt")
+    arm = robots.names_chapter_arm(urdf, robot)
     method = sweep.get("method")
     if method is not None and (not isinstance(method, str) or not method):
         raise SpecError(f"{where}: method={_show(method)} must be a method's name")

@@ -298,6 +298,12 @@ class Store:
                 f"cannot resume the sweep in {self._where()}: chunk={manifest['chunk']} but it "
                 f"was started with chunk={old['chunk']}"
             )
+        if old.get("backend", manifest.get("backend")) != manifest.get("backend"):
+            raise InputError(
+                f"cannot resume the sweep in {self._where()}: it ran on backend "
+                f"{old['backend']!r}, which this process would not use (now "
+                f"{manifest.get('backend')!r}): resume it where {old['backend']!r} runs"
+            )
         for name in (CHUNKS, TRAJECTORIES):
             st = _lstat(name, fd)
             if st is not None and not stat.S_ISDIR(st.st_mode):
