@@ -29,7 +29,12 @@ gravity folded), its ``jac`` either the backend's (``ClosedLoop.jacobian``:
 closed-loop kernel (``DerivativeKernels.closed_loop_jac``); interleaved medians, the
 Jacobian calls and the difference of the final states.
 
+With ``--accuracy N``, instead: for every robot ``rrt_pin.robot.robots`` names, the
+compiled default variant's worst difference from ``computeABADerivatives`` (q̈, ∂q̈/∂q,
+∂q̈/∂q̇) over N random states, per state relative to that state's largest |value|.
+
     .venv/bin/python -m scripts.bench.forward_derivatives [--samples 2000] [--repeat 9]
+    .venv/bin/python -m scripts.bench.forward_derivatives --accuracy 10000
     .venv/bin/python -m scripts.bench.forward_derivatives --radau [--rtol 1e-8] [--method BDF]
 """
 
@@ -124,6 +129,26 @@ def bench(name: str, n: int, repeat: int, inner: int) -> dict[str, float]:
     return ns
 
 
+def accuracy(n: int) -> None:
+    """Each robot's compiled Jacobian against ``computeABADerivatives`` on n random states."""
+    print(f"worst per-state relative difference from computeABADerivatives, {n} random states")
+    print(f"{'robot':<28} {'ddq':>8} {'ddq_dq':>8} {'ddq_dv':>8} {'flops':>6}")
+    for name in robots.names():
+        robot = robots.get(name)
+        model, data = robot.model, robot.model.createData()
+        dk = derivative_kernel_for(model, name)
+        x, qd, tau = states(robot.nv, n, seed=42)
+        want: list[list] = [[], [], []]
+        for q, v, u in zip(robot.configuration(x), qd, tau, strict=True):
+            dq, dv, _ = pin.computeABADerivatives(model, data, q, v, u)
+            for k, value in enumerate((data.ddq, dq, dv)):
+                want[k].append(np.array(value))
+        got = dk.derivatives(x, qd, tau)
+        errs = [per_state(a, np.array(w)) for a, w in zip(got, want, strict=True)]
+        flops = dk.source(f"forward_derivatives_{DEFAULT_VARIANT}").flops
+        print(f"{name:<28} " + " ".join(f"{e:>8.1e}" for e in errs) + f" {flops:>6}")
+
+
 def radau(name: str, rtol: float, repeat: int, method: str = "Radau") -> None:
     """5 s under PD plus gravity by an implicit method: the backend's Jacobian, then the generated."""
     from scipy.integrate import solve_ivp
@@ -178,8 +203,12 @@ def main() -> int:
     ap.add_argument("--radau", action="store_true", help="time Radau runs with each Jacobian")
     ap.add_argument("--rtol", type=float, default=1e-8, help="Radau's rtol (atol = rtol/100)")
     ap.add_argument("--method", default="Radau", help="with --radau: Radau, BDF or LSODA")
+    ap.add_argument("--accuracy", type=int, default=0, help="check N states of every robot")
     args = ap.parse_args()
     print(f"pinocchio {pin.__version__}, numpy {np.__version__}")
+    if args.accuracy:
+        accuracy(args.accuracy)
+        return 0
     for name in args.robots.split(","):
         if args.radau:
             radau(name, args.rtol, args.repeat, args.method)
