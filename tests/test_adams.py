@@ -85,6 +85,16 @@ def test_the_accuracy_asked_chooses_tolerances_that_keep_it(ur5):
         assert np.abs(run.q - reference.q).max() <= accuracy
 
 
+def test_the_error_estimate_brackets_the_error(ur5):
+    """The default run's estimate (its calibrated companion) is within 0.3–3× of the error."""
+    law = _pd(ur5, 50.0)
+    run = rrt_pin.simulate(ur5, law, Q0, None, T, backend="compiled", method="adams",
+                           **LAW_ONLY)  # fmt: skip
+    error = np.abs(run.q - _run(ur5, law, "DOP853", 1e-13).q).max()
+    assert run.rtol == methods.get("adams").rtol and error <= methods.ACCURACY
+    assert 0.3 * max(error, 1e-11) <= max(run.error_estimate, 1e-11) <= 3.0 * max(error, 1e-11)
+
+
 def test_fewer_evaluations_than_dop853_at_the_same_error(ur5):
     law = _pd(ur5)
     error, adams, _ = _error(ur5, law, 1e-8)
