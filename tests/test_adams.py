@@ -191,3 +191,21 @@ def test_the_chapters_arm_refuses_it():
     arm = chapter_arm()
     with pytest.raises(InputError, match="adams"):
         rrt_pin.simulate(arm, None, np.zeros(3), None, T, backend="compiled", method="adams")
+
+
+def test_an_adams_run_compiles_its_entry_alone(ur5, monkeypatch):
+    """A single run or a batch with method='adams' asks for run_adams only (not run_many)."""
+    from rrt_pin.compiled import robot_code, robot_runs
+    from rrt_pin.simulate.options import resolve
+
+    asked = []
+
+    class Code:  # stands for a robot's code not compiled yet: records what is compiled
+        def entry(self, name):
+            asked.append(name)
+
+    monkeypatch.setattr(robot_code, "integrators_for", lambda model, name=None: Code())
+    options = resolve(T, backend="compiled", method="adams", rtol=1e-9, atol=1e-11)
+    robot_runs.prepare(ur5, [_pd(ur5)], options)
+    robot_runs.prepare(ur5, [_pd(ur5), _pd(ur5)], options)
+    assert asked == ["run_adams", "run_adams"]
