@@ -129,6 +129,29 @@ def test_the_jacobian_agrees_with_central_differences_of_the_generated_forward_d
         assert np.abs(fd - jac[:, :, j]).max() <= FD_AGREEMENT * scale, (name, j)
 
 
+@pytest.mark.parametrize("name", ["ur5", "panda", "double_pendulum_continuous", "random_tree_2"])
+def test_inverse_and_gravity_derivatives_agree_with_pinocchio(name):
+    """τ, ∂τ/∂q, ∂τ/∂q̇ as computeRNEADerivatives; G, ∂G/∂q as its gravity derivatives."""
+    model = _models()[name]()
+    data = model.createData()
+    x, v, a = states(model.nv, seed=9)
+    inverse = blocks(run(fds.inverse_derivatives_source(model), x, v, a), model.nv)
+    gravity = blocks(run(fds.gravity_derivatives_source(model), x), model.nv)
+    want: list[list] = [[], [], [], [], []]
+    for q, qd, qdd in zip(configuration(model, x), v, a, strict=True):
+        dq, dv, _ = pin.computeRNEADerivatives(model, data, q, qd, qdd)
+        values = (pin.rnea(model, data, q, qd, qdd), dq, dv)
+        values += (
+            pin.computeGeneralizedGravity(model, data, q),
+            pin.computeGeneralizedGravityDerivatives(model, data, q),
+        )
+        for k, value in enumerate(values):
+            want[k].append(np.array(value))
+    for what, got, ref in zip(("tau", "dtau_dq", "dtau_dv", "G", "dG_dq"), [*inverse, *gravity],
+                              want, strict=True):  # fmt: skip
+        assert worst(got, np.array(ref)) <= AGREEMENT, (name, what, worst(got, np.array(ref)))
+
+
 def test_the_check_can_fail():
     """A model with one body 1 % heavier is told apart in every block."""
     model = robots.get("double_pendulum").model
@@ -212,6 +235,14 @@ def test_the_compiled_kernels_run_the_generated_code(compiled):
             np.array_equal(a, b) for a, b in zip(plain, (qdd, dq, dv), strict=True)
         )
         assert np.array_equal(kernels.derivatives(x, v, tau, num_threads=2)[1], dq)
+    model, kernels = compiled["double_pendulum_continuous"]
+    x, v, a = states(model.nv, n=20)
+    want = blocks(run(kernels.source("inverse_derivatives"), x, v, a), model.nv)
+    for got, ref in zip(kernels.inverse_derivatives(x, v, a), want, strict=True):
+        assert np.allclose(got, ref, rtol=1e-13, atol=1e-13 * np.abs(ref).max())
+    want = blocks(run(kernels.source("gravity_derivatives"), x), model.nv)
+    for got, ref in zip(kernels.gravity_derivatives(x), want, strict=True):
+        assert np.allclose(got, ref, rtol=1e-13, atol=1e-13 * np.abs(ref).max())
 
 
 def test_the_closed_loop_kernel_and_the_solve_ivp_jac_agree(compiled):

@@ -12,6 +12,9 @@ recorded and checked before they are read), one kernel per source in a process.
 * :meth:`DerivativeKernels.derivatives`: q̈, ∂q̈/∂q, ∂q̈/∂q̇ (and, asked, ∂q̈/∂τ = M⁻¹), as
   Pinocchio's ``computeABADerivatives`` gives them (joint coordinates: a continuous
   joint's angle, so its derivative is the tangent space's);
+* :meth:`DerivativeKernels.inverse_derivatives`: τ, ∂τ/∂q, ∂τ/∂q̇ of the inverse
+  dynamics (``computeRNEADerivatives``; a computed-torque law's Jacobian), and
+  :meth:`DerivativeKernels.gravity_derivatives`: G(q) and ∂G/∂q (PD plus gravity's);
 * :meth:`DerivativeKernels.closed_loop`: q̈ and the (2nv, 2nv) Jacobian of the first-order
   system ẏ = (q̇, q̈) under PD plus the model's gravity, the law's derivatives included;
 * :meth:`DerivativeKernels.closed_loop_jac`: that Jacobian as the ``jac(t, y)`` of
@@ -57,15 +60,18 @@ KINDS = (
     *(f"forward_derivatives_{v}" for v in fds.VARIANTS),
     "forward_derivatives_minv",
     "closed_loop_derivatives",
+    "inverse_derivatives",
+    "gravity_derivatives",
 )
 #: What compiling takes, roughly, per generated operation [s] and per kernel (numba and
 #: LLVM on one core): for the announcement's estimate only.
 _COMPILE_S_PER_FLOP = 1.15e-3
 _COMPILE_S_PER_KERNEL = 0.2
-_ARRAYS = {"q": "Q", "v": "V", "tau": "T", "kp": "KP", "kd": "KD", "qf": "QF"}
+_ARRAYS = {"q": "Q", "v": "V", "a": "A", "tau": "T", "kp": "KP", "kd": "KD", "qf": "QF"}
 _INPUTS = {
     "q": ("q", "rad or m"),
     "v": ("qd", "rad/s or m/s"),
+    "a": ("qdd", "rad/s² or m/s²"),
     "tau": ("tau", "N·m or N"),
     "kp": ("kp", "N·m/rad or N/m"),
     "kd": ("kd", "N·m·s/rad or N·s/m"),
@@ -86,6 +92,8 @@ def _generators() -> dict[str, Callable[[Any], GeneratedFunction]]:
             fds.forward_derivatives_source(m, wrt=fds.DIRECTIONS), "forward_derivatives_minv"
         ),
         "closed_loop_derivatives": fds.closed_loop_derivatives_source,
+        "inverse_derivatives": fds.inverse_derivatives_source,
+        "gravity_derivatives": fds.gravity_derivatives_source,
     }
 
 
@@ -238,6 +246,35 @@ class DerivativeKernels:
         kind = "forward_derivatives_minv" if minv else f"forward_derivatives_{variant}"
         out = self._run(kind, (q, qd, tau), num_threads)
         return _split(out, self.nv)
+
+    def inverse_derivatives(
+        self, q: Any, qd: Any, qdd: Any, *, num_threads: int | None = None
+    ) -> tuple[np.ndarray, ...]:
+        """τ (N, nv) [N·m or N], ∂τ/∂q and ∂τ/∂q̇ (N, nv, nv), as ``computeRNEADerivatives``.
+
+        ∂τ/∂q̈ is M(q) (:meth:`rrt_pin.compiled.forward.ForwardKernels.mass_matrix`).
+
+        Args:
+            q: joint coordinates (N, nv) [rad or m].
+            qd: joint velocities (N, nv) [rad/s or m/s].
+            qdd: joint accelerations (N, nv) [rad/s² or m/s²].
+            num_threads: as :meth:`derivatives`.
+
+        Raises:
+            InputError: bad shapes, a non-finite input or result.
+        """
+        return _split(self._run("inverse_derivatives", (q, qd, qdd), num_threads), self.nv)
+
+    def gravity_derivatives(
+        self, q: Any, *, num_threads: int | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """G(q) (N, nv) [N·m or N] and ∂G/∂q (N, nv, nv) [N·m/rad or N/m].
+
+        Raises:
+            InputError: bad shapes, a non-finite input.
+        """
+        g, dg = _split(self._run("gravity_derivatives", (q,), num_threads), self.nv)
+        return g, dg
 
     def closed_loop(
         self, q: Any, qd: Any, kp: Any, kd: Any, qf: Any, *, num_threads: int | None = None

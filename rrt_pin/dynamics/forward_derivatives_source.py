@@ -42,6 +42,7 @@ from rrt_pin.dynamics.forward_source import (
     _start,
     _velocities,
     forward_source,
+    gravity_source,
 )
 from rrt_pin.dynamics.rnea_source import Scalar
 
@@ -54,6 +55,8 @@ __all__ = [
     "VARIANTS",
     "closed_loop_derivatives_source",
     "forward_derivatives_source",
+    "gravity_derivatives_source",
+    "inverse_derivatives_source",
     "replay",
 ]
 
@@ -258,6 +261,36 @@ def closed_loop_derivatives_source(
         return _jacobian_function(name, model, t, inputs, values, tangents, columns)
     values, tangents = replay(t, forward_source(free, variant), bindings)
     return _jacobian_function(name, model, t, inputs, values, tangents, 2 * nv)
+
+
+def inverse_derivatives_source(model: pin.Model) -> GeneratedFunction:
+    """τ = ID(q, q̇, q̈) and its Jacobian: ``inverse_derivatives(q, v, a, out)``.
+
+    ``out`` is (nv, 1 + 2nv): ``out[:, 0]`` τ, then ∂τ/∂q and ∂τ/∂q̇ (∂τ/∂q̈ is M(q)), as
+    Pinocchio's ``computeRNEADerivatives``: what a computed-torque law's Jacobian needs.
+
+    Raises:
+        UnsupportedJoint: a joint is not revolute, prismatic or continuous.
+    """
+    nv = model.nv
+    t = _Ops()
+    seeds = {key: (t.input(*key), {d: 1.0}) for key, d in _directions(nv, ("q", "v")).items()}
+    values, tangents = replay(t, _rnea_with_acceleration(model), seeds)
+    inputs = ("q", "v", "a")
+    return _jacobian_function("inverse_derivatives", model, t, inputs, values, tangents, 2 * nv)
+
+
+def gravity_derivatives_source(model: pin.Model) -> GeneratedFunction:
+    """G(q) and ∂G/∂q: ``gravity_derivatives(q, out)``, ``out`` (nv, 1 + nv), G in column 0.
+
+    Raises:
+        UnsupportedJoint: a joint is not revolute, prismatic or continuous.
+    """
+    nv = model.nv
+    t = _Ops()
+    seeds = {key: (t.input(*key), {d: 1.0}) for key, d in _directions(nv, ("q",)).items()}
+    values, tangents = replay(t, gravity_source(model), seeds)
+    return _jacobian_function("gravity_derivatives", model, t, ("q",), values, tangents, nv)
 
 
 def _rnea_with_acceleration(model: pin.Model) -> GeneratedFunction:

@@ -14,7 +14,10 @@ times, the first not counted), the median ns a state of, over --samples random s
                     default variant;
 * closed-loop kernel q̈ and ∂q̈/∂(q, q̇) under PD plus gravity (the law's derivatives in);
 * pin loop          a Python loop calling ``pin.computeABADerivatives`` once a state and
-                    copying ∂q̈/∂q, ∂q̈/∂q̇ out (the baseline; it computes M⁻¹ too).
+                    copying ∂q̈/∂q, ∂q̈/∂q̇ out (the baseline; it computes M⁻¹ too);
+* inverse kernel    τ, ∂τ/∂q, ∂τ/∂q̇ of the generated RNEA's tangents (a computed-torque
+                    law's Jacobian), against
+* pin rnea loop     ``pin.computeRNEADerivatives`` once a state, ∂τ/∂q and ∂τ/∂q̇ copied.
 
 Next to each kernel: its floating-point operations a state (the generator's count, sines
 and cosines apart) and ns a flop; then the worst difference of ∂q̈/∂q and ∂q̈/∂q̇ from
@@ -71,6 +74,16 @@ def pin_loop(model: pin.Model, q: np.ndarray, qd: np.ndarray, tau: np.ndarray) -
     return dq, dv
 
 
+def rnea_loop(model: pin.Model, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray) -> tuple:
+    """One ``computeRNEADerivatives`` a state from Python, ∂τ/∂q and ∂τ/∂q̇ kept."""
+    data = model.createData()
+    n, nv = q.shape[0], model.nv
+    dq, dv = np.empty((n, nv, nv)), np.empty((n, nv, nv))
+    for i in range(n):
+        dq[i], dv[i], _ = pin.computeRNEADerivatives(model, data, q[i], qd[i], qdd[i])
+    return dq, dv
+
+
 def per_state(a: np.ndarray, ref: np.ndarray) -> float:
     """max over states of max|a − ref| / max|ref| (each state's own scale)."""
     n = ref.shape[0]
@@ -83,13 +96,14 @@ def bench(name: str, n: int, repeat: int, inner: int) -> dict[str, float]:
     model, nv = robot.model, robot.nv
     dk = derivative_kernel_for(model, name)
     variants = [f"forward_derivatives_{v}" for v in VARIANTS]
-    dk.compile(*variants, "closed_loop_derivatives")
+    dk.compile(*variants, "closed_loop_derivatives", "inverse_derivatives")
     x, qd, tau = states(nv, n)
     q = robot.configuration(x)
     gains = np.full((n, nv), 100.0), np.full((n, nv), 20.0), np.zeros((n, nv))
     out = np.empty((n, nv, 1 + 2 * nv))
     out_loop = np.empty((n, nv, 1 + 2 * nv))
     loop = dk.kernel("closed_loop_derivatives").kernel
+    inverse = dk.kernel("inverse_derivatives").kernel
 
     def kernel_side(variant: str) -> Callable[[], object]:
         fn = dk.kernel(f"forward_derivatives_{variant}").kernel
@@ -101,6 +115,8 @@ def bench(name: str, n: int, repeat: int, inner: int) -> dict[str, float]:
             "derivatives()": lambda: dk.derivatives(x, qd, tau, num_threads=1),
             "closed-loop kernel": lambda: loop(x, qd, *gains, out_loop),
             "pin loop": lambda: pin_loop(model, q, qd, tau),
+            "inverse kernel": lambda: inverse(x, qd, tau, out),
+            "pin rnea loop": lambda: rnea_loop(model, q, qd, tau),
         }
     )
     ref = pin_loop(model, q, qd, tau)
@@ -109,18 +125,26 @@ def bench(name: str, n: int, repeat: int, inner: int) -> dict[str, float]:
     ns = {k: 1e9 * t / n for k, t in medians.items()}
     flops = {f"{v} kernel": dk.source(f"forward_derivatives_{v}").flops for v in VARIANTS}
     flops["closed-loop kernel"] = dk.source("closed_loop_derivatives").flops
+    flops["inverse kernel"] = dk.source("inverse_derivatives").flops
     print(
         f"\n{name}: nv={nv}, {n} states, median of {repeat} rounds x {inner} calls "
         f"(derivatives() and the closed loop run {DEFAULT_VARIANT})"
     )
     print(f"{'side':<19} {'ns/state':>9} {'vs pin':>7} {'flops':>6} {'ns/flop':>8}")
     for side, value in ns.items():
+        base = ns["pin rnea loop" if "inverse" in side or "rnea loop" in side else "pin loop"]
         fl = f"{flops[side]:>6}" if side in flops else f"{'':>6}"
         per = f"{value / flops[side]:>8.3f}" if side in flops else f"{'':>8}"
-        print(f"{side:<19} {value:>9.1f} {ns['pin loop'] / value:>6.1f}x {fl} {per}")
+        print(f"{side:<19} {value:>9.1f} {base / value:>6.1f}x {fl} {per}")
     print(
         f"worst relative difference from computeABADerivatives ({DEFAULT_VARIANT}): "
         f"ddq_dq {per_state(dq, ref[0]):.1e}, ddq_dv {per_state(dv, ref[1]):.1e}"
+    )
+    _, idq, idv = dk.inverse_derivatives(x, qd, tau, num_threads=1)
+    ref_id = rnea_loop(model, q, qd, tau)
+    print(
+        f"inverse kernel against computeRNEADerivatives: dtau_dq {per_state(idq, ref_id[0]):.1e}, "
+        f"dtau_dv {per_state(idv, ref_id[1]):.1e}"
     )
     fastest = min(VARIANTS, key=lambda v: ns[f"{v} kernel"])
     print(
