@@ -7,7 +7,8 @@ the ``LAW_*``, ``KEEP_*``, ``METHOD_*`` and ``STATUS_*`` codes of
 The module is named by the SHA-256 of its source and kept under ``generated/`` of the
 cache directory, as the generated RNEA is (:mod:`rrt_pin.compiled.rnea`): numba's
 machine code beside it, its files' SHA-256 recorded and checked before they are
-read. Its entry point, ``run_many``, is compiled for one signature on first use,
+read. Its entry points (``run_many``; ``run_lanes``, a batch's; ``run_adams``, Adams's
+method of :mod:`rrt_pin.compiled._robot_adams`) are each compiled on first use,
 announced on the ``rrt_pin`` logger ("compiling ur5's integrators once (~N s)"); a later
 process loads it.
 """

@@ -13,7 +13,10 @@ Adding an integrator is one function plus one line here:
 * a method of ``scipy.integrate.solve_ivp``: add
   ``Method("RK23", SCIPY, adaptive=True, ...)`` (the name is scipy's);
 * a compiled method also needs its ``code`` (:mod:`rrt_pin.simulate.codes`)
-  and its branch in :mod:`rrt_pin.compiled._jit_integrators`.
+  and its branch in :mod:`rrt_pin.compiled._jit_integrators`; one that runs any
+  robot's generated integrators only (``adams``) needs instead its template part
+  (:mod:`rrt_pin.compiled._robot_adams`) and its entry in
+  :mod:`rrt_pin.compiled.robot_code`.
 """
 
 from __future__ import annotations
