@@ -59,6 +59,7 @@ from rrt_pin.compiled.lanes import (
 from rrt_pin.core import validate
 from rrt_pin.core.errors import InputError
 from rrt_pin.core.identity import IdentityCache
+from rrt_pin.core.text import argument
 from rrt_pin.dynamics.kernel import PARAM_ORDER
 from rrt_pin.robot.params import Params
 from rrt_pin.robot.robot import CHAPTER_COLUMNS
@@ -176,8 +177,9 @@ def _arm_method(method: methods.Method) -> None:
     """Refuse a method the arm's kernel does not run (Adams's runs generated code only)."""
     if method.code == codes.METHOD_ADAMS:
         raise InputError(
-            f"method={method.name!r} runs the generated integrators of other robots, not the "
-            "chapter's arm's own kernel: use DOP853 or RK45 on backend 'compiled'"
+            f"{argument('method')} {method.name} runs the generated integrators of other "
+            f"robots, not the chapter's arm's own kernel: use {argument('method')} DOP853 or "
+            f"RK45 on {argument('backend')} compiled"
         )
 
 
