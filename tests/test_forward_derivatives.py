@@ -245,6 +245,26 @@ def test_the_compiled_kernels_run_the_generated_code(compiled):
         assert np.allclose(got, ref, rtol=1e-13, atol=1e-13 * np.abs(ref).max())
 
 
+def test_the_vectorised_kernel_follows_the_one_sample_kernel(compiled):
+    """Lanes of a block: the same statements (sines and cosines by polynomial, libm's for a
+    huge angle), a sample's result independent of its block, a bad sample refused."""
+    model, kernels = compiled["small_tree"]
+    x, v, tau = states(model.nv, n=150)  # two blocks of 64 and one of 22
+    x[70, 0] = 1e9  # beyond the polynomial's range: this block takes libm's
+    want = kernels.derivatives(x, v, tau)
+    got = kernels.derivatives(x, v, tau, vectorised=True)
+    for a, b in zip(got, want, strict=True):
+        assert np.abs(a - b).max() <= 1e-13 * np.abs(b).max()
+    alone = kernels.derivatives(x[70:71], v[70:71], tau[70:71], vectorised=True)
+    assert all(np.array_equal(a[70:71], b) for a, b in zip(got, alone, strict=True))
+    bad = tau.copy()
+    bad[149, 1] = np.inf
+    with pytest.raises(InputError, match=r"tau\[149, 1\]=inf"):
+        kernels.derivatives(x, v, bad, vectorised=True)
+    with pytest.raises(InputError, match="vectorised=True"):
+        kernels.derivatives(x, v, tau, vectorised=True, minv=True)
+
+
 def test_the_closed_loop_kernel_and_the_solve_ivp_jac_agree(compiled):
     model, kernels = compiled["small_tree"]
     nv = model.nv

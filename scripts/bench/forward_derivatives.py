@@ -9,6 +9,8 @@ times, the first not counted), the median ns a state of, over --samples random s
                     each variant alone, one thread, into a preallocated output: ``aba``
                     and ``crba`` the tangents of that generated forward dynamics,
                     ``rnea`` ABA then −M⁻¹ times the generated inverse dynamics' tangents;
+* vector kernel     the default variant vectorised across samples (blocks of
+                    ``VECTOR_BLOCK``, polynomial sines and cosines), one thread;
 * derivatives()     ``DerivativeKernels.derivatives`` on one thread: the whole call
                     (conversions, shape checks, new outputs split in three) of the
                     default variant;
@@ -96,7 +98,8 @@ def bench(name: str, n: int, repeat: int, inner: int) -> dict[str, float]:
     model, nv = robot.model, robot.nv
     dk = derivative_kernel_for(model, name)
     variants = [f"forward_derivatives_{v}" for v in VARIANTS]
-    dk.compile(*variants, "closed_loop_derivatives", "inverse_derivatives")
+    dk.compile(*variants, "forward_derivatives_vector", "closed_loop_derivatives")
+    dk.compile("inverse_derivatives")
     x, qd, tau = states(nv, n)
     q = robot.configuration(x)
     gains = np.full((n, nv), 100.0), np.full((n, nv), 20.0), np.zeros((n, nv))
@@ -110,6 +113,8 @@ def bench(name: str, n: int, repeat: int, inner: int) -> dict[str, float]:
         return lambda: fn(x, qd, tau, out)
 
     sides: dict[str, Callable[[], object]] = {f"{v} kernel": kernel_side(v) for v in VARIANTS}
+    vector = dk.kernel("forward_derivatives_vector").kernel
+    sides["vector kernel"] = lambda: vector(x, qd, tau, out)
     sides.update(
         {
             "derivatives()": lambda: dk.derivatives(x, qd, tau, num_threads=1),
@@ -124,6 +129,7 @@ def bench(name: str, n: int, repeat: int, inner: int) -> dict[str, float]:
     medians = interleaved(sides, repeat, inner)
     ns = {k: 1e9 * t / n for k, t in medians.items()}
     flops = {f"{v} kernel": dk.source(f"forward_derivatives_{v}").flops for v in VARIANTS}
+    flops["vector kernel"] = dk.source("forward_derivatives_vector").flops
     flops["closed-loop kernel"] = dk.source("closed_loop_derivatives").flops
     flops["inverse kernel"] = dk.source("inverse_derivatives").flops
     print(
