@@ -1,14 +1,23 @@
 """Straight-line source of the forward dynamics and its Jacobian, by tangent propagation (numba-free).
 
-:func:`forward_derivatives_source` differentiates the straight-line q̈ = M(q)⁻¹(τ − b(q, q̇))
-of :func:`rrt_pin.dynamics.forward_source.forward_source` in forward mode: each statement
+:func:`replay` differentiates generated straight-line code in forward mode: each statement
 ``t = f(a, b)`` of the generated code is replayed on a fresh constant-folding tracer
 together with its tangent along every direction asked (one a joint coordinate, then one a
 joint velocity, then, if asked, one an effort), ``ṫ = ∂f/∂a·ȧ + ∂f/∂b·ḃ``. A tangent that
 is a structural zero (the statement does not depend on that direction) is not stored, so
 that a joint's coordinate reaches only what it moves; constants are folded and each
 distinct operation emitted once, as in the code differentiated. The result is one
-function writing q̈ and its Jacobian, ``out[:, 0] = q̈``, ``out[:, 1 + j] = ∂q̈/∂xⱼ``.
+function writing a value and its Jacobian, ``out[:, 0] = y``, ``out[:, 1 + j] = ∂y/∂xⱼ``:
+
+* :func:`forward_derivatives_source`: q̈ = M(q)⁻¹(τ − b(q, q̇)) with ∂q̈/∂q, ∂q̈/∂q̇ (and
+  M⁻¹ = ∂q̈/∂τ), by one of :data:`VARIANTS`: the tangents of the generated ABA or
+  CRBA + LDLᵀ (:func:`rrt_pin.dynamics.forward_source.forward_source`), or (the default)
+  q̈ by ABA and ∂q̈/∂x = −M⁻¹·∂ID/∂x from the tangents of the generated inverse dynamics
+  at a = q̈ and one tree-sparse LDLᵀ, the identity Pinocchio's ``computeABADerivatives``
+  uses, with fewer operations;
+* :func:`inverse_derivatives_source`: τ = ID(q, q̇, q̈) with ∂τ/∂q, ∂τ/∂q̇ (as
+  ``computeRNEADerivatives``; a computed-torque law's Jacobian);
+* :func:`gravity_derivatives_source`: G(q) with ∂G/∂q.
 
 Joint coordinates are those of :class:`rrt_pin.robot.Robot` (a continuous joint's angle,
 not its cosine and sine), so the derivative along a coordinate is the one in the tangent
