@@ -2,10 +2,12 @@
 
 Appended by :mod:`rrt_pin.compiled.robot_code` to the module it makes from
 :mod:`rrt_pin.compiled._robot_template` (from the line ``# --- lanes ---`` on), with
-``rhs_lanes``: the closed loop under PD plus gravity of ``L`` states at once, the
-generated forward dynamics without gravity inside one loop over the lanes (no call,
-no branch: the polynomial sine and cosine of :mod:`rrt_pin.compiled.rnea_vector`),
-which LLVM runs several lanes an instruction.
+``free_lanes``: the generated forward dynamics without gravity of ``L`` states at once
+under efforts given in rows, inside one loop over the lanes (no call, no branch: the
+polynomial sine and cosine of :mod:`rrt_pin.compiled.rnea_vector`), which LLVM runs
+several lanes an instruction, and ``gravity_lanes``. Every evaluation of a batch, its
+first steps too, goes through these: a batch's first use compiles one copy of the
+forward dynamics (and the scalar G(q) of the metrics), not the single run's.
 
 ``run_lanes`` integrates a batch's variants with RK45 or DOP853 as ``run_many`` does
 (SciPy's steps, error norms, step-size control and dense output, each variant with its
@@ -26,14 +28,6 @@ def jit(f):  # the module's header defines numba's
 jit_inline = jit  # and this one (numba's, inline="always")
 
 
-def rhs_sincos(w):  # generated: the sines and cosines of rhs_lanes's work array
-    raise NotImplementedError
-
-
-def rhs_lanes(w):  # generated: ẏ of LANE_COUNT states under PD plus gravity, in place in w
-    raise NotImplementedError
-
-
 def phys_sincos(w):  # generated: the sines and cosines of the physical kernels' work array
     raise NotImplementedError
 
@@ -46,12 +40,13 @@ def free_lanes(w):  # generated: ẏ without gravity of LANE_COUNT states, effor
     raise NotImplementedError
 
 
-LANE_COUNT = RHS_ROWS = RHS_LANES_OUT = PHYS_ROWS = GRAVITY_LANES_OUT = FREE_LANES_OUT = 0
-first_step_pd = adaptive = efforts_at = metrics_of_pd = samples_until = clip = losses = rhs_lanes
+LANE_COUNT = PHYS_ROWS = GRAVITY_LANES_OUT = FREE_LANES_OUT = 0
+metrics_of_pd = samples_until = clip = losses = free_lanes
 SAFETY = MIN_FACTOR = MAX_FACTOR = FRICTION_VELOCITY = 0.0
 D8_NS = D8_A = D8_C = D8_E3 = D8_E5 = D8_D = RK45_AB = RK45_C = RK45_E = RK45_P = None
 LAW_PD_GRAVITY = METHOD_DOP853 = KEEP_FINAL = KEEP_METRICS = KEEP_TRAJECTORIES = 0
 STATUS_OK = STATUS_STEP_UNDERFLOW = STATUS_MAX_STEPS = STATUS_EFFORT_NONFINITE = 0
+STATUS_NONFINITE = 0
 # --- lanes ---
 
 
@@ -60,8 +55,8 @@ if LANE_COUNT not in (0, 8):  # pragma: no cover - the loops below are written f
 
 
 @jit_inline
-def combine_lanes(Y, K, A, s, h, out):
-    """out[:, l] = Y[:, l] + (Σ_{j<s} A[s, j] K[j, :, l]) · h[l] for every lane (combine's order).
+def combine_lanes(Y, K, A, s, h, w):
+    """w[i·L + l] = Y[i, l] + (Σ_{j<s} A[s, j] K[j, i, l]) · h[l] for every lane (combine's order).
 
     The 8 lanes' sums are 8 locals (in registers: no store and reload a term).
     """
@@ -79,15 +74,16 @@ def combine_lanes(Y, K, A, s, h, out):
                 a5 += aj * k[5]
                 a6 += aj * k[6]
                 a7 += aj * k[7]
-        o, y = out[i], Y[i]
-        o[0] = y[0] + a0 * h[0]
-        o[1] = y[1] + a1 * h[1]
-        o[2] = y[2] + a2 * h[2]
-        o[3] = y[3] + a3 * h[3]
-        o[4] = y[4] + a4 * h[4]
-        o[5] = y[5] + a5 * h[5]
-        o[6] = y[6] + a6 * h[6]
-        o[7] = y[7] + a7 * h[7]
+        y = Y[i]
+        r = i * 8
+        w[r] = y[0] + a0 * h[0]
+        w[r + 1] = y[1] + a1 * h[1]
+        w[r + 2] = y[2] + a2 * h[2]
+        w[r + 3] = y[3] + a3 * h[3]
+        w[r + 4] = y[4] + a4 * h[4]
+        w[r + 5] = y[5] + a5 * h[5]
+        w[r + 6] = y[6] + a6 * h[6]
+        w[r + 7] = y[7] + a7 * h[7]
 
 
 @jit
@@ -196,43 +192,62 @@ def dense_lanes(dop853, n_stages, K, Y, Ynew, h, F):
                 f[0], f[1], f[2], f[3], f[4], f[5], f[6], f[7] = a0, a1, a2, a3, a4, a5, a6, a7
 
 
-@jit_inline
-def stage_lanes(phys, Y, K, A, s, h, lanes_w, wy, wo, wf, wfy, wft, wfo, gout, CL, P, fold, okay):
+@jit
+def stage_lanes(phys, Y, K, A, s, h, wf, CL, P, fold, okay):
     """Stage s of every lane: its state into the work rows, ẏ into K[s]; the state's rows.
 
-    Without a physical model (phys[0] == 0), ``rhs_lanes`` (PD with the gravity folded);
-    else G(q) by ``gravity_lanes``, the PD-plus-G efforts saturated at the effort limits,
-    less G, plus damping, friction and the compliant position limits (``passive``'s
-    terms), then ``free_lanes``: the forward dynamics without gravity under them.
-    ``fold`` (LANE_COUNT,) booleans and ``okay`` (LANE_COUNT,) integers: scratch.
+    ``free_lanes``, the forward dynamics without gravity, under the PD efforts (the law's
+    G(q) and the robot's cancel); with a physical model (phys[0] != 0) G(q) by
+    ``gravity_lanes``, the PD-plus-G efforts saturated at the effort limits, less G,
+    plus damping, friction and the compliant position limits (``passive``'s terms).
+    With s = 0 (and any h), ẏ at the states Y into K[0]. ``wf``: the kernels' work
+    array (rows of L values: the states from row 0, the efforts from row n, G(q) from
+    GRAVITY_LANES_OUT, ẏ from FREE_LANES_OUT); ``fold`` (LANE_COUNT,) booleans and
+    ``okay`` (LANE_COUNT,) integers: scratch.
     """
     n = Y.shape[0]
+    nv = n // 2
     L = LANE_COUNT
     Ks = K[s]
-    if phys[0] == 0:
-        combine_lanes(Y, K, A, s, h, wy)
-        rhs_sincos(lanes_w)
-        rhs_lanes(lanes_w)
-        for i in range(n):
-            for lane in range(L):
-                Ks[i, lane] = wo[i, lane]
-        return wy
-    combine_lanes(Y, K, A, s, h, wfy)
+    combine_lanes(Y, K, A, s, h, wf)
     phys_sincos(wf)  # once for G and the forward dynamics
-    nv = n // 2
+    # The PD efforts go into rows n… first (the forward dynamics' efforts, completed below).
+    if phys[0] == 0:
+        for k in range(nv):
+            for lane in range(L):
+                q = wf[k * L + lane]
+                wf[(n + k) * L + lane] = -CL[nv + k, lane] * wf[(nv + k) * L + lane] - CL[
+                    k, lane
+                ] * (q - CL[2 * nv + k, lane])
+    else:
+        physical_efforts(nv, wf, CL, P, fold, okay)
+    free_lanes(wf)
+    out = FREE_LANES_OUT * L
+    for i in range(n):
+        for lane in range(L):
+            Ks[i, lane] = wf[out + i * L + lane]
+
+
+@jit
+def physical_efforts(nv, wf, CL, P, fold, okay):
+    """The efforts of stage_lanes under the physical model, into wf's rows n… (see there)."""
+    n = 2 * nv
+    g0 = GRAVITY_LANES_OUT * LANE_COUNT
+    L = LANE_COUNT
     # A lane is folded where no joint's PD effort exceeds its room (P[11]: the effort limit
     # less a bound of |G|) and no joint is past a limit: clip(PD + G) − G is PD there, to
     # rounding, and G(q) is computed only if some lane is not (each lane's numbers depend
     # on its own state alone, not on its neighbours).
-    # The PD efforts go into wft first (the forward dynamics' efforts, completed below).
     for lane in range(L):
         okay[lane] = 0
     for k in range(nv):
         room, lo, hi = P[11, k], P[0, k], P[1, k]
         for lane in range(L):
-            q = wfy[k, lane]
-            pd = -CL[nv + k, lane] * wfy[nv + k, lane] - CL[k, lane] * (q - CL[2 * nv + k, lane])
-            wft[k, lane] = pd
+            q = wf[k * L + lane]
+            pd = -CL[nv + k, lane] * wf[(nv + k) * L + lane] - CL[k, lane] * (
+                q - CL[2 * nv + k, lane]
+            )
+            wf[(n + k) * L + lane] = pd
             okay[lane] += (abs(pd) <= room) & (lo <= q) & (q <= hi)
     folded = 0
     for lane in range(L):
@@ -243,37 +258,33 @@ def stage_lanes(phys, Y, K, A, s, h, lanes_w, wy, wo, wf, wfy, wft, wfo, gout, C
             d, fr = P[3, k], P[4, k]
             if fr != 0.0:
                 for lane in range(L):
-                    v = wfy[nv + k, lane]
-                    wft[k, lane] += -d * v - fr * math.tanh(v / FRICTION_VELOCITY)
+                    v = wf[(nv + k) * L + lane]
+                    wf[(n + k) * L + lane] += -d * v - fr * math.tanh(v / FRICTION_VELOCITY)
             else:
                 for lane in range(L):
-                    wft[k, lane] += -d * wfy[nv + k, lane]
-        free_lanes(wf)
-        for i in range(n):
-            for lane in range(L):
-                Ks[i, lane] = wfo[i, lane]
-        return wfy
+                    wf[(n + k) * L + lane] += -d * wf[(nv + k) * L + lane]
+        return
     gravity_lanes(wf)
     for k in range(nv):
         lo, hi, e, d, fr, kk, bb = P[0, k], P[1, k], P[2, k], P[3, k], P[4, k], P[5, k], P[6, k]
         if fr != 0.0:
             for lane in range(L):
-                q = wfy[k, lane]
-                v = wfy[nv + k, lane]
-                pd = wft[k, lane]
+                q = wf[k * L + lane]
+                v = wf[(nv + k) * L + lane]
+                pd = wf[(n + k) * L + lane]
                 if fold[lane]:
                     t = pd
                 else:
-                    g = gout[k, lane]
+                    g = wf[g0 + k * L + lane]
                     t = clip(pd + g, e) - g
-                wft[k, lane] = t + losses(q, v, lo, hi, d, fr, kk, bb)
+                wf[(n + k) * L + lane] = t + losses(q, v, lo, hi, d, fr, kk, bb)
             continue
         # no friction: ``losses`` and ``clip`` without a call or a jump, lane by lane alike
         for lane in range(L):
-            q = wfy[k, lane]
-            v = wfy[nv + k, lane]
-            pd = wft[k, lane]
-            g = gout[k, lane]
+            q = wf[k * L + lane]
+            v = wf[(nv + k) * L + lane]
+            pd = wf[(n + k) * L + lane]
+            g = wf[g0 + k * L + lane]
             u = pd + g
             u = e if u > e else (-e if u < -e else u)
             t = pd if fold[lane] else u - g
@@ -281,12 +292,80 @@ def stage_lanes(phys, Y, K, A, s, h, lanes_w, wy, wo, wf, wfy, wft, wfo, gout, C
             below = max(0.0, kk * (lo - q) - bb * v)
             above = min(0.0, kk * (hi - q) - bb * v)
             f = f + below if q < lo else (f + above if q > hi else f)
-            wft[k, lane] = t + f
-    free_lanes(wf)
-    for i in range(n):
-        for lane in range(L):
-            Ks[i, lane] = wfo[i, lane]
-    return wfy
+            wf[(n + k) * L + lane] = t + f
+
+
+@jit
+def first_steps(phys, Y, start, F0, F1, Ytmp, hz, atol, rtol, order, interval, max_step,
+                work, out):  # fmt: skip
+    """SciPy's ``select_initial_step`` of the lanes whose ``start`` >= 0, side by side.
+
+    Y (n, L): the lanes' states (those starting: their initial states); ẏ there into F0
+    (1, n, L), then at Y + h0·ẏ into F1; ``work`` stage_lanes's arrays after its h.
+    Returns nothing; ``out`` (4, L) per lane: status, coordinate, evaluations, and the
+    step (or the time of the failure) [s], as ``first_step``'s.
+    """
+    n = Y.shape[0]
+    L = LANE_COUNT
+    wf, CL, P, fold, okay = work
+    s0 = start.shape[0] - L  # 0, not a literal: stage_lanes is compiled once
+    stage_lanes(phys, Y, F0, D8_A, s0, hz, wf, CL, P, fold, okay)
+    for lane in range(L):
+        for i in range(n):
+            Ytmp[i, lane] = Y[i, lane]
+        if start[lane] < 0:
+            continue
+        out[0, lane] = STATUS_OK
+        k = -1
+        for i in range(n):
+            if not math.isfinite(F0[0, i, lane]):
+                k = i
+                break
+        if k >= 0:
+            out[0, lane], out[1, lane], out[2, lane], out[3, lane] = STATUS_NONFINITE, k, 1, 0.0
+            continue
+        d0 = 0.0
+        d1 = 0.0
+        for i in range(n):
+            sc = atol[i] + abs(Y[i, lane]) * rtol
+            x = Y[i, lane] / sc
+            d0 += x * x
+            x = F0[0, i, lane] / sc
+            d1 += x * x
+        d0 = math.sqrt(d0 / n)
+        d1 = math.sqrt(d1 / n)
+        if d0 < 1e-5 or d1 < 1e-5:
+            h0 = 1e-6
+        else:
+            h0 = 0.01 * d0 / d1
+        h0 = min(h0, interval)
+        for i in range(n):
+            Ytmp[i, lane] = Y[i, lane] + h0 * F0[0, i, lane]
+        out[1, lane] = d1
+        out[3, lane] = h0
+    stage_lanes(phys, Ytmp, F1, D8_A, s0, hz, wf, CL, P, fold, okay)
+    for lane in range(L):
+        if start[lane] < 0 or out[0, lane] != STATUS_OK:
+            continue
+        d1, h0 = out[1, lane], out[3, lane]
+        k = -1
+        for i in range(n):
+            if not math.isfinite(F1[0, i, lane]):
+                k = i
+                break
+        if k >= 0:
+            out[0, lane], out[1, lane], out[2, lane], out[3, lane] = STATUS_NONFINITE, k, 2, h0
+            continue
+        d2 = 0.0
+        for i in range(n):
+            x = (F1[0, i, lane] - F0[0, i, lane]) / (atol[i] + abs(Y[i, lane]) * rtol)
+            d2 += x * x
+        d2 = math.sqrt(d2 / n) / h0
+        if d1 <= 1e-15 and d2 <= 1e-15:
+            h1 = max(1e-6, h0 * 1e-3)
+        else:
+            h1 = (0.01 / max(d1, d2)) ** (1.0 / (order + 1.0))
+        out[1, lane], out[2, lane], out[3, lane] = -1, 2, min(100.0 * h0, h1, interval, max_step)
 
 
 @jit
@@ -330,9 +409,9 @@ def run_lanes(
     """Variants ``first`` … ``stop`` − 1 under PD plus gravity, LANE_COUNT at a time in lanes.
 
     Arguments as ``run_many``'s (every law PD plus gravity; RK45 or DOP853; P and phys
-    the physical model, applied when phys[0] != 0). The stages
-    are evaluated in the work array of ``rhs_lanes``: states written into its first
-    rows, ẏ read from its rows from RHS_LANES_OUT on.
+    the physical model, applied when phys[0] != 0). The stages are evaluated in the
+    work array of ``free_lanes``: states written into its first rows, the efforts into
+    the next nv, ẏ read from its rows from FREE_LANES_OUT on.
     """
     L = LANE_COUNT
     n = Y0.shape[1]
@@ -349,10 +428,7 @@ def run_lanes(
     Y = np.zeros((n, L))
     Ynew = np.zeros((n, L))
     K = np.zeros((16, n, L))
-    lanes_w = np.zeros(RHS_ROWS * L)
-    wy = lanes_w[: n * L].reshape((n, L))
-    CL = lanes_w[n * L : (n + 3 * nv) * L].reshape((3 * nv, L))
-    wo = lanes_w[RHS_LANES_OUT * L : (RHS_LANES_OUT + n) * L].reshape((n, L))
+    CL = np.zeros((3 * nv, L))
     h = np.zeros(L)
     t = np.zeros(L)
     t_next = np.zeros(L)
@@ -367,24 +443,22 @@ def run_lanes(
     scratch = np.empty((L, T if keep == KEEP_METRICS else 1, n))
     taus = np.empty((T if keep == KEEP_METRICS else 1, nv))
     ws = (np.empty(nv), np.empty(3 * nv), np.empty((nv, nv)), P, phys)
-    ycol = np.empty(n)
-    f = np.empty(n)
-    ytmp = np.empty(n)
-    err = np.empty(n)
-    scale = np.empty(n)
     F = np.empty((7, n))
     FL = np.zeros((7, n, L))
     wf = np.zeros(PHYS_ROWS * L)
-    gout = wf[GRAVITY_LANES_OUT * L : (GRAVITY_LANES_OUT + nv) * L].reshape((nv, L))
-    wfy = wf[: n * L].reshape((n, L))
-    wft = wf[n * L : (n + nv) * L].reshape((nv, L))
-    wfo = wf[FREE_LANES_OUT * L : (FREE_LANES_OUT + n) * L].reshape((n, L))
     fold = np.zeros(L, dtype=np.bool_)
     okay = np.zeros(L, dtype=np.int64)
     ERR = np.zeros((n, L))
     e5s = np.zeros(L)
     e3s = np.zeros(L)
     acc3 = np.zeros(L)
+    start = np.full(L, -1, dtype=np.int64)
+    F0 = np.zeros((1, n, L))
+    F1 = np.zeros((1, n, L))
+    Ytmp = np.zeros((n, L))
+    hz = np.zeros(L)
+    begun = np.zeros((4, L))
+    work = (wf, CL, P, fold, okay)
     rt = np.zeros(1)
     rv = np.zeros((1, 1))
     next_b = first
@@ -392,33 +466,42 @@ def run_lanes(
     for lane in range(L):
         lane_b[lane] = -1
     while True:
-        # Lanes without a variant take the next one: its first step, one lane at a time.
-        for lane in range(L):
-            while lane_b[lane] < 0 and next_b < stop:
-                b = next_b
-                next_b += 1
-                for i in range(n):
-                    ycol[i] = Y0[b, i]
-                status, k, ev, hh = first_step_pd(
-                    t0, ycol, LAW_PD_GRAVITY, C[b], rt, rv, atol, rtol, order, t_bound - t0,
-                    max_step, f, ytmp, err, scale, ws,
-                )  # fmt: skip
+        # Lanes without a variant take the next ones: their first steps side by side.
+        while next_b < stop:
+            starting = 0
+            for lane in range(L):
+                start[lane] = -1
+                if lane_b[lane] < 0 and next_b < stop:
+                    b = next_b
+                    next_b += 1
+                    start[lane] = b
+                    starting += 1
+                    for i in range(n):
+                        Y[i, lane] = Y0[b, i]
+                    for i in range(3 * nv):
+                        CL[i, lane] = C[b, i]
+            if starting == 0:
+                break
+            first_steps(phys, Y, start, F0, F1, Ytmp, hz, atol, rtol, order, t_bound - t0,
+                        max_step, work, begun)  # fmt: skip
+            for lane in range(L):
+                b = start[lane]
+                if b < 0:
+                    continue
+                status = int(begun[0, lane])
                 if status != STATUS_OK:
                     info[b, 0] = status
-                    info[b, 1] = k
-                    info[b, 2] = ev
-                    t_reached[b] = hh
+                    info[b, 1] = int(begun[1, lane])
+                    info[b, 2] = int(begun[2, lane])
+                    t_reached[b] = t0 + begun[3, lane]
                     continue
                 lane_b[lane] = b
                 live += 1
                 for i in range(n):
-                    Y[i, lane] = ycol[i]
-                    K[0, i, lane] = f[i]
-                for i in range(3 * nv):
-                    CL[i, lane] = C[b, i]
+                    K[0, i, lane] = F0[0, i, lane]
                 t[lane] = t0
-                h_abs[lane] = hh
-                evals[lane] = ev
+                h_abs[lane] = begun[3, lane]
+                evals[lane] = int(begun[2, lane])
                 attempts[lane] = 0
                 i_out[lane] = 0
                 rejected[lane] = False
@@ -456,10 +539,10 @@ def run_lanes(
             h_abs[lane] = abs(h[lane])
             t_next[lane] = t_new
         for s in range(1, n_stages + 1):
-            target = stage_lanes(
-                phys, Y, K, A, s, h, lanes_w, wy, wo, wf, wfy, wft, wfo, gout, CL, P, fold, okay
-            )
-        Ynew[:, :] = target
+            stage_lanes(phys, Y, K, A, s, h, wf, CL, P, fold, okay)
+        for i in range(n):  # the last stage's state
+            for lane in range(L):
+                Ynew[i, lane] = wf[i * L + lane]
         # Each lane's error norm: accepted, or rejected with a smaller step.
         error_lanes(dop853, n_stages, K, Y, Ynew, h, atol, rtol, ERR, e5s, e3s, acc3)
         any_dense = False
@@ -520,10 +603,7 @@ def run_lanes(
                 rejected[lane] = True
         if any_dense and dop853:
             for s in range(n_stages + 1, 16):
-                stage_lanes(
-                    phys, Y, K, D8_A, s, h, lanes_w, wy, wo, wf, wfy, wft, wfo, gout,
-                    CL, P, fold, okay,
-                )  # fmt: skip
+                stage_lanes(phys, Y, K, D8_A, s, h, wf, CL, P, fold, okay)
         if any_dense:
             dense_lanes(dop853, n_stages, K, Y, Ynew, h, FL)
         # Accepted lanes: dense output, then their new state; a finished one lets go.

@@ -28,8 +28,9 @@ Timed interleaved in one run (medians), one core each:
 
 * rrt-pin   ``simulate_batch(..., backend="compiled", keep="final" | "metrics",
             threads=1)`` of --batch variants (q0 spread by ±0.05 rad), at the loosest rtol
-            of 1e-6 … 1e-13 (atol = rtol/100) whose final state (final) or every output
-            (metrics) meets --accuracy on the scene's run, as robot_sim picks it;
+            of 1e-6 … 1e-13 in half-decades (--per-decade; atol = rtol/100) whose final
+            state (final) or every output (metrics) meets --accuracy on the scene's run and
+            three variants (MuJoCo's steps, 1-2-5 a decade, are chosen on the same runs);
 * MuJoCo    ``mujoco.rollout`` with one MjData (one thread) of the first --mujoco-batch of
             those variants at each integrator's step (it records the full state at every
             step, in chunks of outputs so the memory stays small).
@@ -51,7 +52,14 @@ import numpy as np
 
 from scripts.bench.common import interleaved, verdict
 
-LADDER_RTOL = [10.0**-k for k in range(6, 14)]
+
+def rtol_ladder(per_decade: int) -> list[float]:
+    """rrt-pin's tolerances 1e-6 … 1e-13, loosest first, ``per_decade`` a decade (1: decades)."""
+    return [10.0 ** (-k / per_decade) for k in range(6 * per_decade, 13 * per_decade + 1)]
+
+
+#: The default: half-decades (MuJoCo's steps below are 1-2-5 a decade, as fine or finer).
+LADDER_RTOL = rtol_ladder(2)
 # steps [s] dividing the 10 ms outputs, largest first
 STEPS = [1e-2, 5e-3, 2e-3, 1e-3, 5e-4, 2.5e-4, 2e-4, 1e-4, 5e-5, 2e-5, 1e-5, 5e-6, 2e-6, 1e-6]
 DT_OUT = 0.01  # [s]
@@ -272,9 +280,9 @@ def find_step(name, law, q0s, qf, refs, integrator, accuracy, min_step) -> Step:
     return found
 
 
-def loosest_rtol(side, refs, rows, accuracy) -> tuple[float, tuple[float, float]]:
-    """The loosest rtol of LADDER_RTOL whose runs meet ``accuracy`` at ``rows``; its errors."""
-    for rtol in LADDER_RTOL:
+def loosest_rtol(side, refs, rows, accuracy, ladder=None) -> tuple[float, tuple[float, float]]:
+    """The loosest rtol of ``ladder`` (LADDER_RTOL) meeting ``accuracy`` at ``rows``; its errors."""
+    for rtol in LADDER_RTOL if ladder is None else ladder:
         e = np.abs(side(rtol) - refs)
         if float(e[:, rows].max()) <= accuracy:
             break
@@ -338,8 +346,9 @@ def bench(name: str, args: argparse.Namespace, t: np.ndarray) -> list[str]:
     for keep, rows in (("final", slice(-1, None)), ("metrics", slice(None))):
         side = f"rrt-pin {keep}"
         rtols[keep], errors[side] = loosest_rtol(lambda r: rrt(q0c, r, method="DOP853").q, refs,
-                                                 rows, args.accuracy)  # fmt: skip
-        print(f"  rrt-pin {keep:<8} rtol {rtols[keep]:.0e}: max |q error| final "
+                                                 rows, args.accuracy,
+                                                 rtol_ladder(args.per_decade))  # fmt: skip
+        print(f"  rrt-pin {keep:<8} rtol {rtols[keep]:.2g}: max |q error| final "
               f"{errors[side][0]:.1e}, every output {errors[side][1]:.1e}")  # fmt: skip
 
     # the timed sides
@@ -349,7 +358,7 @@ def bench(name: str, args: argparse.Namespace, t: np.ndarray) -> list[str]:
         side = f"rrt-pin {keep}"
         funcs[side] = lambda keep=keep: rrt(q0s, rtols[keep], keep=keep)
         setting[side] = (f'rrt-pin simulate_batch(keep="{keep}"), {B} variants, DOP853 '
-                         f"rtol {rtols[keep]:.0e}", B)  # fmt: skip
+                         f"rtol {rtols[keep]:.2g}", B)  # fmt: skip
         result = funcs[side]()
         out = result.q[checked, -1]  # the batch's own final rows against the references
         evals[side] = float(np.mean(result.evaluations)) if result.evaluations is not None else 0
@@ -414,6 +423,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--integrators", default="RK4,Euler,implicitfast")
     ap.add_argument("--min-step", type=float, default=1e-5,
                     help="smallest step tried for first-order integrators [s] (1e-5)")  # fmt: skip
+    ap.add_argument("--per-decade", type=int, default=2, choices=(1, 2),
+                    help="rrt-pin's tolerances a decade of 1e-6 … 1e-13 (2: half-decades, as "
+                    "fine as MuJoCo's 1-2-5 steps; 1: decades, as before)")  # fmt: skip
     ap.add_argument("--markdown", action="store_true", help="print the table as Markdown")
     args = ap.parse_args(argv)
     require()
