@@ -332,10 +332,10 @@ def test_the_lanes_call_pd_copies_that_name_no_other_laws_dynamics(ur5):
         return re.search(rf"\ndef {name}\(.*?(?=\n@jit|\Z)", source, flags=re.DOTALL).group(0)
 
     lanes = body("run_lanes")
-    assert "first_step_pd(" in lanes and "metrics_of_pd(" in lanes
-    assert not re.search(r"\b(first_step|metrics_of|rhs|efforts)\(", lanes)
-    assert "rhs_pd_law(" in body("first_step_pd") and not re.search(
-        r"\brhs\(", body("first_step_pd")
+    assert "first_steps(" in lanes and "metrics_of_pd(" in lanes  # first steps in lanes too
+    assert not re.search(r"\b(first_step|first_step_pd|metrics_of|rhs|efforts)\(", lanes)
+    assert "stage_lanes(" in body("first_steps") and not re.search(
+        r"\brhs\w*\(", body("first_steps")
     )
     assert "limits_of_pd(" in body("metrics_of_pd")
     assert "efforts_pd_law(" in body("limits_of_pd")
