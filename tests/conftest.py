@@ -5,7 +5,8 @@ Two variables are set for the whole session (and the processes it starts):
 * ``RRT_PIN_BACKEND=pinocchio``: the default backend (``auto``) picks compiled code when
   it is built, which depends on what earlier tests compiled; tests that do not name a
   backend test the engine of record. ``tests/test_defaults.py`` tests ``auto`` itself
-  (the variable removed).
+  (the variable removed), and the sweep tests remove it for their modules
+  (:func:`auto_backend`): a sweep chooses like every process it starts, which is what they test.
 * ``RRT_PIN_AOT=0``: no generated kernel is built ahead of time (7–9 s each, beside the
   JIT's compilation); ``tests/test_defaults.py`` builds one on purpose.
 """
@@ -69,3 +70,11 @@ def tiny_fs(tmp_path):
     finally:
         if subprocess.run(["umount", str(where)], capture_output=True).returncode != 0:
             subprocess.run(["umount", "-l", str(where)], capture_output=True)
+
+
+@pytest.fixture(scope="module")
+def auto_backend():
+    """The default backend ``auto`` for a whole module (``$RRT_PIN_BACKEND`` removed)."""
+    with pytest.MonkeyPatch.context() as mp:
+        mp.delenv("RRT_PIN_BACKEND", raising=False)
+        yield

@@ -27,7 +27,10 @@ from rrt_pin.simulate.metrics import batch_metrics
 from rrt_pin.sweeps.compute import metric_names, plan, run_chunk
 from rrt_pin.sweeps.spec import spec_from_dict
 
-pytestmark = pytest.mark.filterwarnings("ignore::rrt_pin.robot.limits.LimitWarning")
+pytestmark = [
+    pytest.mark.filterwarnings("ignore::rrt_pin.robot.limits.LimitWarning"),
+    pytest.mark.usefixtures("auto_backend"),  # sweeps choose their backend
+]
 
 HAS_NUMBA = importlib.util.find_spec("numba") is not None
 needs_numba = pytest.mark.skipif(not HAS_NUMBA, reason="numba not installed (rrt-pin[fast])")

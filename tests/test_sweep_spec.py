@@ -365,3 +365,32 @@ def test_random_samples_are_refused_before_they_exceed_memory(count, refused):
         ), proc.stdout
     else:
         assert proc.stdout.startswith("drawn [('m1', 1000), ('m2', 1000), ('m3', 1000)]")
+
+
+def test_the_column_checks_are_params_own():
+    """A sweep checks its arm variants column by column: the same verdicts as Params(**row)."""
+    from dataclasses import fields
+
+    from rrt_pin.core.errors import RrtPinError
+    from rrt_pin.robot.params import Params, check_columns, checked
+
+    rng = np.random.default_rng(5)
+    base = Params()
+    names = [f.name for f in fields(Params)]
+    n = 400
+    table = {k: np.full(n, float(getattr(base, k))) for k in names}
+    for k in ("m3", "L1", "I3x", "I2z", "beta01", "gamma23", "Tp", "q10"):
+        with np.errstate(invalid="ignore"):  # 0·inf: a NaN on purpose
+            table[k] = table[k] * rng.choice([1.0, 1.5, -0.5, 3.0, np.inf, np.nan, 0.0], n)
+    table["L1"][:3] = [1e308, 9e307, 1e307]  # LB = 2·L1 overflows for the first two
+    bad, why = check_columns(table)
+    assert 0 < bad.sum() < n
+    for i in range(n):
+        row = {k: float(table[k][i]) for k in names}
+        try:
+            made = Params(**row)
+        except RrtPinError:
+            assert bad[i] and why[i], (i, row)
+            continue
+        assert not bad[i] and why[i] is None, (i, why[i])
+        assert checked(row) == made

@@ -22,7 +22,9 @@ __all__ = [
     "PARAM_DOCS",
     "PLANT_FIELDS",
     "Params",
+    "check_columns",
     "check_params",
+    "checked",
     "param_names",
     "parse_number",
     "parse_overrides",
@@ -249,6 +251,56 @@ def _rod_moment(p: Params, mass: str, length: str, name: str) -> float:
             f"too large: the rod inertia {name} = {mass}·{length}²/3 overflows ({length}={L!r})",
         )
     return value
+
+
+def check_columns(table: Mapping[str, Any]) -> tuple[Any, list[str | None]]:
+    """:class:`Params`' checks on columns of values, one row a parameter set (a sweep's).
+
+    ``table`` maps every field to a 1-D array (the rod moments filled in, as
+    ``m·L²/3`` where defaulted). Returns which rows break a rule, and the first rule
+    each breaks (None where none): not finite, not > 0, a negative gain or moment, a
+    moment above the sum of the other two, ``LB = 2·L1`` overflowing.
+    """
+    import numpy as np
+
+    count = len(next(iter(table.values())))
+    bad = np.zeros(count, dtype=bool)
+    why: list[str | None] = [None] * count
+
+    def mark(mask: Any, reason: str) -> None:
+        for i in np.flatnonzero(mask & ~bad):
+            why[i] = reason
+        bad[:] |= mask
+
+    with np.errstate(over="ignore", invalid="ignore"):
+        for name, col in table.items():
+            mark(~np.isfinite(col), f"{name} is not finite")
+        for name in _POSITIVE:
+            mark(table[name] <= 0, f"{name} must be > 0")
+        mark(~np.isfinite(2.0 * table["L1"]), "L1 is too large: LB = 2·L1 overflows")
+        for name in _NONNEGATIVE:
+            mark(table[name] < 0, f"{name} must be >= 0")
+        for names in _BODIES.values():
+            moments = [table[n] for n in names]
+            total = moments[0] + moments[1] + moments[2]
+            for i, n in enumerate(names):
+                mark(moments[i] < 0, f"{n} must be >= 0")
+                mark(
+                    moments[i] > total - moments[i] + 1e-12 * total,
+                    f"{n} breaks the triangle inequality",
+                )
+    return bad, why
+
+
+def checked(values: Mapping[str, float]) -> Params:
+    """A :class:`Params` of every field's value, a row that passed :func:`check_columns`.
+
+    No check is repeated (a sweep makes thousands a second); anything else builds
+    ``Params(**values)``, which checks.
+    """
+    made = object.__new__(Params)
+    made.__dict__.update(values)
+    return made
 
 
 @functools.cache

@@ -61,6 +61,8 @@ __all__ = [
 def _gains(name: str, value: Any, n: int) -> tuple[float, ...]:
     """A gain vector: a scalar (same for every joint) or n finite values ≥ 0."""
     values = _floats(name, value, n)
+    if all(0.0 <= v < math.inf for v in values):  # the common case, at once
+        return values
     for i, v in enumerate(values):
         if not math.isfinite(v):
             raise ParameterError(f"{name}[{i}]", v, "gain must be finite")
@@ -78,6 +80,8 @@ def _target(name: str, value: Any, n: int) -> tuple[float, ...]:
 
 
 def _floats(name: str, value: Any, n: int) -> tuple[float, ...]:
+    if type(value) is tuple and len(value) == n and all(type(v) is float for v in value):
+        return value  # already what is returned (a sweep's Params make thousands)
     try:
         arr = np.asarray(value, dtype=float)
     except (TypeError, ValueError) as e:

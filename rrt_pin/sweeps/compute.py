@@ -6,8 +6,8 @@ range), returning plain numpy columns. The robot's family
 (:mod:`rrt_pin.sweeps.variants`) turns the values into runs; every robot then goes
 through :func:`rrt_pin.simulate.simulate_batch` (``keep="metrics"``,
 ``failures="record"``) or :func:`rrt_pin.dynamics.inverse.inverse_dynamics`, on the
-backend :func:`rrt_pin.core.backends.choose` picks for a job that may build its code
-(the same in every process). A variant's numbers never depend on the chunk it is in:
+backend ``$RRT_PIN_BACKEND`` names, else the one :func:`rrt_pin.core.backends.choose`
+picks for a job that may build its code (the same in every process). A variant's numbers never depend on the chunk it is in:
 a backend whose variants are independent runs the chunk as one batch; another in
 blocks of :data:`BLOCK` variants aligned on the variant index.
 """
@@ -89,7 +89,7 @@ class Plan:
 
 
 @functools.lru_cache(maxsize=4)
-def _plan(digest: str, source_json: str) -> Plan:
+def _plan(digest: str, source_json: str, default: str) -> Plan:  # noqa: ARG001  (a key)
     import json
 
     spec = spec_from_dict(json.loads(source_json))
@@ -108,7 +108,8 @@ def _plan(digest: str, source_json: str) -> Plan:
         raise SpecError(f"[base] needs {missing[0].rsplit('_', 1)[0]} for {robot.name}")
     t = time_grid(spec.tf, spec.dt)
     work = spec.variants * (spec.tf if spec.task == "simulate" else t.size)
-    choice = backends.choose(robot, spec.task, spec.method, work, batch=True, build=True)
+    # $RRT_PIN_BACKEND, else auto; every process of the sweep chooses alike
+    choice = backends.decide(robot, None, spec.task, spec.method, work, batch=True, build=True)
     method = rtol = atol = step = None
     if spec.task == "simulate":
         try:
@@ -137,7 +138,11 @@ def plan(spec: Spec) -> Plan:
     """
     import json
 
-    return _plan(spec.digest(), json.dumps(spec.source))
+    try:
+        default = backends.default()
+    except InputError as e:
+        raise SpecError(str(e)) from e
+    return _plan(spec.digest(), json.dumps(spec.source), default)
 
 
 def block(p: Plan) -> int | None:

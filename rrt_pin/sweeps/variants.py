@@ -23,7 +23,7 @@ import numpy as np
 
 from rrt_pin.core import text
 from rrt_pin.core.errors import RrtPinError, SpecError
-from rrt_pin.robot.params import PARAM_DOCS, Params
+from rrt_pin.robot.params import PARAM_DOCS, Params, check_columns, checked
 from rrt_pin.robot.robot import Robot
 from rrt_pin.robot.robots import chapter_arm
 from rrt_pin.simulate.control import ChapterController, PDGravityController
@@ -65,11 +65,6 @@ class Variants:
         own = self.params[i]
         assert own is not None, "an invalid variant has no robot"
         return chapter_arm(own)
-
-
-_POSITIVE = ("L1", "L2", "m1", "m2", "m3", "Tp")
-_GAINS = ("beta01", "gamma01", "beta12", "gamma12", "beta23", "gamma23")
-_BODIES = (("I1x", "I1y", "I1z"), ("I2x", "I2y", "I2z"), ("I3x", "I3y", "I3z"))
 
 
 class ChapterFamily:
@@ -116,7 +111,8 @@ class ChapterFamily:
         """Every Params field of ``count`` variants, and which are invalid (with why).
 
         Rod inertias left at their defaults follow the varied masses and lengths, as in
-        :class:`~rrt_pin.robot.params.Params`; the checks are Params', column by column.
+        :class:`~rrt_pin.robot.params.Params`; the checks are Params'
+        (:func:`~rrt_pin.robot.params.check_columns`).
         """
         explicit = set(spec.base) | set(values)
         table = {n: np.broadcast_to(values.get(n, base[n]), (count,)).astype(float) for n in base}
@@ -126,29 +122,7 @@ class ChapterFamily:
                 if name not in explicit:
                     with np.errstate(over="ignore", invalid="ignore"):
                         table[name] = table[m] * table[L] ** 2 / 3.0
-        bad = np.zeros(count, dtype=bool)
-        why: list[str | None] = [None] * count
-
-        def mark(mask: np.ndarray, reason: str) -> None:
-            for i in np.flatnonzero(mask & ~bad):
-                why[i] = reason
-            bad[:] |= mask
-
-        for name, col in table.items():
-            mark(~np.isfinite(col), f"{name} is not finite")
-        for name in _POSITIVE:
-            mark(table[name] <= 0, f"{name} must be > 0")
-        for name in _GAINS:
-            mark(table[name] < 0, f"{name} must be >= 0")
-        for body in _BODIES:
-            moments = [table[n] for n in body]
-            total = moments[0] + moments[1] + moments[2]
-            for i, n in enumerate(body):
-                mark(moments[i] < 0, f"{n} must be >= 0")
-                mark(
-                    moments[i] > total - moments[i] + 1e-12 * total,
-                    f"{n} breaks the triangle inequality",
-                )
+        bad, why = check_columns(table)
         return table, bad, why
 
     def build(
@@ -157,10 +131,11 @@ class ChapterFamily:
     ) -> Variants:  # fmt: skip
         """The variants' runs: each valid one its own Params (and law, if ``laws``)."""
         table, bad, why = self.table(base, spec, values, count)
-        rows = [dict(zip(table, col, strict=True)) for col in zip(*table.values(), strict=True)]
+        names = tuple(table)
+        rows = zip(*(col.tolist() for col in table.values()), strict=True)
         params: list[Params | None] = [
-            None if bad[i] else Params(**{k: float(v) for k, v in rows[i].items()})
-            for i in range(count)
+            None if b else checked(dict(zip(names, row, strict=True)))
+            for b, row in zip(bad.tolist(), rows, strict=True)
         ]
         made = [
             None if p is None or not laws

@@ -29,7 +29,7 @@ the figures in docs/benchmarks.md come from these. Shared timing helpers are in
 Every benchmark times the backend it names; a call that names none times the engine of
 record: importing this package sets ``RRT_PIN_BACKEND=pinocchio`` unless it is set (the
 default backend, ``auto``, would run compiled code wherever it is built, which depends on
-the machine's cache). ``defaults`` removes it, as it times the default itself.
+the machine's cache). ``defaults`` and ``sweep`` remove it: they time the default itself.
 """
 
 import os
