@@ -7,11 +7,14 @@ reads (and lints) as Python; it is never imported to run.
 
 :func:`adams` is the algorithm of Shampine and Gordon's ``ode.f`` (netlib ``ode``;
 SLATEC's DSTEPS and DINTP are the same; *Computer Solution of Ordinary Differential
-Equations: the Initial Value Problem*, 1975), step for step: Adams PECE in modified
+Equations: the Initial Value Problem*, 1975), its decisions in the same order (it
+multiplies by 1/w and 1/ψ where ode.f divides: the last digits differ): Adams PECE in modified
 divided differences, orders 1 … 12, local extrapolation, the step size halved, kept
 or doubled (or set from the error when it must shrink), the order raised in the
 starting phase and then chosen from the estimated errors at orders k − 2 … k + 1,
 the roundoff control (summation of the propagated rounding) of tight tolerances.
+It is explicit: on a stiff closed loop (high gains against light links) its steps
+are held by its stability, not by the tolerance.
 A step costs two evaluations of the template's ``rhs`` (every law, the physical
 model); a rejected step one. The outputs are the method's own interpolating
 polynomial (INTRP) at each ``t_eval`` inside the step just taken: the steps never
