@@ -115,7 +115,8 @@ def make_files(tmp: Path) -> None:
     (tmp / "sweep_stale" / "chunks" / "chunk-000000.parquet").write_bytes(b"old rows")
     for name, text in (("list", "[]"), ("keys", '{"spec_hash": "x"}'),
                        ("types", '{"spec_hash": 3, "chunk": 2, "done": []}'),
-                       ("chunksfile", started), ("stray", started)):  # fmt: skip
+                       ("chunksfile", started), ("stray", started),
+                       ("backend", started.replace('"done"', '"backend": "compiled", "done"'))):  # fmt: skip
         (tmp / f"sweep_{name}").mkdir()
         (tmp / f"sweep_{name}" / "manifest.json").write_text(text)
     (tmp / "sweep_chunksfile" / "chunks").write_text("not a folder")
@@ -903,6 +904,11 @@ CASES = (
         "extra.parquet' is not a chunk of this sweep",
     ),
     Case(
+        "sweep: --resume on another backend than the sweep ran on",
+        ("sweep", "{tmp}/sweep_ok.toml", "--out", "{tmp}/sweep_backend", "--resume"),
+        "it ran on backend 'compiled', which this process would not use (now 'pinocchio')",
+    ),
+    Case(
         "sweep: a manifest that is a symbolic link",
         ("sweep", "{tmp}/sweep_ok.toml", "--out", "{tmp}/sweep_link"),
         "manifest.json': it is a symbolic link (not followed)",
@@ -1147,5 +1153,11 @@ CASES = (
             OUT,
         ),  # fmt: skip
         "joint 'q1' <limit effort=\"nan\">: not finite",
+    ),
+    # adams (the generated integrators' Adams method)
+    Case(
+        "adams on the chapter's arm",
+        ("simulate", "--method", "adams", "--backend", "compiled", "--csv", OUT),
+        "--method adams runs the generated integrators of other robots",
     ),
 )
