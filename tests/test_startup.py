@@ -162,10 +162,37 @@ def test_a_run_files_options_of_other_commands_still_pass(tmp_path):
 
 
 def test_default_simulate_skips_scipy_integrate(tmp_path):
-    modules = _modules_after(["simulate", "--csv", "s.csv"], tmp_path)
+    modules = _modules_after(["simulate", "--backend", "pinocchio", "--csv", "s.csv"], tmp_path)
     assert "scipy.integrate._odepack" in modules
     assert "scipy.integrate" not in modules and "scipy.special" not in modules
+    assert "scipy" not in modules  # found through its spec: scipy/__init__ never runs
     assert "importlib.metadata" not in modules
+
+
+#: Loads the lean ODEPACK route after numpy and prints the process's threads before and
+#: after, then the OpenBLAS variable as the process sees it afterwards.
+_THREADS_AFTER_LOAD = """\
+import os, numpy
+from rrt_pin.simulate import _odepack
+before = len(os.listdir("/proc/self/task"))
+_odepack.load()
+print(before, len(os.listdir("/proc/self/task")), os.environ.get("OPENBLAS_NUM_THREADS"))
+"""
+
+
+@pytest.mark.skipif(not Path("/proc/self/task").is_dir(), reason="counts threads in /proc")
+def test_lean_odeint_starts_no_blas_threads_and_leaves_the_environment():
+    """scipy's OpenBLAS loads with one thread (no pool spinning beside the run), env restored."""
+    env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"}
+    proc = subprocess.run([sys.executable, "-c", _THREADS_AFTER_LOAD], env=env, cwd=ROOT,
+                          capture_output=True, text=True, check=True)  # fmt: skip
+    before, after, variable = proc.stdout.split()
+    assert after == before and variable == "None"
+    # A user's setting is theirs: kept, and the library loads with it.
+    env["OPENBLAS_NUM_THREADS"] = "2"
+    proc = subprocess.run([sys.executable, "-c", _THREADS_AFTER_LOAD], env=env, cwd=ROOT,
+                          capture_output=True, text=True, check=True)  # fmt: skip
+    assert proc.stdout.split()[2] == "2"
 
 
 def test_solve_ivp_methods_still_import_it(tmp_path):

@@ -4,17 +4,29 @@
 sparse.linalg …) for a run that needs one Fortran routine. This module loads
 scipy's ``_odepack`` extension module by itself and calls it exactly as
 ``scipy.integrate.odeint(..., full_output=True)`` does: same routine, same
-arguments, the same bits (``tests/test_simulate.py`` compares both). If the
+arguments, the same bits (``tests/test_startup.py`` compares both). If the
 extension cannot be loaded that way, or its call signature differs in this
 scipy, :func:`odeint` falls back to ``scipy.integrate.odeint``.
+
+Two costs of a plain ``import`` are avoided as well. The extension is found
+through scipy's import spec, without running ``scipy/__init__`` (its test
+runner, version checks and config). And the extension links scipy's own
+OpenBLAS, which at load starts a pool of threads that spin, waiting for work,
+for a while after it (CPU taken from the run on a machine with few cores);
+LSODA's linear algebra is on (2·nv)² matrices, far below OpenBLAS's threading
+thresholds, so the library is loaded with ``OPENBLAS_NUM_THREADS=1`` unless the
+variable is set (the environment is restored at once; numpy's own OpenBLAS,
+loaded before, is left as it is). Same routine, same bits.
 """
 
 from __future__ import annotations
 
+import contextlib
 import importlib.machinery
 import importlib.util
+import os
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -37,6 +49,8 @@ MESSAGES = {
 }
 
 _NAME = "scipy.integrate._odepack"
+#: OpenBLAS's thread count, read once when the library loads.
+_BLAS_THREADS = "OPENBLAS_NUM_THREADS"
 _module: Any = None
 _direct = True  # False once the direct route failed: scipy's odeint from then on
 
@@ -56,9 +70,8 @@ def _extension() -> Any:
         _module = sys.modules[_NAME]
         return _module
     try:
-        import scipy
-
-        folder = Path(scipy.__file__).parent / "integrate"
+        scipy = importlib.util.find_spec("scipy")  # where it is, without running its __init__
+        folder = Path(next(iter(scipy.submodule_search_locations))) / "integrate"
         path = next(
             folder / f"_odepack{suffix}"
             for suffix in importlib.machinery.EXTENSION_SUFFIXES
@@ -66,14 +79,28 @@ def _extension() -> Any:
         )
         loader = importlib.machinery.ExtensionFileLoader(_NAME, str(path))
         spec = importlib.util.spec_from_file_location(_NAME, path, loader=loader)
-        module = importlib.util.module_from_spec(spec)
-        loader.exec_module(module)
-    except (ImportError, OSError, StopIteration, AttributeError):
+        with _one_blas_thread():  # the library loads with the module (create_module)
+            module = importlib.util.module_from_spec(spec)
+            loader.exec_module(module)
+    except (ImportError, OSError, StopIteration, AttributeError, TypeError, ValueError):
         return None
     # Registered under its own name: scipy.integrate, if imported later, uses this one.
     sys.modules.setdefault(_NAME, module)
     _module = sys.modules[_NAME]
     return _module
+
+
+@contextlib.contextmanager
+def _one_blas_thread() -> Iterator[None]:
+    """``OPENBLAS_NUM_THREADS=1`` while a library loads, unless the user set the variable."""
+    if _BLAS_THREADS in os.environ:
+        yield
+        return
+    os.environ[_BLAS_THREADS] = "1"
+    try:
+        yield
+    finally:
+        os.environ.pop(_BLAS_THREADS, None)
 
 
 def odeint(
