@@ -719,9 +719,25 @@ def test_the_front_doors_reach_a_backend_through_the_registry():
         for job, where in backend.entries:
             found = backend.entry(job)
             assert callable(found) or hasattr(found, "__file__"), (backend.name, job)
-            assert _layer(where.partition(":")[0]) in ("dynamics", "compiled"), where
+            assert _layer(where.partition(":")[0]) in ("dynamics", "simulate", "compiled"), where
     with pytest.raises(KeyError):
-        backends.get("pinocchio").entry("simulate")
+        backends.get("pinocchio").entry("inverse_generated")
+
+
+def test_every_backend_that_simulates_offers_the_same_runs():
+    """The front door hands over without asking which backend: each offers the same functions."""
+    import inspect
+
+    shapes = {}
+    for backend in backends.BACKENDS.values():
+        if not backend.runs("simulate"):
+            continue
+        runs = backend.entry("simulate_runs")
+        assert isinstance(runs.RECORDS_FAILURES, bool)
+        shapes[backend.name] = tuple(
+            tuple(inspect.signature(getattr(runs, f)).parameters) for f in ("prepare", "single", "batch")
+        )
+    assert len(shapes) >= 2 and len(set(shapes.values())) == 1, shapes
 
 
 def test_old_module_paths_warn_and_give_the_modules_at_their_new_place():

@@ -1,7 +1,6 @@
 """Direct dynamics: the seed's run against a two-method reference, every method, failures."""
 
 import sys
-import types
 
 import numpy as np
 import pinocchio as pin
@@ -15,7 +14,7 @@ from rrt_pin.robot.robots import chapter_arm
 from rrt_pin.simulate import SimulationResult, simulate
 from rrt_pin.simulate.closed_loop import ClosedLoop
 from rrt_pin.simulate.control import as_controller, pd_gravity_controller, seed_controller
-from rrt_pin.simulate.methods import METHODS, names
+from rrt_pin.simulate.methods import names
 from rrt_pin.simulate.reference import reference_run, seed_reference
 from tests.support import TIGHT, random_states, robot_urdf
 
@@ -157,7 +156,7 @@ def test_pd_gravity_controller_matches_the_seed_run(seed_model, seed_params, see
     np.testing.assert_allclose(r.q, seed_run.q, rtol=0, atol=1e-12)
 
 
-@pytest.mark.parametrize("method", METHODS)
+@pytest.mark.parametrize("method", names("pinocchio"))  # the arm on the engine of record
 def test_each_method_runs_and_converges(method, seed_model, seed_params, reference):
     r = simulate(
         chapter_arm(seed_params),
@@ -316,7 +315,7 @@ def _inf_past(c, q1):
     return law
 
 
-@pytest.mark.parametrize("method", METHODS)
+@pytest.mark.parametrize("method", names("pinocchio"))  # the arm on the engine of record
 def test_a_non_finite_effort_is_reported_with_time_and_coordinate(
     method, seed_model, seed_params, reference
 ):
@@ -404,7 +403,6 @@ def test_a_law_that_returns_nan_at_an_output_time_is_caught(seed_model, seed_par
 
 # --- compiled backend dispatch ---------------------------------------------------------
 def test_compiled_backend_is_dispatched_lazily(monkeypatch, seed_model, seed_params, seed_run):
-    import rrt_pin.simulate.api as api
     from rrt_pin.core import backends
 
     calls, checked = [], []
@@ -419,9 +417,11 @@ def test_compiled_backend_is_dispatched_lazily(monkeypatch, seed_model, seed_par
     def check_model(model, params):  # the model given is checked against the params used
         checked.append(model)
 
-    fake = types.SimpleNamespace(run_one=run_one, check_model=check_model)
-    monkeypatch.setattr(api, "_compiled", lambda job="simulate": fake)
-    monkeypatch.setattr(api, "_prepare", lambda robot, backend, method=None: None)
+    from rrt_pin.compiled import integrate, runs
+
+    monkeypatch.setattr(integrate, "run_one", run_one)  # the arm's kernel, reached through
+    monkeypatch.setattr(integrate, "check_model", check_model)  # the backend's runs
+    monkeypatch.setattr(runs, "prepare", lambda *args: None)  # nothing loaded
     c = seed_controller(seed_params)
     r = simulate(
         chapter_arm(seed_params), c, seed_params.q0, seed_params.qd0, seed_run.t, backend="compiled"

@@ -156,6 +156,7 @@ BACKENDS: dict[str, Backend] = {
             simulate_cost=0.48e-3,
             robot_inverse_cost=76e-9,
             robot_simulate_cost=2.7e-3,
+            entries=(("simulate_runs", "rrt_pin.simulate.pinocchio_runs"),),
         ),
         Backend(
             "symbolic",
@@ -188,8 +189,7 @@ BACKENDS: dict[str, Backend] = {
                 ("inverse", "rrt_pin.compiled:inverse_dynamics"),  # the arm's kernel
                 ("inverse_generated", "rrt_pin.compiled.rnea:inverse_dynamics"),
                 ("unsupported_joint", "rrt_pin.dynamics.rnea_source:unsupported_joint"),
-                ("simulate", "rrt_pin.compiled.integrate"),  # run_one, run_batch, check_model
-                ("simulate_generated", "rrt_pin.compiled.robot_runs"),  # run_one, run_batch
+                ("simulate_runs", "rrt_pin.compiled.runs"),  # the front door's: prepare, single, batch
                 ("load_batch", "rrt_pin.compiled:ensure_compiled"),
                 ("load_single", "rrt_pin.compiled:machine_code"),
                 ("mass_matrix", "rrt_pin.compiled.dynamics:mass_matrix"),

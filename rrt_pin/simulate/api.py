@@ -9,17 +9,15 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from rrt_pin.core import backends, cpus, memory, validate
+from rrt_pin.core import backends, cpus, validate
 from rrt_pin.core.errors import DivergenceError, InputError
 from rrt_pin.core.identity import IdentityCache
 from rrt_pin.robot import robots
 from rrt_pin.robot.params import Params, check_params
 from rrt_pin.robot.robot import Robot, bare_model, params_given
-from rrt_pin.simulate import methods
 from rrt_pin.simulate.control import Controller, as_controller
 from rrt_pin.simulate.energy import check_energy, check_energy_batch
 from rrt_pin.simulate.failures import FAILURES, one_at_a_time
-from rrt_pin.simulate.kept import reduced, targets
 from rrt_pin.simulate.options import Options, resolve
 from rrt_pin.simulate.physical_runs import batch_limits, energy_law, run_physics, with_limits
 from rrt_pin.simulate.results import KEEPS
@@ -63,44 +61,14 @@ def default_threads() -> int:
     return cpus.available()
 
 
-def _params_for(robot: Robot, params: Any, controllers: Sequence[Any]) -> Params:
-    """The chapter arm's Params for the compiled backend."""
-    if isinstance(params, Params):
-        return params
-    for candidate in (params, robot.params, *(getattr(c, "params", None) for c in controllers)):
-        if isinstance(candidate, Params):
-            return candidate
-    if params is not None:
-        raise InputError(f"params must be a Params, not {type(params).__name__}")
-    raise InputError(
-        "backend 'compiled' simulates the chapter's RRT arm from its Params: pass the arm "
-        "(rrt_pin.robot.robots.chapter_arm(params)), params=…, or a chapter controller"
-    )
+def _runs(backend: str) -> Any:
+    """The backend's runs (its ``simulate_runs`` entry), its extra checked first.
 
-
-def _compiled(job: str = "simulate") -> Any:
-
-    compiled = backends.get("compiled")
-    compiled.require()
-    return compiled.entry(job)
-
-
-def _generated(robot: Robot, params: Any, controllers: Sequence[Any]) -> bool:
-    """Whether a compiled run of ``robot`` runs its generated code (not the arm's kernel).
-
-    The arm's kernel runs the chapter's arm, and runs given the arm's Params (``params=``
-    or a chapter law's, deprecated with a bare model).
-
-    Raises:
-        InputError: the generated code does not handle one of its joints.
+    See :mod:`rrt_pin.simulate.pinocchio_runs` for what every backend's entry offers.
     """
-    if backends.get("compiled").entry("arm_kernel")(robot, params, controllers):  # auto's rule
-        return False
-    if not robot.supports("compiled", "simulate"):
-        from rrt_pin.dynamics.rnea_source import unsupported_joint
-
-        raise InputError(f"backend 'compiled': {unsupported_joint(robot.model)}; use 'pinocchio'")
-    return True
+    b = backends.get(backend, "simulate")
+    b.require()
+    return b.entry("simulate_runs")
 
 
 def simulate(
@@ -191,8 +159,8 @@ def simulate(
     t = validate.times(t_eval)
     backend = backends.decide(robot, backend, "simulate", method, float(t[-1] - t[0]),
                               controllers=[controller], params=params).name  # fmt: skip
-    _prepare(robot, backend, method, params=params, controllers=[controller])
-    start = time.perf_counter()
+    runs = _runs(backend)
+    runs.prepare(robot, method, False, params, [controller])  # not simulation time
     q0 = robot.as_coordinates("q0", q0)
     qd0 = (
         np.zeros(robot.nv) if qd0 is None else validate.vector("qd0", qd0, robot.nv, "rad/s or m/s")
@@ -208,31 +176,9 @@ def simulate(
     )
     rp = run_physics(robot, q0[None], [checked], options, effort_limits=effort_limits,
                      position_limits=position_limits, losses=losses)  # fmt: skip
-    physical = {} if rp.applied is None else {"physical": rp.applied}
-    plant = None  # the arm's parameters of a compiled run (the energy rule's M(q))
-    if options.backend == "compiled" and _generated(robot, params, [controller]):
-        runs = _compiled("simulate_generated")
-        runs.prepare(robot, [controller], options)  # not simulation time
-        start = time.perf_counter()
-
-        def run(o: Options, began: float) -> SimulationResult:
-            return runs.run_one(robot, controller, q0, qd0, t, o, began, **physical)
-    elif options.backend == "compiled":
-        integrate = _compiled()
-        p = plant = _params_for(robot, params, [controller])
-        if robot.params is None or robot.params is not p:
-            integrate.check_model(robot.model, p)
-
-        def run(o: Options, began: float) -> SimulationResult:
-            return integrate.run_one(p, controller, q0, qd0, t, o, start=began)
-    else:
-        from rrt_pin.simulate.pinocchio_backend import run_one
-
-        law = _passive(robot) if checked is None else checked
-
-        def run(o: Options, began: float) -> SimulationResult:
-            return run_one(robot, law, q0, qd0, t, o, began, rp.applied)
-
+    law = _passive(robot) if checked is None else checked
+    run, plant = runs.single(robot, controller, law, q0, qd0, t, params, options, rp)
+    start = time.perf_counter()
     result = with_limits(_with_units(run(options, start), robot), rp, checked)
     check_energy(result, robot, energy_law(checked, result.limits, rp), plant)
     return _with_estimate(result, options, run) if estimate_error else result
@@ -280,38 +226,6 @@ def _with_units(result: Any, robot: Robot) -> Any:
         result = dataclasses.replace(result, coordinate_units=units)
     object.__setattr__(result, "robot", robot)  # a result just made, shared with no one
     return result
-
-
-def _prepare(
-    robot: Robot, backend: Any, method: Any = None, batch: bool = False, *, params: Any = None,
-    controllers: Sequence[Any] = (),
-) -> None:  # fmt: skip
-    """Imports and model building, which are not simulation time.
-
-    Only what the method runs on is imported: ODEPACK's extension alone for
-    ``odepack``, all of ``scipy.integrate`` (much slower to import) for ``solve_ivp``'s
-    methods; the arm's machine code for a compiled run of its kernel (``params``,
-    ``controllers``: as :func:`_generated` takes them).
-    """
-    if backend == "pinocchio":
-        family = methods.get(method).family if method in methods.METHODS else "odepack"
-        if family == "odepack":
-            from rrt_pin.simulate._odepack import load
-
-            load()
-        elif family == "scipy":
-            import scipy.integrate  # noqa: F401
-
-        import rrt_pin.simulate.pinocchio_backend  # noqa: F401
-
-        robot.model  # noqa: B018  (builds the generated arm's model once)
-    elif backend == "compiled":
-        compiled = backends.get("compiled")
-        if compiled.available() and compiled.entry("arm_kernel")(robot, params, controllers):
-            compiled.entry("simulate")
-            # A single run takes the module built ahead of time when there is one;
-            # batches run on threads, which need the JIT's (GIL-free) functions.
-            compiled.entry("load_batch" if batch else "load_single")()
 
 
 def _passive(robot: Robot) -> Any:
@@ -451,8 +365,8 @@ def simulate_batch(
     t = validate.times(t_eval)
     backend = backends.decide(robot, backend, "simulate", method, B * float(t[-1] - t[0]),
                               controllers=controllers, params=params, batch=True).name  # fmt: skip
-    _prepare(robot, backend, method, batch=True, params=params, controllers=controllers)
-    start = time.perf_counter()
+    runs = _runs(backend)
+    runs.prepare(robot, method, True, params, controllers)  # not simulation time
     options = resolve(
         t, backend=backend, method=method, rtol=rtol, atol=atol, step=step, batch=True,
         accuracy=accuracy,
@@ -469,45 +383,10 @@ def simulate_batch(
             raise InputError(f"controllers[{i}]: {e}") from e
     rp = run_physics(robot, q0s, laws, options, effort_limits=effort_limits,
                      position_limits=position_limits, losses=losses, name="q0s")  # fmt: skip
-    physical = {} if rp.applied is None else {"physical": rp.applied}
-    generated = options.backend == "compiled" and _generated(robot, params, controllers)
-    if generated:
-        runs = _compiled("simulate_generated")
-        runs.prepare(robot, controllers, options)  # not simulation time
-        start = time.perf_counter()
-
-        def run(o: Options, began: float, tau: bool, kept: str, main: bool = True) -> BatchResult:
-            return runs.run_batch(
-                robot, controllers, q0s, qd0s, t, o, tau, keep=kept, threads=chosen,
-                start=began, failures=failures, **physical,
-            )  # fmt: skip
-    elif options.backend == "compiled":
-        integrate = _compiled()
-        if isinstance(params, (list, tuple)):
-            plants = list(params)
-        else:
-            plants = _params_for(robot, params, controllers)
-
-        def run(o: Options, began: float, tau: bool, kept: str, main: bool = True) -> BatchResult:
-            return integrate.run_batch(
-                plants, controllers, q0s, qd0s, t, o, tau, keep=kept, threads=chosen,
-                start=began, failures=failures,
-            )  # fmt: skip
-    else:
-        from rrt_pin.simulate.pinocchio_backend import run_batch
-
-        qf = targets(laws) if keep == "metrics" else None
-        chosen = _pool_threads(robot, chosen)
-
-        def measured(full: BatchResult) -> Any:
-            return batch_limits(full.t, full.q, full.qd, full.tau, laws, rp)
-
-        def run(o: Options, began: float, tau: bool, kept: str, main: bool = True) -> BatchResult:
-            wants = tau or kept == "metrics" or (main and rp.needs_demand)
-            full = run_batch(robot, laws, q0s, qd0s, t, o, chosen, wants, began, rp.applied)
-            return reduced(full, kept, qf, tau, measured if main else None, rp, laws)
-
-    if failures == "record" and options.backend != "compiled":
+    run = runs.batch(robot, controllers, laws, q0s, qd0s, t, params, options, rp, keep=keep,
+                     threads=chosen, failures=failures)  # fmt: skip
+    start = time.perf_counter()
+    if failures == "record" and not runs.RECORDS_FAILURES:
         try:
             result = run(options, start, efforts, keep)
         except DivergenceError:  # which: each variant alone
@@ -550,27 +429,3 @@ def simulate_batch(
 def _threads(threads: Any) -> int:
     """``threads=`` as an int from 1 to :func:`rrt_pin.core.cpus.max_threads` (256)."""
     return cpus.check_threads("threads", validate.positive_int("threads", threads))
-
-
-def _pool_threads(robot: Robot, chosen: int | None) -> int | None:
-    """The threads of a Pinocchio batch whose ``ModelPool`` fits in memory.
-
-    The pool holds a copy of the model's data a thread (one more while it is made):
-    the asked count, or the default (None: as many copies as CPUs), is cut to what
-    fits (:mod:`rrt_pin.core.memory`).
-
-    Raises:
-        MemoryLimitError: not even one thread's copy fits.
-    """
-    wanted = chosen if chosen is not None else cpus.available()
-    data = memory.data_bytes(robot.model)
-    fit = memory.threads_that_fit(
-        wanted,
-        memory.Cost(data) + memory.thread_cost(),
-        fixed=memory.Cost(data),
-        what=f"a batch of a {robot.nv}-joint model",
-        each=f"{memory.describe(data)} a copy of Pinocchio's Data: one a thread, one more "
-        "while they are made",
-        name=None if chosen is None else "threads",
-    )
-    return chosen if fit == wanted else fit
