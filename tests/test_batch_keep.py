@@ -356,3 +356,41 @@ def test_batch_laws_of_another_arm_equal_single_runs(compiled):
         list(kinds)
         == [codes.KIND_CHAPTER_FOLDED, codes.KIND_CHAPTER] + [codes.KIND_CHAPTER_FOLDED] * 2
     )
+
+
+@pytest.mark.parametrize("keep", ["trajectories", "metrics"])
+def test_the_arms_batch_records_a_failing_variant_and_keeps_the_others(compiled, keep):
+    """``failures="record"``: the failing variant's error, rows and metrics NaN; the others
+    equal the batch without it; evaluations counted per variant."""
+    import rrt_pin
+    from rrt_pin.core.errors import DivergenceError
+    from rrt_pin.robot.robots import chapter_arm
+
+    plants, laws, q0s, qd0s = _variants(4)
+    qd0s = qd0s.copy()
+    qd0s[2, 0] = 1e200  # its Coriolis terms overflow at once
+    t = GRID[:301]
+
+    def run(rows):
+        return rrt_pin.simulate_batch(
+            chapter_arm(plants[0]), [laws[i] for i in rows], q0s[rows], qd0s[rows], t,
+            params=[plants[i] for i in rows], backend="compiled", keep=keep, threads=1,
+            failures="record", estimate_error=False,
+        )  # fmt: skip
+
+    every, others = run([0, 1, 2, 3]), run([0, 1, 3])
+    assert isinstance(every.failures[2], DivergenceError)
+    assert [f is None for f in every.failures] == [True, True, False, True]
+    assert np.isnan(every.q[2]).all() and np.isfinite(every.q[[0, 1, 3]]).all()
+    np.testing.assert_array_equal(every.q[[0, 1, 3]], others.q)
+    np.testing.assert_array_equal(every.evaluations[[0, 1, 3]], others.evaluations)
+    assert every.evaluations.shape == (4,) and (every.evaluations[[0, 1, 3]] > 100).all()
+    if keep == "metrics":
+        for name, col in every.metrics.items():
+            assert np.isnan(col[2]), name
+            np.testing.assert_array_equal(col[[0, 1, 3]], others.metrics[name], err_msg=name)
+    with pytest.raises(DivergenceError, match="variant 2"):
+        rrt_pin.simulate_batch(
+            chapter_arm(plants[0]), laws, q0s, qd0s, t, params=plants, backend="compiled",
+            threads=1, estimate_error=False,
+        )  # fmt: skip
