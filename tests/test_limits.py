@@ -401,3 +401,41 @@ def test_a_ur5_run_that_hits_no_limit_is_the_law_alone_to_rounding():
     ]  # fmt: skip
     assert runs[0].limits == () and np.abs(runs[0].tau).max() > 50.0  # real efforts, none clipped
     assert np.abs(runs[0].q - runs[1].q).max() <= 1e-9
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_crossings_are_measured_as_the_samples_say(seed):
+    """The extremes-first shortcut of ``crossings.measure`` changes nothing: every mask,
+    extent and time equals the sample-by-sample definition, NaN samples included."""
+    from rrt_pin.robot.limits import Physical
+    from rrt_pin.simulate.crossings import measure
+
+    rng = np.random.default_rng(seed)
+    B, T, n = 3, 40, 4
+    t = np.linspace(0.0, 2.0, T)
+    reach = [0.0, 0.9, 1.2][seed % 3]  # none, some, most samples past the limits
+    q = rng.uniform(-1.0, 1.0, (B, T, n)) * (1.0 + reach)
+    qd = rng.uniform(-2.0, 2.0, (B, T, n)) * (1.0 + reach)
+    tau = rng.uniform(-10.0, 10.0, (B, T, n)) * (1.0 + reach)
+    if seed >= 3:  # NaN samples, and a column all NaN
+        for a in (q, qd, tau):
+            a[rng.random(a.shape) < 0.1] = np.nan
+            a[0, :, 1] = np.nan
+    p = Physical(np.full(n, -1.5), np.array([1.5, 1.5, np.inf, 1.8]), np.full(n, 12.0),
+                 np.full(n, 2.5), np.zeros(n), np.zeros(n))  # fmt: skip
+    got = measure(t, q, qd, tau, p)
+    with np.errstate(invalid="ignore"):
+        past = (q < p.lower) | (q > p.upper)
+        depth = np.maximum(p.lower - q, q - p.upper)
+    depth = np.maximum(np.nan_to_num(depth, nan=0.0, neginf=0.0).max(axis=1), 0.0)
+    over = np.abs(tau) > p.effort
+    s = over.astype(float)
+    time = (0.5 * (s[:, 1:] + s[:, :-1]) * np.diff(t)[None, :, None]).sum(axis=1)
+    np.testing.assert_array_equal(got["position"]["mask"], past)
+    np.testing.assert_array_equal(got["position"]["extent"], depth)
+    np.testing.assert_array_equal(got["effort"]["mask"], over)
+    np.testing.assert_array_equal(got["effort"]["time"], time)
+    np.testing.assert_array_equal(got["effort"]["extent"], np.abs(tau).max(axis=1))
+    np.testing.assert_array_equal(got["velocity"]["mask"], np.abs(qd) > p.velocity)
+    np.testing.assert_array_equal(got["velocity"]["extent"], np.abs(qd).max(axis=1))
+    assert past.any() == (reach > 0.0)  # both branches are taken across the seeds
