@@ -201,6 +201,33 @@ def test_solve_ivp_methods_still_import_it(tmp_path):
     assert "scipy.integrate" in modules
 
 
+#: Runs a command in-process, then prints the process's threads and the OpenBLAS variable.
+_THREADS_AFTER_RUN = """\
+import os, sys
+from rrt_pin.cli.app import main
+assert main(sys.argv[1:]) == 0
+print(len(os.listdir("/proc/self/task")), os.environ.get("OPENBLAS_NUM_THREADS"))
+"""
+
+
+@pytest.mark.skipif(not Path("/proc/self/task").is_dir(), reason="counts threads in /proc")
+@pytest.mark.parametrize("command", ["inverse", "simulate"])
+def test_a_command_starts_no_blas_thread_pool(command, tmp_path):
+    """numpy's and scipy's OpenBLAS load with one thread: the process ends with one thread,
+    the variable is gone again (children get the default), and a user's setting is kept."""
+    env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"}
+    argv = [sys.executable, "-c", _THREADS_AFTER_RUN, "-q", command, "--backend", "pinocchio",
+            "--tf" if command == "simulate" else "--dt", "1" if command == "simulate" else "0.1",
+            "--csv", "out.csv"]  # fmt: skip
+    proc = subprocess.run(argv, env=env, cwd=tmp_path, capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.splitlines()[-1].split() == ["1", "None"]
+    env["OPENBLAS_NUM_THREADS"] = "1"
+    proc = subprocess.run(argv, env=env, cwd=tmp_path, capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.splitlines()[-1].split() == ["1", "1"]
+
+
 @pytest.mark.parametrize("band", [None, 1])
 def test_lean_odeint_is_scipys_bit_for_bit(band):
     from scipy.integrate import odeint as scipy_odeint

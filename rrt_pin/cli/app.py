@@ -10,6 +10,7 @@ import argparse
 import contextlib
 import importlib
 import logging
+import os
 import re
 import sys
 from collections.abc import Callable, Iterator, Sequence
@@ -280,6 +281,28 @@ def verbosity_level(verbose: int, quiet: int) -> int:
     return steps[max(0, min(len(steps) - 1, 2 + verbose - quiet))]
 
 
+#: OpenBLAS's thread count, read once, when numpy loads the library.
+_BLAS_THREADS = "OPENBLAS_NUM_THREADS"
+
+
+def _numpy_with_one_blas_thread() -> None:
+    """Import numpy with one OpenBLAS thread, unless it is loaded or the user set the variable.
+
+    numpy's OpenBLAS starts a pool of threads as it loads, and they spin, waiting for work,
+    for a while after: CPU that a command's work never uses (its linear algebra is per
+    sample, on matrices of a few joints, below OpenBLAS's threading thresholds; the
+    threads that pay are numba's) taken from it where cores are few. The variable is
+    removed at once, so that processes the command starts get OpenBLAS's default.
+    """
+    if "numpy" in sys.modules or _BLAS_THREADS in os.environ:
+        return
+    os.environ[_BLAS_THREADS] = "1"
+    try:
+        import numpy  # noqa: F401
+    finally:
+        os.environ.pop(_BLAS_THREADS, None)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the CLI; returns the exit status (0 success, 2 bad input or failure)."""
     argv = _join_negative_lists(list(sys.argv[1:] if argv is None else argv))
@@ -296,6 +319,8 @@ def main(argv: Sequence[str] | None = None) -> int:
 def _main(argv: list[str], set_level: Callable[[int], None]) -> int:
     try:
         command = _command_of(argv)
+        if command is not None:  # it runs: every command's work needs numpy
+            _numpy_with_one_blas_thread()
         parser, subparsers = build_parser(command)
         args = parser.parse_args(argv)
         if args.command is None:
