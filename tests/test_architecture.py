@@ -527,6 +527,7 @@ OPTIONAL_PARTS = (
     "rrt_pin.compiled", "rrt_pin.viewer", "rrt_pin.sweeps", "rrt_pin.dynamics.symbolic",
     "rrt_pin.cli.bench_report", "rrt_pin.cli.bench_measure", "rrt_pin.cli.flops", "rrt_pin.simulate.reference",
     "rrt_pin.simulate.accuracy", "rrt_pin.simulate._odepack", "rrt_pin.simulate.scipy_runs",
+    "rrt_pin.simulate.integrators", "rrt_pin.simulate.symplectic",  # their method families only
     "rrt_pin.robot.model", "rrt_pin.robot.urdf", "rrt_pin.robot.urdf_check",  # URDF, Pinocchio
     "rrt_pin.dynamics.rnea_source",  # the generator of any robot's compiled RNEA
 )  # fmt: skip

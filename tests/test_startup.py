@@ -112,6 +112,7 @@ NOT_FOR_DEFAULT_JOBS = {
     "rrt_pin.cli.bench_measure", "rrt_pin.cli.flops", "rrt_pin.simulate.reference",
     "rrt_pin.simulate.accuracy", "matplotlib", "meshcat", "sympy", "dask",
     "pandas", "pyarrow", "tqdm", "selenium", "tomllib", "tomli", "importlib.metadata",
+    "rrt_pin.cli.runfile", "rrt_pin.dynamics.kinematics",  # no --config, no --frames
 }  # fmt: skip
 #: ... and what each job needs least: the other's dynamics.
 NOT_FOR = {
@@ -166,6 +167,8 @@ def test_default_simulate_skips_scipy_integrate(tmp_path):
     assert "scipy.integrate._odepack" in modules
     assert "scipy.integrate" not in modules and "scipy.special" not in modules
     assert "scipy" not in modules  # found through its spec: scipy/__init__ never runs
+    # odepack's family alone: not the fixed-step or symplectic integrators' modules
+    assert {"rrt_pin.simulate.integrators", "rrt_pin.simulate.symplectic"} & modules == set()
     assert "importlib.metadata" not in modules
 
 

@@ -11,7 +11,6 @@ import numpy as np
 from rrt_pin.core.errors import DivergenceError
 from rrt_pin.robot.limits import saturated
 from rrt_pin.simulate.closed_loop import BatchLoop, ClosedLoop
-from rrt_pin.simulate.integrators import integrate_fixed_step
 from rrt_pin.simulate.methods import FIXED_STEP, ODEPACK, SYMPLECTIC
 from rrt_pin.simulate.results import BatchResult, SimulationResult
 from rrt_pin.simulate.scipy_runs import (
@@ -24,7 +23,6 @@ from rrt_pin.simulate.scipy_runs import (
     run_solve_ivp,
     too_much_work,
 )
-from rrt_pin.simulate.symplectic import leapfrog
 
 if TYPE_CHECKING:
     from rrt_pin.robot.limits import Physical
@@ -71,9 +69,13 @@ def run_one(
     method, rtol, atol, step = options.method, options.rtol, options.atol, options.step
     n_jac = 0
     if method.family == FIXED_STEP:
+        from rrt_pin.simulate.integrators import integrate_fixed_step  # its family only
+
         fixed = integrate_fixed_step(method.name, loop.acceleration(), q0, qd0, t, step, names)
         Q, V, n_evals = fixed.q, fixed.v, fixed.n_evals
     elif method.family == SYMPLECTIC:
+        from rrt_pin.simulate.symplectic import leapfrog
+
         run = leapfrog(
             robot.model,
             q0,
@@ -162,6 +164,8 @@ def run_batch(
     acc = loop.acceleration()
     tau = None
     if method.family == FIXED_STEP:
+        from rrt_pin.simulate.integrators import integrate_fixed_step
+
         fixed = integrate_fixed_step(method.name, acc, q0s, qd0s, t, step, names)
         Q, V, n_evals = fixed.q, fixed.v, fixed.n_evals  # time-major (T, B, n)
         if efforts:

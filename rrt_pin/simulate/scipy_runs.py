@@ -15,7 +15,6 @@ import numpy as np
 from rrt_pin.core.errors import DivergenceError
 from rrt_pin.core.text import argument
 from rrt_pin.simulate import methods
-from rrt_pin.simulate.integrators import blame
 
 __all__ = [
     "Counted",
@@ -102,14 +101,20 @@ class _Watch:
         self.calls += 1
         if self.calls > self.budget:
             raise _TooMuchWork(t)
-        size = np.abs(np.nan_to_num(y))
         if not np.isfinite(y).all():
-            raise _NonFinite(t, int(np.argmax(blame(y, size))))
+            raise _NonFinite(t, _blamed(y, y))
         dy = self.f(t, y)
         if not np.isfinite(dy).all():
-            raise _NonFinite(t, int(np.argmax(blame(dy, size))))
+            raise _NonFinite(t, _blamed(dy, y))
         self.last = (t, np.array(y), np.array(dy))
         return dy
+
+
+def _blamed(values: np.ndarray, y: np.ndarray) -> int:
+    """The entry of ``values`` to name for a blow-up at state ``y`` (only on failure)."""
+    from rrt_pin.simulate.integrators import blame  # the fixed-step module, loaded when needed
+
+    return int(np.argmax(blame(values, np.abs(np.nan_to_num(y)))))
 
 
 def _fastest(watch: _Watch, rtol: float, atol: float) -> int:

@@ -181,10 +181,15 @@ def termination_as_interrupt() -> Iterator[None]:
 
 def params_from_args(args: argparse.Namespace) -> Params:
     """The chapter's parameters < run file [params] < ``--set`` overrides."""
-    from rrt_pin.cli.runfile import resolve_params
     from rrt_pin.robot.params import parse_overrides
 
-    return resolve_params(getattr(args, "runfile", None), parse_overrides(args.overrides))
+    overrides = parse_overrides(args.overrides)
+    runfile = getattr(args, "runfile", None)
+    if runfile is None:  # no --config: the run files' module stays unloaded
+        return Params().with_overrides(overrides)
+    from rrt_pin.cli.runfile import resolve_params
+
+    return resolve_params(runfile, overrides)
 
 
 def positive_seconds(flag: str, value: object) -> float:
@@ -307,13 +312,14 @@ def add_frame_arguments(parser: argparse.ArgumentParser) -> None:
 def frames_from_args(args: argparse.Namespace, robot: Robot) -> tuple[list[str], bool]:
     """The frames asked for (checked against the robot) and whether with velocities."""
     from rrt_pin.core.errors import InputError
-    from rrt_pin.dynamics.kinematics import frame_ids
 
     names = list(getattr(args, "frames", None) or [])
     velocities = bool(getattr(args, "frame_velocities", False))
     if velocities and not names:
         raise InputError("--frame-velocities needs --frames NAME,...")
-    if names:
+    if names:  # the kinematics module only when frames are asked for
+        from rrt_pin.dynamics.kinematics import frame_ids
+
         frame_ids(robot, names)
     return names, velocities
 

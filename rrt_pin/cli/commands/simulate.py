@@ -289,9 +289,11 @@ def run(args: argparse.Namespace) -> int:
     else:
         robot = robot_from_args(args, params, "simulate")
     frames, frame_velocities = frames_from_args(args, robot)
-    from rrt_pin.dynamics.kinematics import frame_columns
+    frame_units: dict[str, str] = {}
+    if frames:
+        from rrt_pin.dynamics.kinematics import frame_columns
 
-    frame_units = frame_columns(frames, frame_velocities)
+        frame_units = frame_columns(frames, frame_velocities)
     columns = 1 + 3 * robot.nv + len(frame_units)
     check_space(args.csv, estimate_bytes(fmt, grid.size, columns), "--csv")
     from rrt_pin.simulate.control import regulator
