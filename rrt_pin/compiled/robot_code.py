@@ -8,7 +8,8 @@ The module is named by the SHA-256 of its source and kept under ``generated/`` o
 cache directory, as the generated RNEA is (:mod:`rrt_pin.compiled.rnea`): numba's
 machine code beside it, its files' SHA-256 recorded and checked before they are
 read. Its entry points (``run_many``; ``run_lanes``, a batch's; ``run_adams``, Adams's
-method of :mod:`rrt_pin.compiled._robot_adams`) are each compiled on first use,
+method of :mod:`rrt_pin.compiled._robot_adams`; ``run_bdf``, SciPy's BDF of
+:mod:`rrt_pin.compiled._robot_bdf` with the loop's generated Jacobian) are each compiled on first use,
 announced on the ``rrt_pin`` logger ("compiling ur5's integrators once (~N s)"); a later
 process loads it.
 """
@@ -31,6 +32,7 @@ from rrt_pin.core import backends
 from rrt_pin.core._logging import note
 from rrt_pin.core.identity import IdentityCache
 from rrt_pin.dynamics import forward_source
+from rrt_pin.dynamics.forward_derivatives_source import closed_loop_derivatives_source
 from rrt_pin.dynamics.rnea_source import check_supported
 from rrt_pin.robot import limits
 from rrt_pin.simulate import codes
@@ -45,6 +47,7 @@ _MARK = "# --- template ---\n"
 _LANES = Path(__file__).with_name("_robot_lanes.py")
 _LANES_MARK = "# --- lanes ---\n"
 _ADAMS = Path(__file__).with_name("_robot_adams.py")  # run_adams: run_many with Adams's method
+_BDF = Path(__file__).with_name("_robot_bdf.py")  # run_bdf: run_many with SciPy's BDF
 #: A batch's variants a thread runs side by side (vectors of 8 doubles, AVX-512).
 LANES = 8
 #: What compiling ``run_many`` takes, roughly [s]: a constant and a share per generated
@@ -55,6 +58,7 @@ _CODES = (
     "LAW_NONE", "LAW_PD_GRAVITY", "LAW_TRACKING", "LAW_OPEN_LOOP",
     "KEEP_TRAJECTORIES", "KEEP_FINAL", "KEEP_METRICS",
     "METHOD_DOP853", "METHOD_RK4", "METHOD_SYMPLECTIC_EULER", "FIXED_STEP_FROM",
+    "METHOD_BDF", "METHOD_BDF_NUMERIC",
     "STATUS_OK", "STATUS_NONFINITE", "STATUS_STEP_UNDERFLOW", "STATUS_MAX_STEPS",
     "STATUS_NO_CONVERGENCE", "STATUS_EFFORT_NONFINITE",
 )  # fmt: skip
@@ -129,9 +133,8 @@ class RobotCode:
 
         sig = _SIGNATURES[name](numba).args
         dispatcher = getattr(self._module, name)
-        what = {"run_lanes": "batch lanes", "run_adams": "Adams integrator"}.get(
-            name, "integrators"
-        )
+        what = {"run_lanes": "batch lanes", "run_adams": "Adams integrator",
+                "run_bdf": "BDF integrator"}.get(name, "integrators")  # fmt: skip
         estimate = _estimate(self.flops) * (0.7 if name == "run_lanes" else 1.0)
         if self._path is None:
             note(f"compiling {self.name}'s {what} (~{estimate:.0f} s, not kept on disk)")
@@ -182,6 +185,9 @@ def _on_state(
 ) -> str:
     """``gen`` as ``name(y, [tau,] out)``: q[k] read from y[k], q̇[k] from y[nv + k].
 
+    A function of the gains (``kp``, ``kd``, ``qf``: a closed loop's Jacobian) reads them
+    from ``c`` = (kp, kd, qf): ``name(y, c, out)``.
+
     The state is read in place (no slices, whose reference counts cost more than a
     few operations); ``shift`` moves the results' rows (q̈ into out[nv:] of ẏ). Each
     angle's sine and cosine are the polynomial ones of :mod:`rrt_pin.compiled.rnea_vector`
@@ -203,6 +209,8 @@ def _on_state(
             continue
         line = re.sub(r"\bq\[", "y[", line)
         line = re.sub(r"\bv\[(\d+)\]", lambda g: f"y[{nv + int(g[1])}]", line)
+        for i, gain in enumerate(("kp", "kd", "qf")):
+            line = re.sub(rf"\b{gain}\[(\d+)\]", lambda g, i=i: f"c[{i * nv + int(g[1])}]", line)
         if pd:  # τ_k = −kd_k·q̇_k − kp_k·(q_k − qf_k), c = (kp, kd, qf)
             line = re.sub(
                 r"\btau\[(\d+)\]",
@@ -214,11 +222,13 @@ def _on_state(
             )
         body.append(f"    {line}")
     args = ["y", "tau"] if "tau" in gen.inputs else ["y"]
-    if pd:
+    if pd or "kp" in gen.inputs:
         args = ["y", "c"]
+    if pd:
         body += [f"    out[{k}] = y[{nv + k}]" for k in range(nv)]
     for flat, x in enumerate(gen.outputs):
-        index = str(flat + shift) if len(gen.shape) == 1 else ", ".join(map(str, divmod(flat, nv)))
+        row_col = ", ".join(map(str, divmod(flat, gen.shape[-1])))
+        index = str(flat + shift) if len(gen.shape) == 1 else row_col
         body.append(f"    out[{index}] = {x}")
     return "\n".join(["@jit", f"def {name}({', '.join(args)}, out):", *body, ""])
 
@@ -419,6 +429,7 @@ def module_source(model: pin.Model) -> tuple[str, int]:
         _on_state(forward_source.gravity_source(model), "gravity", 0),
         _on_state(forward_source.mass_matrix_source(model), "mass_matrix", 0),
         _on_state(forward_source.bias_source(model), "bias", 0),
+        _on_state(closed_loop_derivatives_source(model), "closed_loop_jac", 0),
     ]
     template = _TEMPLATE.read_text(encoding="utf-8")
     head, mark, body = template.partition(_MARK)
@@ -426,6 +437,7 @@ def module_source(model: pin.Model) -> tuple[str, int]:
         raise RuntimeError(f"{_TEMPLATE} lost its line {_MARK.strip()!r}")
     body += "".join(_pd_copy(body, name, calls) for name, calls in _PD_COPIES)
     body += _pd_copy(body, "run_many", {"adaptive": "adams"}, "run_adams")
+    body += _pd_copy(body, "run_many", {"adaptive": "bdf"}, "run_bdf")
     lines = [
         f'"""Generated by rrt_pin.compiled.robot_code (nv={nv}): do not edit."""',
         "",
@@ -464,6 +476,7 @@ def module_source(model: pin.Model) -> tuple[str, int]:
         ),  # fmt: skip
         _LANES.read_text(encoding="utf-8").partition(_LANES_MARK)[2],
         _ADAMS.read_text(encoding="utf-8").partition("# --- adams ---\n")[2],
+        _BDF.read_text(encoding="utf-8").partition("# --- bdf ---\n")[2],
     ]
     return "\n".join(lines), fwd.flops
 
@@ -491,7 +504,7 @@ def _lanes_signature(numba: Any) -> Any:
 
 
 _SIGNATURES = {"run_many": _many_signature, "run_lanes": _lanes_signature,
-               "run_adams": _many_signature}  # fmt: skip
+               "run_adams": _many_signature, "run_bdf": _many_signature}  # fmt: skip
 
 
 def _load(source: str, digest: str, name: str, nv: int, flops: int) -> RobotCode:

@@ -133,13 +133,15 @@ def _laws(robot: Robot, controllers: Sequence[Any]) -> tuple[np.ndarray, np.ndar
 
 
 def _entry(count: int, options: Options, laws: np.ndarray) -> str:
-    """The compiled entry a batch runs on: ``run_lanes``, ``run_adams`` or ``run_many``.
+    """The compiled entry a batch runs on: ``run_lanes``, ``run_adams``, ``run_bdf`` or ``run_many``.
 
-    Adaptive PD variants run side by side in lanes; Adams's method and anything else
+    Adaptive PD variants run side by side in lanes; Adams's method, BDF and anything else
     one after the other.
     """
     if options.method.code == codes.METHOD_ADAMS:
         return "run_adams"
+    if options.method.code == codes.METHOD_BDF:
+        return "run_bdf"
     lanes = count >= 2 and options.method.code < codes.FIXED_STEP_FROM
     return "run_lanes" if lanes and bool(np.all(laws == codes.LAW_PD_GRAVITY)) else "run_many"
 
@@ -212,6 +214,8 @@ def _run(
     rtol = options.rtol if options.rtol is not None else 0.0
     step = options.step if options.step is not None else 0.0
     method = options.method.code
+    if method == codes.METHOD_BDF and options.jacobian == "finite-difference":
+        method = codes.METHOD_BDF_NUMERIC  # SciPy's num_jac whatever the law
     if lanes:
         # side by side in vector lanes: the same steps, each variant its own
         lanes = code.run_lanes

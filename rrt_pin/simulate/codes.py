@@ -23,6 +23,8 @@ __all__ = [
     "KEEP_TRAJECTORIES",
     "KIND_PD_PLANT_GRAVITY",
     "METHOD_ADAMS",
+    "METHOD_BDF",
+    "METHOD_BDF_NUMERIC",
     "METHOD_DOP853",
     "METRIC_DEMAND",
     "METRIC_ENERGY",
@@ -55,6 +57,8 @@ __all__ = [
 METHOD_RK45 = 0
 METHOD_DOP853 = 1
 METHOD_ADAMS = 2  # Shampine–Gordon variable-order Adams (any robot's generated integrators only)
+METHOD_BDF = 3  # SciPy's BDF with the loop's generated Jacobian (any robot's generated code only)
+METHOD_BDF_NUMERIC = 4  # the same with SciPy's finite-difference Jacobian, whatever the law
 METHOD_SYMPLECTIC_EULER = 10
 METHOD_RK4 = 11
 METHOD_VERLET = 12

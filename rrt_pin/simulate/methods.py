@@ -16,7 +16,8 @@ Adding an integrator is one function plus one line here:
   and its branch in :mod:`rrt_pin.compiled._jit_integrators`; one that runs any
   robot's generated integrators only (``adams``) needs instead its template part
   (:mod:`rrt_pin.compiled._robot_adams`) and its entry in
-  :mod:`rrt_pin.compiled.robot_code`.
+  :mod:`rrt_pin.compiled.robot_code`, as SciPy's ``BDF`` has on compiled
+  (:mod:`rrt_pin.compiled._robot_bdf`).
 """
 
 from __future__ import annotations
@@ -195,7 +196,16 @@ METHODS: dict[str, Method] = {
         ),
         Method("LSODA", SCIPY, "scipy's LSODA, analytic Jacobian", adaptive=True, implicit=True),
         Method("Radau", SCIPY, "implicit Runge–Kutta of order 5", adaptive=True, implicit=True),
-        Method("BDF", SCIPY, "backward differentiation, orders 1–5", adaptive=True, implicit=True),
+        Method(
+            "BDF",
+            SCIPY,
+            "backward differentiation, orders 1–5 (scipy's solve_ivp; step for step on compiled)",
+            adaptive=True,
+            implicit=True,
+            backends=_BOTH,
+            batch=("compiled",),
+            code=codes.METHOD_BDF,
+        ),
         Method(
             "symplectic_euler",
             FIXED_STEP,
