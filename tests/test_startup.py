@@ -231,6 +231,29 @@ def test_a_command_starts_no_blas_thread_pool(command, tmp_path):
     assert proc.stdout.splitlines()[-1].split() == ["1", "1"]
 
 
+#: Runs the CLI as the program (main() on sys.argv) or as a library call (main(argv)); a
+#: handler registered before it runs after its own at exit and prints the frozen objects.
+_FROZEN_AT_EXIT = """\
+import atexit, gc, os, sys
+atexit.register(lambda: os.write(1, f"frozen {gc.get_freeze_count()}\\n".encode()))
+from rrt_pin.cli.app import main
+sys.argv = ["rrt-pin", "-q", "inverse", "--backend", "pinocchio", "--dt", "0.1", "--csv", "i.csv"]
+main() if PROGRAM else main(sys.argv[1:])
+"""
+
+
+@pytest.mark.parametrize("program", [True, False])
+def test_the_program_exits_without_collecting_every_object(program, tmp_path):
+    """As the program, the CLI freezes the heap at exit (no last walks over every object);
+    called with argv, it leaves the caller's garbage collection alone."""
+    code = _FROZEN_AT_EXIT.replace("PROGRAM", str(program))
+    proc = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True,
+                          text=True)  # fmt: skip
+    assert proc.returncode == 0, proc.stderr
+    frozen = int(proc.stdout.split("frozen ")[-1])
+    assert (frozen > 1000) if program else (frozen == 0)
+
+
 @pytest.mark.parametrize("band", [None, 1])
 def test_lean_odeint_is_scipys_bit_for_bit(band):
     from scipy.integrate import odeint as scipy_odeint

@@ -7,7 +7,9 @@ exit with status 2; no traceback, nothing written.
 from __future__ import annotations
 
 import argparse
+import atexit
 import contextlib
+import gc
 import importlib
 import logging
 import os
@@ -303,8 +305,28 @@ def _numpy_with_one_blas_thread() -> None:
         os.environ.pop(_BLAS_THREADS, None)
 
 
+def _no_collection_at_exit() -> None:
+    """Let the process end without the interpreter's last collections of every object.
+
+    At exit Python clears each module and collects cycles several times over, walking
+    every object that numpy, Pinocchio and the run made. Moving them to the permanent
+    generation first (:func:`gc.freeze`, an ``atexit`` handler, registered once) skips
+    those walks; the objects go with the process, and Python never promised finalizers
+    at exit for objects still alive.
+    """
+    atexit.unregister(gc.freeze)
+    atexit.register(gc.freeze)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run the CLI; returns the exit status (0 success, 2 bad input or failure)."""
+    """Run the CLI; returns the exit status (0 success, 2 bad input or failure).
+
+    Without ``argv`` (the ``rrt-pin`` program, ``python -m rrt_pin``: ``sys.argv``), the
+    process is taken to end with the command (:func:`_no_collection_at_exit`); with it
+    (a program or test calling the CLI), the caller's garbage collection is left alone.
+    """
+    if argv is None:
+        _no_collection_at_exit()
     argv = _join_negative_lists(list(sys.argv[1:] if argv is None else argv))
     for stream in (sys.stdout, sys.stderr):  # "N·m" on an ASCII terminal: never a traceback
         if hasattr(stream, "reconfigure"):
