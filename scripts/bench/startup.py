@@ -21,7 +21,11 @@ environment (target: at most 1.3 for the default jobs), and how many modules eac
 process compiles from source (counted once, after the timed rounds, through
 importlib's ``SourceLoader.source_to_code``).
 
-    .venv/bin/python -m scripts.bench.startup [--repeat 15] [--markdown]
+    .venv/bin/python -m scripts.bench.startup [--repeat 15] [--markdown] [--skip-compiled]
+
+The CLI loads numpy's and scipy's OpenBLAS with one thread (unless
+``OPENBLAS_NUM_THREADS`` is set): the floor, a plain ``import pinocchio``, starts
+numpy's pool of threads, which spin beside it for a while.
 """
 
 from __future__ import annotations
@@ -97,6 +101,9 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=15)
     parser.add_argument("--markdown", action="store_true", help="print a Markdown table")
+    parser.add_argument("--skip-compiled", action="store_true",
+                        help="leave out the two --backend compiled jobs (in a checkout where "
+                        "nothing is built they would compile first)")  # fmt: skip
     opts = parser.parse_args()
     py = sys.executable
     with tempfile.TemporaryDirectory() as d:
@@ -123,6 +130,8 @@ def main() -> None:
                 py, "-m", "rrt_pin", "simulate", "--backend", "compiled", "--csv", f"{d}/d.csv",
             ],
         }  # fmt: skip
+        if opts.skip_compiled:
+            jobs = {name: argv for name, argv in jobs.items() if "compiled" not in name}
         envs = _environments(str(Path(d) / "pycache"))
         sides = [(job, env) for env in envs for job in jobs]
         for job, env in sides:  # warm the page cache; the first environment writes its .pyc
