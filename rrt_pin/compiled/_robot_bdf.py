@@ -250,6 +250,21 @@ def bdf_jacobian(t, y, law, c, rt, rv, numeric, atol, J, factor, f, col, again, 
 
 
 @jit
+def bdf_dense(te, t, h, order, D, out):
+    """SciPy's ``BdfDenseOutput`` at ``te`` into ``out`` (n,): the polynomial of D, step h."""
+    n = out.shape[0]
+    for i in range(n):
+        out[i] = 0.0
+    p = 1.0
+    for j in range(order):
+        p *= (te - (t - h * j)) / (h * (1 + j))
+        for i in range(n):
+            out[i] += D[1 + j, i] * p
+    for i in range(n):
+        out[i] += D[0, i]
+
+
+@jit
 def bdf(method, y0, t_eval, atol, rtol, max_step, max_steps, law, c, rt, rv, dense, out_y, ws):
     """SciPy's BDF from (t_eval[0], y0) to t_eval[-1] (see the module's docstring).
 
@@ -471,24 +486,14 @@ def bdf(method, y0, t_eval, atol, rtol, max_step, max_steps, law, c, rt, rv, den
             bdf_change_d(D, order, fac, R, U, tmp)
             n_equal_steps = 0
             have_lu = False
-        # ---- solve_ivp's outputs: SciPy's BdfDenseOutput of this step
+        # ---- solve_ivp's outputs: SciPy's BdfDenseOutput of this step (the final state
+        # too: D[0], which rounds otherwise than y)
         if dense:
-            hd = h_abs_self
             while i_out < n_out and t_eval[i_out] <= t:
-                te = t_eval[i_out]
-                for i in range(n):
-                    err[i] = 0.0
-                p = 1.0
-                for j in range(order):
-                    p *= (te - (t - hd * j)) / (hd * (1 + j))
-                    for i in range(n):
-                        err[i] += D[1 + j, i] * p
-                for i in range(n):
-                    out_y[i_out, i] = err[i] + D[0, i]
+                bdf_dense(t_eval[i_out], t, h_abs_self, order, D, out_y[i_out])
                 i_out += 1
         if t - t_bound >= 0.0:
             if not dense:
-                for i in range(n):
-                    out_y[0, i] = y[i]
+                bdf_dense(t_bound, t, h_abs_self, order, D, out_y[0])
                 i_out = 1
             return STATUS_OK, -1, n_evals, i_out, t
