@@ -20,6 +20,8 @@ with ``pin.aba`` at the same tolerance). Each side then runs at the loosest rtol
 * compiled        ``rrt_pin.simulate(robot, ..., backend="compiled")``, DOP853, no estimate;
 * adams           the same with ``method="adams"`` (Shampine and Gordon's variable-order
                   Adams, outputs interpolated);
+* bdf             the same with ``method="BDF"`` (SciPy's BDF step for step, the loop's
+                  generated Jacobian: implicit, for the stiff tail of the scene);
 * pinocchio       the same on rrt-pin's Pinocchio backend (odepack, its default method);
 * scipy loop      a hand-written ``solve_ivp(DOP853)`` over ``pin.aba`` and
                   ``pin.computeGeneralizedGravity`` (what a user writes without rrt-pin);
@@ -113,11 +115,12 @@ def bench(name: str, args: argparse.Namespace, t: np.ndarray) -> None:
     sides = {
         "compiled": lambda r: run(robot, law, q0, t, "compiled", r, "DOP853").q,
         "adams": lambda r: run(robot, law, q0, t, "compiled", r, "adams").q,
+        "bdf": lambda r: run(robot, law, q0, t, "compiled", r, "BDF").q,
         "pinocchio": lambda r: run(robot, law, q0, t, "pinocchio", r).q,
         "scipy loop": lambda r: scipy_loop(robot, law, q0, t, r),
     }
     chosen = {}
-    evals = {"compiled": "DOP853", "adams": "adams", "pinocchio": None}
+    evals = {"compiled": "DOP853", "adams": "adams", "bdf": "BDF", "pinocchio": None}
     for side, f in sides.items():
         rtol, err = loosest(f, reference, args.accuracy)
         chosen[side] = rtol
@@ -160,7 +163,7 @@ def bench(name: str, args: argparse.Namespace, t: np.ndarray) -> None:
     for keep in ("final", "metrics"):
         rate = B / med[f"batch {keep}"]
         print(f"  batch {keep:<7} {rate:9.0f} simulations/s on one core ({B} variants)")
-    for single in ("compiled", "adams"):
+    for single in ("compiled", "adams", "bdf"):
         fast = med[single]
         r_pin, r_scipy = med["pinocchio"] / fast, med["scipy loop"] / fast
         print(f"  {single}: {r_pin:.1f}x rrt-pin's Pinocchio backend (target 25x: "
