@@ -17,8 +17,9 @@ halving the step, the error estimate error_const[k]·d in SciPy's RMS norm with 
 safety factor 0.9·9/(8 + Newton iterations), the order changed by one after k + 1
 equal steps from the errors at orders k − 1, k, k + 1, and the outputs from SciPy's
 dense output of D at each output time inside the step just taken. The last digits
-differ from SciPy's (its BLAS and LAPACK sum in another order); the steps do not,
-given the same Jacobian.
+differ from SciPy's (its BLAS and LAPACK sum in another order, and the generated
+Jacobian's I − c·J is solved by its blocks: J = [[0, I], [A, B]], an LU of
+I − c·B − c²·A of nv rows, :func:`bdf_schur`); the steps do not, given the same Jacobian.
 
 The Jacobian ∂ẏ/∂y: under PD plus gravity with no physical model applied, the
 generated one (``closed_loop_jac``: the loop's q̈ differentiated along q and q̇, the
@@ -174,6 +175,50 @@ def bdf_solve(LU, piv, b):
 
 
 @jit
+def bdf_schur(J, c, S, piv):
+    """The LU of S = I − c·B − c²·A (nv, nv): I − c·J's by its blocks (J = [[0, I], [A, B]]).
+
+    (I − c·J)·(x₁, x₂) = (b₁, b₂) is x₂ = S⁻¹·(b₂ + c·A·b₁), x₁ = b₁ + c·x₂
+    (:func:`bdf_solve_blocks`): an LU of nv rows instead of 2·nv, the same solution to
+    rounding. Only for a J whose upper blocks are exactly 0 and I (the generated one).
+    """
+    nv = S.shape[0]
+    cc = c * c
+    for i in range(nv):
+        for j in range(nv):
+            S[i, j] = (1.0 if i == j else 0.0) - c * J[nv + i, nv + j] - cc * J[nv + i, j]
+    bdf_lu(S, piv)
+
+
+@jit
+def bdf_solve_blocks(S, piv, J, c, b, r):
+    """Solve (I − c·J)·x = b in place from :func:`bdf_schur`'s factors; ``r`` (≥ nv,) scratch."""
+    nv = S.shape[0]
+    for i in range(nv):
+        s = b[nv + i]
+        for j in range(nv):
+            s += c * J[nv + i, j] * b[j]
+        r[i] = s
+    for k in range(nv):
+        p = piv[k]
+        if p != k:
+            r[k], r[p] = r[p], r[k]
+    for i in range(1, nv):
+        s = r[i]
+        for j in range(i):
+            s -= S[i, j] * r[j]
+        r[i] = s
+    for i in range(nv - 1, -1, -1):
+        s = r[i]
+        for j in range(i + 1, nv):
+            s -= S[i, j] * r[j]
+        r[i] = s / S[i, i]
+    for i in range(nv):
+        b[nv + i] = r[i]
+        b[i] = b[i] + c * r[i]
+
+
+@jit
 def bdf_difference(f, col):
     """Make ``col`` = ẏ(y + h·e_j) − f; (its largest |entry|, the scale at that row).
 
@@ -298,6 +343,9 @@ def bdf(method, y0, t_eval, atol, rtol, max_step, max_steps, law, c, rt, rv, den
     J = np.empty((n, n))
     LU = np.empty((n, n))
     piv = np.empty(n, dtype=np.int64)
+    S = np.empty((nv, nv))
+    pivs = np.empty(nv, dtype=np.int64)
+    c_lu = 0.0
     jw = np.empty((nv, 1 + n))
     t = t_eval[0]
     t_bound = t_eval[n_out - 1]
@@ -371,10 +419,14 @@ def bdf(method, y0, t_eval, atol, rtol, max_step, max_steps, law, c, rt, rv, den
             cc = h / BDF_ALPHA[order]
             while not converged:
                 if not have_lu:
-                    for i in range(n):
-                        for j in range(n):
-                            LU[i, j] = (1.0 if i == j else 0.0) - cc * J[i, j]
-                    bdf_lu(LU, piv)
+                    c_lu = cc
+                    if numeric:
+                        for i in range(n):
+                            for j in range(n):
+                                LU[i, j] = (1.0 if i == j else 0.0) - cc * J[i, j]
+                        bdf_lu(LU, piv)
+                    else:
+                        bdf_schur(J, cc, S, pivs)
                     have_lu = True
                 # ---- solve_bdf_system
                 for i in range(n):
@@ -393,7 +445,10 @@ def bdf(method, y0, t_eval, atol, rtol, max_step, max_steps, law, c, rt, rv, den
                         break
                     for i in range(n):
                         dy[i] = cc * f[i] - psi[i] - d[i]
-                    bdf_solve(LU, piv, dy)
+                    if numeric:
+                        bdf_solve(LU, piv, dy)
+                    else:
+                        bdf_solve_blocks(S, pivs, J, c_lu, dy, ytmp)
                     dy_norm = bdf_rms(dy, scale)
                     rate = 0.0
                     if have_old:
