@@ -25,7 +25,7 @@ if TYPE_CHECKING:
     from rrt_pin.simulate.physical_runs import RunPhysics
     from rrt_pin.simulate.results import BatchResult, SimulationResult
 
-__all__ = ["RECORDS_FAILURES", "batch", "prepare", "single"]
+__all__ = ["RECORDS_FAILURES", "batch", "inverse", "prepare", "single"]
 
 #: ``batch`` records each variant's failure itself (``failures="record"``).
 RECORDS_FAILURES = True
@@ -146,3 +146,27 @@ def batch(
         )  # fmt: skip
 
     return run_arm
+
+
+def inverse(
+    b: Any, model: Any, robot: Robot | None, params: Any, q: Any, qd: Any, qdd: Any,
+    num_threads: int | None,
+) -> np.ndarray:
+    """Inverse dynamics: the arm's kernel (the arm, or its Params given), else generated RNEA.
+
+    Raises:
+        InputError: bad samples, an unsupported joint, or non-finite efforts (named).
+    """
+    import numpy as np
+
+    from rrt_pin.dynamics.inverse import arm_samples, generated_runs
+
+    arm = runs_arm_kernel(robot, params, ()) if robot is not None else params is not None
+    if not arm:
+        if model is None:
+            raise InputError(f"backend={b.name!r} needs a Robot, a Pinocchio model or Params")
+        return generated_runs(b, model, robot, q, qd, qdd, num_threads)
+    params, q, qd, qdd, single = arm_samples(b.name, model, robot, params, q, qd, qdd, False)
+    b.require()
+    tau = np.asarray(b.entry("inverse")(q, qd, qdd, params), dtype=float)
+    return tau[0] if single else tau

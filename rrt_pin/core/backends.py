@@ -156,7 +156,10 @@ BACKENDS: dict[str, Backend] = {
             simulate_cost=0.48e-3,
             robot_inverse_cost=76e-9,
             robot_simulate_cost=2.7e-3,
-            entries=(("simulate_runs", "rrt_pin.simulate.pinocchio_runs"),),
+            entries=(
+                ("inverse_runs", "rrt_pin.dynamics.inverse:pinocchio_runs"),
+                ("simulate_runs", "rrt_pin.simulate.pinocchio_runs"),
+            ),
         ),
         Backend(
             "symbolic",
@@ -166,6 +169,7 @@ BACKENDS: dict[str, Backend] = {
             default_method=None,
             requires="numpy",
             inverse_cost=100e-9,
+            entries=(("inverse_runs", "rrt_pin.dynamics.inverse:symbolic_runs"),),
         ),
         Backend(
             "compiled",
@@ -189,6 +193,7 @@ BACKENDS: dict[str, Backend] = {
                 ("inverse", "rrt_pin.compiled:inverse_dynamics"),  # the arm's kernel
                 ("inverse_generated", "rrt_pin.compiled.rnea:inverse_dynamics"),
                 ("unsupported_joint", "rrt_pin.dynamics.rnea_source:unsupported_joint"),
+                ("inverse_runs", "rrt_pin.compiled.runs:inverse"),  # the front door's
                 ("simulate_runs", "rrt_pin.compiled.runs"),  # the front door's: prepare, single, batch
                 ("load_batch", "rrt_pin.compiled:ensure_compiled"),
                 ("load_single", "rrt_pin.compiled:machine_code"),

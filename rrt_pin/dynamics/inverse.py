@@ -205,27 +205,55 @@ def inverse_dynamics(
     if num_threads is not None:
         num_threads = _num_threads(num_threads)
     robot = model if isinstance(model, Robot) else None
-    if b.name == "pinocchio":
-        if model is None:
-            raise InputError("backend='pinocchio' needs a Robot or a Pinocchio model")
-        if robot is not None:
-            pin_model, nq = robot.model, robot.nv
-        else:
-            pin_model, nq = model, model.nq
-        # Pinocchio turns a non-finite input into non-finite efforts: the inputs are
-        # searched (and the bad one named) only when the efforts are not all finite.
-        (q, qd, qdd), single = _samples_unchecked(q, qd, qdd, nq, pin_model.nv)
-        configuration = robot.configuration if robot is not None else None
-        tau = _rnea_batch(pin_model, q, qd, qdd, num_threads, configuration)
-        if not np.isfinite(tau).all():
-            _refuse_nonfinite((q, qd, qdd), tau, robot)
-        return tau[0] if single else tau
-    if b.name == "compiled" and (robot.params is None if robot is not None else params is None):
-        if model is None:
-            raise InputError(f"backend={backend!r} needs a Robot, a Pinocchio model or Params")
-        return _generated(b, model, robot, q, qd, qdd, num_threads)
+    return b.entry("inverse_runs")(b, model, robot, params, q, qd, qdd, num_threads)
+
+
+def pinocchio_runs(
+    b: Any, model: Any, robot: Robot | None, params: Any, q: Any, qd: Any, qdd: Any,
+    num_threads: int | None,
+) -> np.ndarray:  # noqa: ARG001  (every backend's ``inverse_runs`` takes the same)
+    """The Pinocchio backend: ``pin.rneaInParallel`` over the samples (any model)."""
+    if model is None:
+        raise InputError("backend='pinocchio' needs a Robot or a Pinocchio model")
     if robot is not None:
-        if not robot.supports(b.name):
+        pin_model, nq = robot.model, robot.nv
+    else:
+        pin_model, nq = model, model.nq
+    # Pinocchio turns a non-finite input into non-finite efforts: the inputs are
+    # searched (and the bad one named) only when the efforts are not all finite.
+    (q, qd, qdd), single = _samples_unchecked(q, qd, qdd, nq, pin_model.nv)
+    configuration = robot.configuration if robot is not None else None
+    tau = _rnea_batch(pin_model, q, qd, qdd, num_threads, configuration)
+    if not np.isfinite(tau).all():
+        _refuse_nonfinite((q, qd, qdd), tau, robot)
+    return tau[0] if single else tau
+
+
+def symbolic_runs(
+    b: Any, model: Any, robot: Robot | None, params: Any, q: Any, qd: Any, qdd: Any,
+    num_threads: int | None,
+) -> np.ndarray:  # noqa: ARG001  (every backend's ``inverse_runs`` takes the same)
+    """The chapter arm's closed form in numpy (:mod:`rrt_pin.dynamics.kernel`)."""
+    params, q, qd, qdd, single = arm_samples(b.name, model, robot, params, q, qd, qdd, True)
+    tau = np.asarray(kernel.inverse_dynamics(q, qd, qdd, params), dtype=float)
+    _check_finite(tau, CHAPTER_COLUMNS[3])
+    return tau[0] if single else tau
+
+
+def arm_samples(
+    backend: str, model: Any, robot: Robot | None, params: Any, q: Any, qd: Any, qdd: Any,
+    finite: bool,
+) -> tuple[Any, np.ndarray, np.ndarray, np.ndarray, bool]:
+    """The arm's Params and samples (N, 3) for a closed-form kernel, and whether one sample.
+
+    ``finite``: refuse non-finite samples here (machine code flags them itself, then
+    they are named as here: no numpy pass over the arrays).
+
+    Raises:
+        InputError: a robot or a model that is not the chapter's arm, bad samples.
+    """
+    if robot is not None:
+        if not robot.supports(backend):
             raise InputError(
                 f"backend={backend!r} computes the chapter's RRT arm only; {robot.name} needs "
                 "backend='pinocchio'"
@@ -238,21 +266,12 @@ def inverse_dynamics(
             f"backend={backend!r} is the RRT arm's kernel, but {model.nq=} and {model.nv=}; "
             "use backend='pinocchio' for other models"
         )
-    # The compiled loop flags non-finite inputs and efforts itself (then names
-    # them as below): no numpy pass over the arrays here.
-    compiled = b.name == "compiled"
     named = (("q", q, "rad or m"), ("qd", qd, "rad/s or m/s"), ("qdd", qdd, "rad/s² or m/s²"))
     (q, single), (qd, _), (qdd, _) = (
-        validate.samples(n, v, 3, u, finite=not compiled) for n, v, u in named
+        validate.samples(n, v, 3, u, finite=finite) for n, v, u in named
     )
     _same_count(q, qd, qdd)
-    if compiled:
-        b.require()
-        tau = np.asarray(b.entry("inverse")(q, qd, qdd, params), dtype=float)
-    else:
-        tau = np.asarray(kernel.inverse_dynamics(q, qd, qdd, params), dtype=float)
-        _check_finite(tau, CHAPTER_COLUMNS[3])
-    return tau[0] if single else tau
+    return params, q, qd, qdd, single
 
 
 def _motion(model: Any, q: Any, qd: Any, qdd: Any) -> tuple[Any, Any, Any]:
@@ -274,7 +293,7 @@ def _motion(model: Any, q: Any, qd: Any, qdd: Any) -> tuple[Any, Any, Any]:
     return motion.q, motion.qd, motion.qdd
 
 
-def _generated(
+def generated_runs(
     b: Any, model: Any, robot: Any, q: Any, qd: Any, qdd: Any, num_threads: int | None
 ) -> np.ndarray:
     """The ``compiled`` backend on a robot or model without Params: its generated RNEA.
