@@ -725,8 +725,8 @@ def test_the_front_doors_reach_a_backend_through_the_registry():
         backends.get("pinocchio").entry("inverse_generated")
 
 
-def test_every_backend_that_simulates_offers_the_same_runs():
-    """The front door hands over without asking which backend: each offers the same functions."""
+def test_every_backend_offers_the_same_runs():
+    """The front doors hand over without asking which backend: each offers the same functions."""
     import inspect
 
     shapes = {}
@@ -739,6 +739,12 @@ def test_every_backend_that_simulates_offers_the_same_runs():
             tuple(inspect.signature(getattr(runs, f)).parameters) for f in ("prepare", "single", "batch")
         )
     assert len(shapes) >= 2 and len(set(shapes.values())) == 1, shapes
+    inverse = {
+        b.name: tuple(inspect.signature(b.entry("inverse_runs")).parameters)
+        for b in backends.BACKENDS.values()
+        if b.runs("inverse")
+    }
+    assert len(inverse) == 3 and len(set(inverse.values())) == 1, inverse
 
 
 def test_old_module_paths_warn_and_give_the_modules_at_their_new_place():
