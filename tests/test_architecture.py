@@ -783,11 +783,13 @@ def test_old_module_paths_warn_and_give_the_modules_at_their_new_place():
 
 #: Modules that may exceed :data:`MAX_LINES`: the numba kernels (each integrator's loop
 #: kept whole in one function for the compiler, their branches side by side), and the
-#: template of any robot's integrators, which is one generated module a robot.
+#: template of any robot's integrators and its lanes, which become one generated module a
+#: robot.
 LONG_KERNELS = {
     "compiled/_jit_integrators.py",
     "compiled/_jit_batch.py",
     "compiled/_robot_template.py",
+    "compiled/_robot_lanes.py",
 }
 MAX_LINES = 600
 
