@@ -95,6 +95,16 @@ def test_a_law_without_a_generated_jacobian_takes_finite_differences(ur5):
     _same_steps(fast, scipy)
 
 
+def test_the_physical_model_takes_finite_differences(ur5):
+    """Effort limits, position limits and losses: no generated Jacobian of them, SciPy's num_jac."""
+    physical = {"effort_limits": True, "position_limits": True, "losses": True}
+    law = _pd(ur5)
+    fast = _run(ur5, law, "compiled", 1e-8, **physical)
+    scipy = _run(ur5, law, "pinocchio", 1e-8, jacobian="finite-difference", **physical)
+    _same_steps(fast, scipy)
+    assert np.abs(fast.q - _run(ur5, law, "compiled", 1e-8).q).max() > 1e-6  # it applied them
+
+
 def test_a_tracking_law_takes_finite_differences(ur5):
     """Computed torque along a sampled motion: SciPy's finite differences on both backends.
 
