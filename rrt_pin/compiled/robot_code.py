@@ -135,7 +135,9 @@ class RobotCode:
         dispatcher = getattr(self._module, name)
         what = {"run_lanes": "batch lanes", "run_adams": "Adams integrator",
                 "run_bdf": "BDF integrator"}.get(name, "integrators")  # fmt: skip
-        estimate = _estimate(self.flops) * (0.7 if name == "run_lanes" else 1.0)
+        jac = self._source.partition("def closed_loop_jac(")[2].partition("\n\n\n")[0]
+        flops = self.flops + (jac.count("\n") if name == "run_bdf" else 0)  # + its Jacobian's
+        estimate = _estimate(flops) * (0.7 if name == "run_lanes" else 1.0)
         if self._path is None:
             note(f"compiling {self.name}'s {what} (~{estimate:.0f} s, not kept on disk)")
             dispatcher.compile(sig)
