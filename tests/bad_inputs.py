@@ -1160,4 +1160,10 @@ CASES = (
         ("simulate", "--method", "adams", "--backend", "compiled", "--csv", OUT),
         "--method adams runs the generated integrators of other robots",
     ),
+    # compiled BDF (SciPy's BDF in the generated integrators)
+    Case(
+        "BDF on the chapter's arm compiled",
+        ("simulate", "--method", "BDF", "--backend", "compiled", "--csv", OUT),
+        "--method BDF runs the generated integrators of other robots",
+    ),
 )

@@ -187,3 +187,17 @@ def test_a_bdf_run_compiles_its_entry_alone(ur5, monkeypatch):
     robot_runs.prepare(ur5, [_pd(ur5)], options)
     robot_runs.prepare(ur5, [_pd(ur5), _pd(ur5)], options)
     assert asked == ["run_bdf", "run_bdf"]
+
+
+@pytest.mark.parametrize("method", ["BDF", "adams"])
+def test_auto_never_sends_the_arm_a_method_its_kernel_refuses(method, monkeypatch):
+    """Even with the arm's machine code loaded, auto keeps a generated-only method off it."""
+    from rrt_pin import compiled
+    from rrt_pin.core import backends
+    from rrt_pin.robot.robots import chapter_arm
+
+    monkeypatch.setattr(compiled, "state_for", lambda *args: (True, False, True))  # loaded
+    arm = chapter_arm()
+    choice = backends.choose(arm, "simulate", method, 15.0, controllers=[None])
+    assert choice.name == "pinocchio" and "chapter's arm's own kernel" in choice.reason
+    assert backends.choose(arm, "simulate", "DOP853", 15.0, controllers=[None]).name == "compiled"

@@ -199,11 +199,14 @@ def state_for(
     return robot_code.state(robot.model, batch)
 
 
-def refusal(robot: Any, controllers: Any, params: Any = None) -> str | None:
+def refusal(
+    robot: Any, controllers: Any, params: Any = None, method: str | None = None
+) -> str | None:
     """Why compiled code would refuse to simulate ``robot`` under ``controllers`` (None: it would not).
 
-    Checks each law as the run would (the chapter's arm: :mod:`rrt_pin.compiled.integrate`;
-    another robot: :mod:`rrt_pin.compiled.robot_runs`), without compiling anything.
+    Checks each law, and the method if one is named, as the run would (the chapter's
+    arm: :mod:`rrt_pin.compiled.integrate`; another robot:
+    :mod:`rrt_pin.compiled.robot_runs`), without compiling anything.
     """
     from rrt_pin.core.errors import InputError
     from rrt_pin.robot.params import Params
@@ -212,7 +215,10 @@ def refusal(robot: Any, controllers: Any, params: Any = None) -> str | None:
     try:
         if runs_arm_kernel(robot, params, laws):
             from rrt_pin.compiled import integrate
+            from rrt_pin.simulate import methods
 
+            if method is not None:
+                integrate._arm_method(methods.get(method))
             given = list(params) if isinstance(params, (list, tuple)) else [params]
             candidates = [*given, robot.params, *(getattr(c, "params", None) for c in laws)]
             plant = next((p for p in candidates if isinstance(p, Params)), None)

@@ -77,6 +77,12 @@ def _raise_status(
         f"{argument('method')} "
         "odepack, Radau or BDF), or the tolerances are tighter than the motion allows"
     )
+    if methods.METHODS.get(method) is not None and methods.METHODS[method].implicit:
+        stiff = (
+            f"{method} could not keep the error within the tolerances: they are tighter "
+            "than the motion allows, or its Newton iterations fail (a law whose efforts "
+            "jump); loosen them, or try another method"
+        )
     if step is not None:
         stiff = (
             f"the step {step:g} s is too long for this scene: a fixed explicit step must "

@@ -334,7 +334,7 @@ def choose(
     arm = task == "inverse" and robot.supports(fast.name)
     loaded = aot = built = False
     if why is None and build:  # nothing looked up that differs between processes
-        why = fast.entry("refusal")(robot, controllers, params) if task == "simulate" else None
+        why = fast.entry("refusal")(robot, controllers, params, method) if task == "simulate" else None
         if why is None:
             return Choice(fast.name, "the job may build it (long; it says so when it does)")
     elif why is None:
@@ -344,7 +344,7 @@ def choose(
         if not built:
             why = "compiled code not built (auto never compiles: ask for backend 'compiled')"
         elif task == "simulate":  # the laws last: checking them imports the integrators
-            why = fast.entry("refusal")(robot, controllers, params)
+            why = fast.entry("refusal")(robot, controllers, params, method)
     # every backend that can run the job as asked, with its estimate (start-up included)
     found = [(engine, estimated_seconds(engine, task, work, "pinocchio" in sys.modules, False,
                                         arm, robot.nv))]  # fmt: skip
