@@ -201,3 +201,22 @@ def test_auto_never_sends_the_arm_a_method_its_kernel_refuses(method, monkeypatc
     choice = backends.choose(arm, "simulate", method, 15.0, controllers=[None])
     assert choice.name == "pinocchio" and "chapter's arm's own kernel" in choice.reason
     assert backends.choose(arm, "simulate", "DOP853", 15.0, controllers=[None]).name == "compiled"
+
+
+def test_auto_counts_a_method_ready_only_when_its_own_entry_is(monkeypatch):
+    """A robot whose run_many is built but not run_bdf: auto does not wait for BDF's compile."""
+    from rrt_pin.compiled import robot_code
+    from rrt_pin.core import backends
+    from rrt_pin.robot import robots
+
+    ur5 = robots.get("ur5")
+    seen = []
+
+    def state(model, batch=False, code=None):  # noqa: ANN001, ANN202
+        seen.append(code)
+        return False, False, code not in robot_code.OWN_ENTRY  # run_many built, not run_bdf
+
+    monkeypatch.setattr(robot_code, "state", state)
+    assert backends.choose(ur5, "simulate", "BDF", 1e6, controllers=[None]).name == "pinocchio"
+    assert backends.choose(ur5, "simulate", "DOP853", 1e6, controllers=[None]).name == "compiled"
+    assert robot_code.OWN_ENTRY.get(seen[0]) == "run_bdf" and seen[1] not in robot_code.OWN_ENTRY

@@ -170,14 +170,14 @@ def build_state() -> tuple[bool, bool, bool]:
 
 
 def state_for(
-    robot: Any, task: str, batch: bool = False, arm: bool = True
+    robot: Any, task: str, batch: bool = False, arm: bool = True, method: str | None = None
 ) -> tuple[bool, bool, bool]:
     """(loaded in this process, built ahead of time, ready without compiling) for one job.
 
     ``arm``: the job runs the chapter arm's closed-form code (else ``robot``'s generated
-    code: its RNEA for ``inverse``, its integrators for ``simulate``). A ``batch`` runs
-    on the JIT's threads, never on code built ahead of time. Cheap: no numba import,
-    nothing generated or compiled.
+    code: its RNEA for ``inverse``, its integrators for ``simulate``, the entry of
+    ``method`` if it has its own). A ``batch`` runs on the JIT's threads, never on code
+    built ahead of time. Cheap: no numba import, nothing generated or compiled.
     """
     if arm:
         from rrt_pin.compiled import _aot
@@ -195,8 +195,10 @@ def state_for(
 
         return rnea.state(robot.model)
     from rrt_pin.compiled import robot_code
+    from rrt_pin.simulate import methods
 
-    return robot_code.state(robot.model, batch)
+    code = methods.get(method).code if method is not None else None
+    return robot_code.state(robot.model, batch, code)
 
 
 def refusal(

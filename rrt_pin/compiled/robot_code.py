@@ -572,14 +572,21 @@ def integrators_for(model: pin.Model, name: str | None = None) -> RobotCode:
     return code
 
 
-def state(model: pin.Model, batch: bool = False) -> tuple[bool, bool, bool]:
+#: The entry of the methods that have their own (the others: ``run_many``, ``run_lanes``).
+OWN_ENTRY = {codes.METHOD_ADAMS: "run_adams", codes.METHOD_BDF: "run_bdf"}
+
+
+def state(
+    model: pin.Model, batch: bool = False, code: int | None = None
+) -> tuple[bool, bool, bool]:
     """(loaded in this process, built ahead of time, ready without compiling): ``model``'s integrators.
 
-    A single run's ``run_many``; a batch's ``run_lanes`` or ``run_many``. Cheap: no numba
-    import, no source generated (the index of :mod:`rrt_pin.compiled._models`).
-    Integrators are never built ahead of time.
+    The entry of method ``code`` if it has its own (:data:`OWN_ENTRY`), else ``run_many``
+    (and a batch's ``run_lanes``). Cheap: no numba import, no source generated (the index
+    of :mod:`rrt_pin.compiled._models`). Integrators are never built ahead of time.
     """
     entries = ("run_many", "run_lanes") if batch else ("run_many",)
+    entries = (OWN_ENTRY[code],) if code in OWN_ENTRY else entries
     found = _MODELS.get(model)
     if found is not None and bool(found[0] == model):
         if any(e in found[1]._entries for e in entries):

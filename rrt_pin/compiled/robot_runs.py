@@ -138,10 +138,8 @@ def _entry(count: int, options: Options, laws: np.ndarray) -> str:
     Adaptive PD variants run side by side in lanes; Adams's method, BDF and anything else
     one after the other.
     """
-    if options.method.code == codes.METHOD_ADAMS:
-        return "run_adams"
-    if options.method.code == codes.METHOD_BDF:
-        return "run_bdf"
+    if options.method.code in robot_code.OWN_ENTRY:
+        return robot_code.OWN_ENTRY[options.method.code]
     lanes = count >= 2 and options.method.code < codes.FIXED_STEP_FROM
     return "run_lanes" if lanes and bool(np.all(laws == codes.LAW_PD_GRAVITY)) else "run_many"
 
