@@ -185,3 +185,24 @@ def test_pd_gravity_needs_a_pinocchio_model():
 def test_efforts_refuse_bad_shapes(seed_params):
     with pytest.raises(InputError, match=r"shape \(N, 3\)"):
         seed_controller(seed_params).efforts(np.zeros((4, 2)), np.zeros((4, 2)))
+
+
+def test_the_chapter_law_of_params_is_the_law_built_from_its_fields():
+    """``ChapterController.of(p)`` (a sweep's fast path) is the checked law, field by field."""
+    from rrt_pin.simulate.control import ChapterController as _Law
+
+    rng = np.random.default_rng(2)
+    for _ in range(20):
+        p = Params(m3=float(rng.uniform(20, 60)), gamma12=float(rng.uniform(0, 500)),
+                    q2f=float(rng.uniform(-1, 1)), beta23=float(rng.uniform(0, 300)))  # fmt: skip
+        fast, checked = _Law.of(p), _Law(kp=p.kp, kd=p.kd, qf=p.qf, params=p)
+        assert (fast.kp, fast.kd, fast.qf, fast.params) == (
+            checked.kp, checked.kd, checked.qf, checked.params,
+        )  # fmt: skip
+        assert all(type(v) is float for v in (*fast.kp, *fast.kd, *fast.qf))
+        q, qd = rng.normal(size=(5, 3)), rng.normal(size=(5, 3))
+        np.testing.assert_array_equal(
+            fast.efforts_many(0.0, q, qd), checked.efforts_many(0.0, q, qd)
+        )
+    with pytest.raises(InputError, match="params must be a Params"):
+        _Law.of({"m3": 40.0})

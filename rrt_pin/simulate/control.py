@@ -194,6 +194,20 @@ class ChapterController(_PDGravity):
         if not isinstance(self.params, Params):
             raise InputError(f"params must be a Params, not {type(self.params).__name__}")
 
+    @classmethod
+    def of(cls, params: Params) -> ChapterController:
+        """The law with ``params``' own gains and target, on its arm.
+
+        What ``ChapterController(kp=params.kp, kd=params.kd, qf=params.qf, params=params)``
+        makes, without checking again what :class:`Params` has checked (finite gains
+        ≥ 0, a finite target): a sweep makes thousands a second.
+        """
+        if not isinstance(params, Params):
+            raise InputError(f"params must be a Params, not {type(params).__name__}")
+        law = object.__new__(cls)
+        law.__dict__.update(kp=params.kp, kd=params.kd, qf=params.qf, params=params)
+        return law
+
     @property
     def nv(self) -> int:
         """Number of joints (3)."""

@@ -139,7 +139,7 @@ class ChapterFamily:
         ]
         made = [
             None if p is None or not laws
-            else ChapterController(kp=p.kp, kd=p.kd, qf=p.qf, params=p)
+            else ChapterController.of(p)
             for p in params
         ]  # fmt: skip
 
