@@ -313,7 +313,9 @@ def direct_work_precision(
             from rrt_pin import compiled
 
             have_compiled = compiled.available()
-            compiled_methods = names("compiled")
+            compiled_methods = tuple(  # the arm's kernel: not the generated robots' own methods
+                m for m in names("compiled") if compiled.refusal(arm, [ctrl], None, m) is None
+            )
         except ImportError:
             have_compiled = False
     plan: list[tuple[str, str, str, dict]] = []
@@ -321,8 +323,10 @@ def direct_work_precision(
         if backend == "compiled" and not have_compiled:
             continue
         for method in METHODS:
-            if backend == "compiled" and method not in compiled_methods:
-                continue  # scipy's Fortran and implicit loops have no compiled twin
+            if not METHODS[method].runs_on(backend) or (
+                backend == "compiled" and method not in compiled_methods
+            ):
+                continue  # not on this backend; on compiled, the arm's kernel's methods only
             for setting, kw in _settings(method, quick):
                 plan.append((backend, method, setting, kw))
 
