@@ -736,7 +736,8 @@ def test_every_backend_offers_the_same_runs():
         runs = backend.entry("simulate_runs")
         assert isinstance(runs.RECORDS_FAILURES, bool)
         shapes[backend.name] = tuple(
-            tuple(inspect.signature(getattr(runs, f)).parameters) for f in ("prepare", "single", "batch")
+            tuple(inspect.signature(getattr(runs, f)).parameters)
+            for f in ("prepare", "single", "batch")
         )
     assert len(shapes) >= 2 and len(set(shapes.values())) == 1, shapes
     inverse = {

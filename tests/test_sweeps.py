@@ -20,7 +20,6 @@ from rrt_pin.robot.robot import Robot
 from rrt_pin.sweeps.run import sweep
 from rrt_pin.sweeps.spec import spec_from_dict
 
-
 pytestmark = pytest.mark.usefixtures("auto_backend")  # sweeps choose their backend
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -82,8 +82,15 @@ def prepare(
 
 
 def single(
-    robot: Robot, controller: Any, law: Any, q0: np.ndarray, qd0: np.ndarray, t: np.ndarray,
-    params: Any, options: Options, rp: RunPhysics,
+    robot: Robot,
+    controller: Any,
+    law: Any,
+    q0: np.ndarray,
+    qd0: np.ndarray,
+    t: np.ndarray,
+    params: Any,
+    options: Options,
+    rp: RunPhysics,
 ) -> tuple[Callable[[Options, float], SimulationResult], Params | None]:  # noqa: ARG001
     """One run: ``(run, plant)``, the arm's Params as ``plant`` when its kernel runs.
 
@@ -113,9 +120,19 @@ def single(
 
 
 def batch(
-    robot: Robot, controllers: Sequence[Any], laws: Sequence[Any], q0s: np.ndarray,
-    qd0s: np.ndarray, t: np.ndarray, params: Any, options: Options, rp: RunPhysics, *,
-    keep: str, threads: int | None, failures: str,
+    robot: Robot,
+    controllers: Sequence[Any],
+    laws: Sequence[Any],
+    q0s: np.ndarray,
+    qd0s: np.ndarray,
+    t: np.ndarray,
+    params: Any,
+    options: Options,
+    rp: RunPhysics,
+    *,
+    keep: str,
+    threads: int | None,
+    failures: str,
 ) -> Callable[..., BatchResult]:  # noqa: ARG001
     """B variants: ``run(options, began, efforts, keep, main)``.
 
@@ -137,7 +154,9 @@ def batch(
         return run
     from rrt_pin.compiled import integrate
 
-    plants = list(params) if isinstance(params, (list, tuple)) else plant(robot, params, controllers)
+    plants = (
+        list(params) if isinstance(params, (list, tuple)) else plant(robot, params, controllers)
+    )
 
     def run_arm(o: Options, began: float, tau: bool, kept: str, main: bool = True) -> BatchResult:
         return integrate.run_batch(
@@ -149,7 +168,13 @@ def batch(
 
 
 def inverse(
-    b: Any, model: Any, robot: Robot | None, params: Any, q: Any, qd: Any, qdd: Any,
+    b: Any,
+    model: Any,
+    robot: Robot | None,
+    params: Any,
+    q: Any,
+    qd: Any,
+    qdd: Any,
     num_threads: int | None,
 ) -> np.ndarray:
     """Inverse dynamics: the arm's kernel (the arm, or its Params given), else generated RNEA.

@@ -194,7 +194,7 @@ BACKENDS: dict[str, Backend] = {
                 ("inverse_generated", "rrt_pin.compiled.rnea:inverse_dynamics"),
                 ("unsupported_joint", "rrt_pin.dynamics.rnea_source:unsupported_joint"),
                 ("inverse_runs", "rrt_pin.compiled.runs:inverse"),  # the front door's
-                ("simulate_runs", "rrt_pin.compiled.runs"),  # the front door's: prepare, single, batch
+                ("simulate_runs", "rrt_pin.compiled.runs"),  # prepare, single, batch
                 ("load_batch", "rrt_pin.compiled:ensure_compiled"),
                 ("load_single", "rrt_pin.compiled:machine_code"),
                 ("mass_matrix", "rrt_pin.compiled.dynamics:mass_matrix"),
@@ -334,7 +334,11 @@ def choose(
     arm = task == "inverse" and robot.supports(fast.name)
     loaded = aot = built = False
     if why is None and build:  # nothing looked up that differs between processes
-        why = fast.entry("refusal")(robot, controllers, params, method) if task == "simulate" else None
+        why = (
+            fast.entry("refusal")(robot, controllers, params, method)
+            if task == "simulate"
+            else None
+        )
         if why is None:
             return Choice(fast.name, "the job may build it (long; it says so when it does)")
     elif why is None:

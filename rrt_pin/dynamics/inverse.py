@@ -209,7 +209,13 @@ def inverse_dynamics(
 
 
 def pinocchio_runs(
-    b: Any, model: Any, robot: Robot | None, params: Any, q: Any, qd: Any, qdd: Any,
+    b: Any,
+    model: Any,
+    robot: Robot | None,
+    params: Any,
+    q: Any,
+    qd: Any,
+    qdd: Any,
     num_threads: int | None,
 ) -> np.ndarray:  # noqa: ARG001  (every backend's ``inverse_runs`` takes the same)
     """The Pinocchio backend: ``pin.rneaInParallel`` over the samples (any model)."""
@@ -230,7 +236,13 @@ def pinocchio_runs(
 
 
 def symbolic_runs(
-    b: Any, model: Any, robot: Robot | None, params: Any, q: Any, qd: Any, qdd: Any,
+    b: Any,
+    model: Any,
+    robot: Robot | None,
+    params: Any,
+    q: Any,
+    qd: Any,
+    qdd: Any,
     num_threads: int | None,
 ) -> np.ndarray:  # noqa: ARG001  (every backend's ``inverse_runs`` takes the same)
     """The chapter arm's closed form in numpy (:mod:`rrt_pin.dynamics.kernel`)."""
@@ -241,7 +253,13 @@ def symbolic_runs(
 
 
 def arm_samples(
-    backend: str, model: Any, robot: Robot | None, params: Any, q: Any, qd: Any, qdd: Any,
+    backend: str,
+    model: Any,
+    robot: Robot | None,
+    params: Any,
+    q: Any,
+    qd: Any,
+    qdd: Any,
     finite: bool,
 ) -> tuple[Any, np.ndarray, np.ndarray, np.ndarray, bool]:
     """The arm's Params and samples (N, 3) for a closed-form kernel, and whether one sample.

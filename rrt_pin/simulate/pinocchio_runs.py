@@ -61,8 +61,15 @@ def prepare(
 
 
 def single(
-    robot: Robot, controller: Any, law: Any, q0: np.ndarray, qd0: np.ndarray, t: np.ndarray,
-    params: Any, options: Options, rp: RunPhysics,
+    robot: Robot,
+    controller: Any,
+    law: Any,
+    q0: np.ndarray,
+    qd0: np.ndarray,
+    t: np.ndarray,
+    params: Any,
+    options: Options,
+    rp: RunPhysics,
 ) -> tuple[Callable[[Options, float], SimulationResult], None]:  # noqa: ARG001
     """One run of ``law`` (the checked controller, or the passive law) on Pinocchio's ABA."""
     from rrt_pin.simulate.pinocchio_backend import run_one
@@ -74,9 +81,19 @@ def single(
 
 
 def batch(
-    robot: Robot, controllers: Sequence[Any], laws: Sequence[Any], q0s: np.ndarray,
-    qd0s: np.ndarray, t: np.ndarray, params: Any, options: Options, rp: RunPhysics, *,
-    keep: str, threads: int | None, failures: str,
+    robot: Robot,
+    controllers: Sequence[Any],
+    laws: Sequence[Any],
+    q0s: np.ndarray,
+    qd0s: np.ndarray,
+    t: np.ndarray,
+    params: Any,
+    options: Options,
+    rp: RunPhysics,
+    *,
+    keep: str,
+    threads: int | None,
+    failures: str,
 ) -> Callable[..., BatchResult]:  # noqa: ARG001
     """B variants on one model (``pin.abaInParallel`` over a ``ModelPool``); metrics reduced.
 
