@@ -42,6 +42,7 @@ if TYPE_CHECKING:
     import pinocchio as pin
 
 __all__ = [
+    "BatchKernels",
     "DEFAULT_VARIANT",
     "ForwardKernels",
     "forward_kernel_for",
@@ -142,38 +143,61 @@ def _recorded(kind: str, digest: str) -> bool:
     return rnea._record_path(where / f"{kind}_{digest[:24]}.py").is_file()
 
 
-class ForwardKernels:
-    """One model's compiled M(q), b(q, q̇), G(q) and q̈ over batches of samples.
+class BatchKernels:
+    """One model's generated kernels over batches of samples: generated, compiled, checked.
 
-    Every function takes arrays (N, nv) of float64 (other arrays are converted; C-ordered
-    float64, read-only included, is taken as it is) and returns a new array.
+    The machinery :class:`ForwardKernels` and
+    :class:`rrt_pin.compiled.jacobian.DerivativeKernels` share; a subclass names its
+    kinds (:meth:`generators`), how its modules are written (:meth:`_text`), what the
+    announcement and a refusal call them.
 
     Attributes:
         name: the model's name (in the announcement and messages).
         nv: joint coordinates a sample.
-        variant: the forward-dynamics algorithm :meth:`forward_dynamics` runs by default.
     """
+
+    #: What the compilation's announcement calls the kernels.
+    called = "kernels"
+    #: Each input of the generated code: (the argument's name, its unit).
+    inputs = _INPUTS
 
     def __init__(self, model: pin.Model, name: str) -> None:
         self.name = name
         self.nv = int(model.nv)
-        self.variant = DEFAULT_VARIANT
         self._model = model
         self._kernels: dict[str, rnea.Kernel] = {}
         self._sources: dict[str, GeneratedFunction] = {}
 
+    @staticmethod
+    def generators() -> dict[str, Callable[[Any], GeneratedFunction]]:
+        """The generator of each kind's code, by kind."""
+        return _generators()
+
     def source(self, kind: str) -> GeneratedFunction:
-        """The generated code of ``kind``.
+        """The generated code of ``kind`` (one of :meth:`generators`).
 
         ``kind``: ``mass_matrix``, ``bias``, ``gravity``, ``forward_aba`` or ``forward_crba``.
         """
         gen = self._sources.get(kind)
         if gen is None:
-            make = _generators().get(kind)
+            make = self.generators().get(kind)
             if make is None:
-                raise InputError(f"kind={kind!r} is unknown; known: {', '.join(_generators())}")
+                known = ", ".join(self.generators())
+                raise InputError(f"kind={kind!r} is unknown; known: {known}")
             gen = self._sources[kind] = make(self._model)
         return gen
+
+    def _text(self, kind: str, gen: GeneratedFunction) -> tuple[str, int | None]:  # noqa: ARG002
+        """The kernel's module source, and its sine-cosine pairs a sample if vectorised."""
+        return module_source(gen), None
+
+    def _seconds(self, gen: GeneratedFunction) -> float:
+        """What compiling ``gen``'s kernel takes, roughly [s] (the announcement's estimate)."""
+        return _COMPILE_S_PER_KERNEL + _COMPILE_S_PER_FLOP * gen.flops
+
+    def _result(self, kind: str, gen: GeneratedFunction) -> tuple[str, str]:  # noqa: ARG002
+        """How a non-finite result is named: (what it is, the array's name)."""
+        return f"the {_WHAT[kind]}", kind
 
     def kernel(self, kind: str) -> rnea.Kernel:
         """The compiled kernel of ``kind`` (generated and compiled, or loaded, on first use)."""
@@ -191,29 +215,96 @@ class ForwardKernels:
         sources = {}
         for kind in todo:
             gen = self.source(kind)
-            text = module_source(gen)
-            sources[kind] = (gen, text, hashlib.sha256(text.encode()).hexdigest())
+            text, sincos = self._text(kind, gen)
+            sources[kind] = (gen, text, hashlib.sha256(text.encode()).hexdigest(), sincos)
         with _lock:
             cold = [
                 gen
-                for kind, (gen, _, digest) in sources.items()
+                for kind, (gen, _, digest, _) in sources.items()
                 if digest not in _KERNELS and not _recorded(kind, digest)
             ]
             if cold:
-                estimate = sum(_COMPILE_S_PER_KERNEL + _COMPILE_S_PER_FLOP * g.flops for g in cold)
-                note(f"compiling {self.name}'s kernels once (~{estimate:.0f} s)")
-            for kind, (gen, text, digest) in sources.items():
+                estimate = sum(self._seconds(g) for g in cold)
+                note(f"compiling {self.name}'s {self.called} once (~{estimate:.0f} s)")
+            for kind, (gen, text, digest, sincos) in sources.items():
                 kernel = _KERNELS.get(digest)
                 if kernel is None:
                     kernel = _KERNELS[digest] = rnea._compile(
-                        text, digest, gen, kind=kind, signature=_signature(gen)
+                        text, digest, gen, kind=kind, signature=_signature(gen), sincos=sincos
                     )
                 self._kernels[kind] = kernel
 
     @property
     def flops(self) -> dict[str, int]:
         """Arithmetic operations a sample of each kernel (sines and cosines apart)."""
-        return {kind: self.source(kind).flops for kind in _generators()}
+        return {kind: self.source(kind).flops for kind in self.generators()}
+
+    def _run(self, kind: str, values: tuple, num_threads: int | None) -> np.ndarray:
+        kernel = self.kernel(kind)
+        gen = self.source(kind)
+        arrays = [rnea._c_array(x) for x in values]
+        names = [self.inputs[x][0] for x in gen.inputs]
+        n = arrays[0].shape[0] if arrays[0].ndim == 2 else -1
+        if any(a.shape != (n, self.nv) for a in arrays):
+            shapes = ", ".join(f"{x}.shape={a.shape}" for x, a in zip(names, arrays, strict=True))
+            raise InputError(f"{shapes}: each must be (N, nv) with nv={self.nv} ({self.name})")
+        if num_threads is None:
+            threads = cpus.threads_for(n, kernel.min_per_thread)
+        else:
+            threads = max(1, min(cpus.check_threads("num_threads", num_threads), n))
+        out = np.empty((n, *gen.shape))
+        if n == 0:
+            return out
+        fn = kernel.kernel
+        if threads == 1:
+            finite = fn(*arrays, out) == 0.0
+        else:
+            from rrt_pin.compiled.lanes import _in_slices
+
+            checks: list[float] = []
+
+            def run(a: int, b: int) -> None:
+                checks.append(fn(*(x[a:b] for x in arrays), out[a:b]))
+
+            _in_slices(run, n, threads)
+            finite = all(c == 0.0 for c in checks)
+        if not finite:
+            self._refuse(kind, names, gen, arrays, out)
+        return out
+
+    def _refuse(
+        self, kind: str, names: list[str], gen: GeneratedFunction, arrays: list, out: np.ndarray
+    ) -> None:
+        """Name the first non-finite input, else the first non-finite result entry."""
+        for name, x, a in zip(names, gen.inputs, arrays, strict=True):
+            validate.samples(name, a, self.nv, self.inputs[x][1])
+        what, array = self._result(kind, gen)
+        bad = np.argwhere(~np.isfinite(out))
+        if len(bad) == 0:  # not reached: the kernel saw a non-finite value
+            raise InputError(f"{what} of {self.name} is not finite")
+        where = tuple(int(k) for k in bad[0])
+        raise InputError(
+            f"{what} of {self.name} is not finite: "
+            f"{array}[{', '.join(map(str, where))}] = {float(out[where])!r} at sample {where[0]} "
+            "(inputs beyond any sensible range, or a singular mass matrix)"
+        )
+
+
+class ForwardKernels(BatchKernels):
+    """One model's compiled M(q), b(q, q̇), G(q) and q̈ over batches of samples.
+
+    Every function takes arrays (N, nv) of float64 (other arrays are converted; C-ordered
+    float64, read-only included, is taken as it is) and returns a new array.
+
+    Attributes:
+        name: the model's name (in the announcement and messages).
+        nv: joint coordinates a sample.
+        variant: the forward-dynamics algorithm :meth:`forward_dynamics` runs by default.
+    """
+
+    def __init__(self, model: pin.Model, name: str) -> None:
+        super().__init__(model, name)
+        self.variant = DEFAULT_VARIANT
 
     def mass_matrix(self, q: Any, num_threads: int | None = None) -> np.ndarray:
         """M(q) (N, nv, nv) [kg·m², kg or kg·m], symmetric, armature on the diagonal."""
@@ -250,55 +341,6 @@ class ForwardKernels:
         """
         variant = self.variant if variant is None else validate.choice("variant", variant, VARIANTS)
         return self._run(f"forward_{variant}", (q, qd, tau), num_threads)
-
-    def _run(self, kind: str, values: tuple, num_threads: int | None) -> np.ndarray:
-        kernel = self.kernel(kind)
-        gen = self.source(kind)
-        arrays = [rnea._c_array(x) for x in values]
-        names = [_INPUTS[x][0] for x in gen.inputs]
-        n = arrays[0].shape[0] if arrays[0].ndim == 2 else -1
-        if any(a.shape != (n, self.nv) for a in arrays):
-            shapes = ", ".join(f"{x}.shape={a.shape}" for x, a in zip(names, arrays, strict=True))
-            raise InputError(f"{shapes}: each must be (N, nv) with nv={self.nv} ({self.name})")
-        if num_threads is None:
-            threads = cpus.threads_for(n, kernel.min_per_thread)
-        else:
-            threads = max(1, min(cpus.check_threads("num_threads", num_threads), n))
-        out = np.empty((n, *gen.shape))
-        if n == 0:
-            return out
-        fn = kernel.kernel
-        if threads == 1:
-            finite = fn(*arrays, out) == 0.0
-        else:
-            from rrt_pin.compiled.lanes import _in_slices
-
-            checks: list[float] = []
-
-            def run(a: int, b: int) -> None:
-                checks.append(fn(*(x[a:b] for x in arrays), out[a:b]))
-
-            _in_slices(run, n, threads)
-            finite = all(c == 0.0 for c in checks)
-        if not finite:
-            self._refuse(kind, names, gen, arrays, out)
-        return out
-
-    def _refuse(
-        self, kind: str, names: list[str], gen: GeneratedFunction, arrays: list, out: np.ndarray
-    ) -> None:
-        """Name the first non-finite input, else the first non-finite result entry."""
-        for name, x, a in zip(names, gen.inputs, arrays, strict=True):
-            validate.samples(name, a, self.nv, _INPUTS[x][1])
-        bad = np.argwhere(~np.isfinite(out))
-        if len(bad) == 0:  # not reached: the kernel saw a non-finite value
-            raise InputError(f"the {_WHAT[kind]} of {self.name} is not finite")
-        where = tuple(int(k) for k in bad[0])
-        raise InputError(
-            f"the {_WHAT[kind]} of {self.name} is not finite: "
-            f"{kind}[{', '.join(map(str, where))}] = {float(out[where])!r} at sample {where[0]} "
-            "(inputs beyond any sensible range, or a singular mass matrix)"
-        )
 
 
 def forward_kernel_for(model: pin.Model, name: str | None = None) -> ForwardKernels:

@@ -30,9 +30,7 @@ Units: q in rad or m, q̇ in rad/s or m/s, τ in N·m or N, q̈ in rad/s² or m/
 
 from __future__ import annotations
 
-import hashlib
 import re
-import threading
 from collections.abc import Callable
 from dataclasses import replace
 from typing import TYPE_CHECKING, Any
@@ -40,9 +38,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from rrt_pin.compiled import rnea, rnea_vector
-from rrt_pin.compiled.forward import _recorded
-from rrt_pin.core import cpus, validate
-from rrt_pin.core._logging import note
+from rrt_pin.compiled.forward import BatchKernels
+from rrt_pin.core import validate
 from rrt_pin.core.errors import InputError
 from rrt_pin.core.identity import IdentityCache
 from rrt_pin.dynamics import forward_derivatives_source as fds
@@ -91,8 +88,6 @@ _INPUTS = {
     "kd": ("kd", "N·m·s/rad or N·s/m"),
     "qf": ("qf", "rad or m"),
 }
-_lock = threading.Lock()
-_KERNELS: dict[str, rnea.Kernel] = {}
 _MODELS: IdentityCache[tuple[Any, DerivativeKernels]] = IdentityCache(16)
 
 
@@ -252,90 +247,37 @@ def vector_source(gen: GeneratedFunction, block: int = VECTOR_BLOCK) -> tuple[st
     return "\n".join(src), len(order)
 
 
-def _signature(gen: GeneratedFunction) -> Callable[[Any], Any]:
-    def make(numba: Any) -> Any:
-        f8 = numba.float64
-        read = numba.types.Array(f8, 2, "C", readonly=True)
-        return f8(*([read] * len(gen.inputs)), f8[:, :, ::1])
-
-    return make
-
-
-class DerivativeKernels:
+class DerivativeKernels(BatchKernels):
     """One model's compiled q̈ and its Jacobian over batches of samples.
 
     Every function takes arrays (N, nv) of float64 (others are converted) and returns
-    new arrays.
+    new arrays. Compiled, checked and refused as :class:`~rrt_pin.compiled.forward.ForwardKernels`
+    (whose batch machinery it shares); its kinds are :data:`KINDS`.
 
     Attributes:
         name: the model's name (in the announcement and messages).
         nv: joint coordinates a sample.
     """
 
-    def __init__(self, model: pin.Model, name: str) -> None:
-        self.name = name
-        self.nv = int(model.nv)
-        self._model = model
-        self._kernels: dict[str, rnea.Kernel] = {}
-        self._sources: dict[str, GeneratedFunction] = {}
+    called = "Jacobian kernels"
+    inputs = _INPUTS
 
-    def source(self, kind: str) -> GeneratedFunction:
-        """The generated code of ``kind``, one of :data:`KINDS`."""
-        gen = self._sources.get(kind)
-        if gen is None:
-            make = _generators().get(kind)
-            if make is None:
-                raise InputError(f"kind={kind!r} is unknown; known: {', '.join(KINDS)}")
-            gen = self._sources[kind] = make(self._model)
-        return gen
+    @staticmethod
+    def generators() -> dict[str, Callable[[Any], GeneratedFunction]]:
+        """The generator of each kind's code, by kind (:data:`KINDS`)."""
+        return _generators()
 
-    def kernel(self, kind: str) -> rnea.Kernel:
-        """The compiled kernel of ``kind`` (generated and compiled, or loaded, on first use)."""
-        if kind not in self._kernels:
-            self.compile(kind)
-        return self._kernels[kind]
+    def _text(self, kind: str, gen: GeneratedFunction) -> tuple[str, int | None]:
+        if kind.endswith("_vector"):
+            return vector_source(gen)
+        return module_source(gen), None
 
-    def compile(self, *kinds: str) -> None:
-        """Compile (or load) the kernels ``kinds``, announcing a compilation on the logger."""
-        todo = [k for k in kinds if k not in self._kernels]
-        if not todo:
-            return
-        sources = {}
-        sincos: dict[str, int | None] = {}
-        for kind in todo:
-            gen = self.source(kind)
-            if kind.endswith("_vector"):
-                text, sincos[kind] = vector_source(gen)
-            else:
-                text, sincos[kind] = module_source(gen), None
-            sources[kind] = (gen, text, hashlib.sha256(text.encode()).hexdigest())
-        with _lock:
-            cold = [
-                gen
-                for kind, (gen, _, digest) in sources.items()
-                if digest not in _KERNELS and not _recorded(kind, digest)
-            ]
-            if cold:
-                estimate = sum(
-                    _COMPILE_S_PER_KERNEL
-                    + _COMPILE_S_PER_FLOP
-                    * g.flops
-                    * (_VECTOR_COMPILE if "_vector" in g.name else 1)
-                    for g in cold
-                )
-                note(f"compiling {self.name}'s Jacobian kernels once (~{estimate:.0f} s)")
-            for kind, (gen, text, digest) in sources.items():
-                kernel = _KERNELS.get(digest)
-                if kernel is None:
-                    kernel = _KERNELS[digest] = rnea._compile(
-                        text, digest, gen, kind=kind, signature=_signature(gen), sincos=sincos[kind]
-                    )
-                self._kernels[kind] = kernel
+    def _seconds(self, gen: GeneratedFunction) -> float:
+        scale = _VECTOR_COMPILE if "_vector" in gen.name else 1
+        return _COMPILE_S_PER_KERNEL + _COMPILE_S_PER_FLOP * gen.flops * scale
 
-    @property
-    def flops(self) -> dict[str, int]:
-        """Arithmetic operations a sample of each kernel (sines and cosines apart)."""
-        return {kind: self.source(kind).flops for kind in KINDS}
+    def _result(self, kind: str, gen: GeneratedFunction) -> tuple[str, str]:  # noqa: ARG002
+        return "the forward dynamics' Jacobian", gen.name
 
     def derivatives(
         self,
@@ -459,53 +401,6 @@ class DerivativeKernels:
             return j
 
         return jac
-
-    def _run(self, kind: str, values: tuple, num_threads: int | None) -> np.ndarray:
-        kernel = self.kernel(kind)
-        gen = self.source(kind)
-        arrays = [rnea._c_array(x) for x in values]
-        names = [_INPUTS[x][0] for x in gen.inputs]
-        n = arrays[0].shape[0] if arrays[0].ndim == 2 else -1
-        if any(a.shape != (n, self.nv) for a in arrays):
-            shapes = ", ".join(f"{x}.shape={a.shape}" for x, a in zip(names, arrays, strict=True))
-            raise InputError(f"{shapes}: each must be (N, nv) with nv={self.nv} ({self.name})")
-        if num_threads is None:
-            threads = cpus.threads_for(n, kernel.min_per_thread)
-        else:
-            threads = max(1, min(cpus.check_threads("num_threads", num_threads), n))
-        out = np.empty((n, *gen.shape))
-        if n == 0:
-            return out
-        fn = kernel.kernel
-        if threads == 1:
-            finite = fn(*arrays, out) == 0.0
-        else:
-            from rrt_pin.compiled.lanes import _in_slices
-
-            checks: list[float] = []
-
-            def run(a: int, b: int) -> None:
-                checks.append(fn(*(x[a:b] for x in arrays), out[a:b]))
-
-            _in_slices(run, n, threads)
-            finite = all(c == 0.0 for c in checks)
-        if not finite:
-            self._refuse(names, gen, arrays, out)
-        return out
-
-    def _refuse(self, names: list[str], gen: GeneratedFunction, arrays: list, out: Any) -> None:
-        """Name the first non-finite input, else the first non-finite result entry."""
-        for name, x, a in zip(names, gen.inputs, arrays, strict=True):
-            validate.samples(name, a, self.nv, _INPUTS[x][1])
-        bad = np.argwhere(~np.isfinite(out))
-        if len(bad) == 0:  # not reached: the kernel saw a non-finite value
-            raise InputError(f"the forward dynamics' Jacobian of {self.name} is not finite")
-        where = tuple(int(k) for k in bad[0])
-        raise InputError(
-            f"the forward dynamics' Jacobian of {self.name} is not finite: "
-            f"{gen.name}[{', '.join(map(str, where))}] = {float(out[where])!r} at sample "
-            f"{where[0]} (inputs beyond any sensible range, or a singular mass matrix)"
-        )
 
 
 def _split(out: np.ndarray, nv: int) -> tuple[np.ndarray, ...]:
