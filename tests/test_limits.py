@@ -439,3 +439,22 @@ def test_crossings_are_measured_as_the_samples_say(seed):
     np.testing.assert_array_equal(got["velocity"]["mask"], np.abs(qd) > p.velocity)
     np.testing.assert_array_equal(got["velocity"]["extent"], np.abs(qd).max(axis=1))
     assert past.any() == (reach > 0.0)  # both branches are taken across the seeds
+
+
+@pytest.mark.parametrize("name", ["ur5", "panda"])
+def test_a_limits_effective_inertia_is_one_over_the_inverse_mass_matrixs_diagonal(name):
+    """limit_inertia reads M⁻¹'s diagonal from Pinocchio's computeMinverse; the same as
+    inverting the CRBA mass matrix, at random configurations."""
+    import pinocchio as pin
+
+    from rrt_pin.robot import robots
+    from rrt_pin.simulate.physical_runs import limit_inertia
+
+    robot = robots.get(name)
+    rng = np.random.default_rng(7)
+    for _ in range(5):
+        q = rng.uniform(-2.0, 2.0, robot.nv)
+        upper = np.triu(pin.crba(robot.model, robot.model.createData(), robot.configuration(q)))
+        mass = upper + np.triu(upper, 1).T
+        expected = 1.0 / np.diag(np.linalg.inv(mass))
+        np.testing.assert_allclose(limit_inertia(robot, q), expected, rtol=1e-10)

@@ -234,12 +234,13 @@ def physical_model(
         return inactive(nv)
     names = joint_names(robot)
     lower, upper = np.full(nv, -np.inf), np.full(nv, np.inf)
+    lows = np.asarray(m.lowerPositionLimit, dtype=float)  # each read converts: once, not per joint
+    highs = np.asarray(m.upperPositionLimit, dtype=float)
     not_given = []
     for j in robot.joints:
         if j.kind == "continuous" or j.nq != j.nv:
             continue
-        lo = float(m.lowerPositionLimit[j.idx_q])
-        hi = float(m.upperPositionLimit[j.idx_q])
+        lo, hi = float(lows[j.idx_q]), float(highs[j.idx_q])
         if math.isnan(lo) or math.isnan(hi):
             raise InputError(f"the position limits of joint {j.name!r} are NaN")
         if lo > hi:
@@ -256,7 +257,8 @@ def physical_model(
     friction = np.array(m.friction, dtype=float)[:nv]
     for name, values in (("effort limit", effort), ("velocity limit", velocity),
                          ("damping", damping), ("friction", friction)):  # fmt: skip
-        _check(name, values, names)
+        if not values.min(initial=0.0) >= 0.0:  # a negative value or a NaN: say which joint
+            _check(name, values, names)
     for k in np.flatnonzero(effort == 0.0):
         if names[k] not in not_given:
             not_given.append(names[k])

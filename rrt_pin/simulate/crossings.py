@@ -15,6 +15,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from rrt_pin.robot.limits import Physical
+from rrt_pin.simulate.extremes import extremes
+from rrt_pin.simulate.extremes import peak as extremes_peak
 
 __all__ = ["KINDS", "LimitEvent", "batch_limit_events", "deepest", "limit_events", "measure"]
 
@@ -77,26 +79,55 @@ def deepest(q: np.ndarray, p: Physical) -> np.ndarray:
     return np.maximum(np.nan_to_num(depth, nan=0.0, neginf=0.0).max(axis=1), 0.0)
 
 
+def _no_mask(shape: tuple[int, ...]) -> np.ndarray:
+    """An all-False mask of ``shape`` that allocates nothing (read-only)."""
+    return np.broadcast_to(np.False_, shape)
+
+
 def measure(
     t: np.ndarray, q: np.ndarray, qd: np.ndarray, demanded: np.ndarray | None, p: Physical
 ) -> dict[str, dict[str, np.ndarray]]:
     """Per kind, the arrays of every event: mask (B, T, nv) past the limit, extent (B, nv).
 
+    Also ``crossed`` (B, nv): the coordinates with some sample past the limit.
     ``demanded``: the law's efforts before saturation (None: no effort events).
+
+    Extremes first: each kind's extent comes from the samples' min and max, and its mask
+    is made only when some coordinate goes past (else an all-False view): the same
+    values as sample by sample (rounding is monotonic), NaN samples included.
     """
     out: dict[str, dict[str, np.ndarray]] = {}
     with np.errstate(invalid="ignore"):
-        past = (q < p.lower) | (q > p.upper)
-    out["position"] = {"mask": past, "extent": deepest(q, p)}
+        lo, hi = extremes(q)
+        depth = np.maximum(p.lower - lo, hi - p.upper)
+        if np.isnan(depth).any():  # NaN samples: the maximum over the others
+            past = (q < p.lower) | (q > p.upper)
+            depth, crossed = deepest(q, p), past.any(axis=1)
+        else:
+            depth = np.maximum(np.nan_to_num(depth, neginf=0.0), 0.0)
+            crossed = depth > 0.0
+            past = (q < p.lower) | (q > p.upper) if crossed.any() else _no_mask(q.shape)
+    out["position"] = {"mask": past, "extent": depth, "crossed": crossed}
     if demanded is not None:
-        mag = np.abs(demanded)
-        over = mag > p.effort
-        dt = np.diff(t)
-        s = over.astype(float)
-        time = (0.5 * (s[:, 1:] + s[:, :-1]) * dt[None, :, None]).sum(axis=1)
-        out["effort"] = {"mask": over, "extent": mag.max(axis=1), "time": time}
-    speed = np.abs(qd)
-    out["velocity"] = {"mask": speed > p.velocity, "extent": speed.max(axis=1)}
+        peak = extremes_peak(demanded)
+        if (~(peak <= p.effort)).any():  # some demand past its limit, or NaN samples
+            over = np.abs(demanded) > p.effort
+            s = over.astype(float)
+            dt = np.diff(t)
+            time = (0.5 * (s[:, 1:] + s[:, :-1]) * dt[None, :, None]).sum(axis=1)
+            hit = over.any(axis=1)
+        else:
+            over, time = _no_mask(demanded.shape), np.zeros(peak.shape)
+            hit = np.zeros(peak.shape, dtype=bool)
+        out["effort"] = {"mask": over, "extent": peak, "time": time, "crossed": hit}
+    speed = extremes_peak(qd)
+    with np.errstate(invalid="ignore"):
+        if (~(speed <= p.velocity)).any():
+            fast = np.abs(qd) > p.velocity
+            hit = fast.any(axis=1)
+        else:
+            fast, hit = _no_mask(qd.shape), np.zeros(speed.shape, dtype=bool)
+    out["velocity"] = {"mask": fast, "extent": speed, "crossed": hit}
     return out
 
 
@@ -113,7 +144,7 @@ def _events(
         if m is None:
             continue
         mask = m["mask"][b]
-        for k in np.flatnonzero(mask.any(axis=0)):
+        for k in np.flatnonzero(m["crossed"][b]):
             column = mask[:, k]
             first = int(np.argmax(column))
             starts = int(column[0]) + int(np.count_nonzero(column[1:] & ~column[:-1]))

@@ -36,6 +36,7 @@ import numpy as np
 
 from rrt_pin.core.errors import DivergenceError, InputError
 from rrt_pin.simulate import calibration
+from rrt_pin.simulate.extremes import deviation
 from rrt_pin.simulate.methods import ACCURACY
 from rrt_pin.simulate.results import ErrorEstimate
 
@@ -186,13 +187,12 @@ def attempt(
     wall_time = time.perf_counter() - start
     factor = 1.0 / abs(k ** rate(options) - 1.0)
     q, q2 = np.asarray(result.q), np.asarray(other.q)  # (N, nv) or (B, N, nv)
+    batch = q.ndim == 3
     if q.shape[-2]:
-        diff = np.subtract(q, q2)
-        per = np.maximum(diff.max(axis=-2), -diff.min(axis=-2))
+        per = deviation(q, q2) if batch else deviation(q[None], q2[None])[0]
         per *= factor
     else:
         per = np.zeros(q.shape[:-2] + q.shape[-1:])
-    batch = per.ndim == 2
     return ErrorEstimate(
         q=per.max(axis=0) if batch else per,
         accuracy=float(

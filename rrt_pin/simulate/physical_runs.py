@@ -283,9 +283,7 @@ def limit_inertia(robot: Robot, q0: Any) -> np.ndarray:
 
     model = robot.model
     x = robot.configuration(np.asarray(q0, dtype=float))
-    upper = np.triu(pin.crba(model, model.createData(), x))
-    mass = upper + np.triu(upper, 1).T
-    return 1.0 / np.diag(np.linalg.inv(mass))
+    return 1.0 / np.diag(pin.computeMinverse(model, model.createData(), x))  # its upper triangle
 
 
 def physics_facts(robot: Robot, q0: Any, **switches: bool) -> dict:
