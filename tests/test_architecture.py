@@ -724,6 +724,7 @@ def test_every_backend_offers_the_same_runs():
             continue
         runs = backend.entry("simulate_runs")
         assert isinstance(runs.RECORDS_FAILURES, bool)
+        assert isinstance(runs.EFFORTS_ALWAYS, bool)
         shapes[backend.name] = tuple(
             tuple(inspect.signature(getattr(runs, f)).parameters)
             for f in ("prepare", "single", "batch")

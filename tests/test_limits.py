@@ -458,3 +458,29 @@ def test_a_limits_effective_inertia_is_one_over_the_inverse_mass_matrixs_diagona
         mass = upper + np.triu(upper, 1).T
         expected = 1.0 / np.diag(np.linalg.inv(mass))
         np.testing.assert_allclose(limit_inertia(robot, q), expected, rtol=1e-10)
+
+
+def test_a_compiled_batch_without_efforts_reports_its_limit_events_from_its_own(monkeypatch):
+    """``efforts=False`` drops the efforts from the result, not from the limit events: a
+    compiled batch makes them in its kernels, so the events come from those (no law is
+    evaluated again in Python) and equal the events of the same batch with its efforts."""
+    from rrt_pin.simulate import physical_runs, simulate_batch
+
+    robot = get("ur5")
+    qf = np.array([0.0, -1.2, 1.2, -1.0, -1.2, 0.0])
+    law = pd_gravity_controller(robot, kp=2e4, kd=400.0, qf=qf)  # saturates 150 and 28 N·m
+    t = time_grid(0.5, 0.01)
+    q0s = qf + np.array([[0.3] * 6, [-0.2] * 6, [0.1] * 6])
+    kw = {"backend": "compiled", "method": "DOP853", "rtol": 1e-8, "atol": 1e-10,
+          "estimate_error": False, "threads": 1}  # fmt: skip
+    full = simulate_batch(robot, law, q0s, None, t, **kw)
+
+    def again(*args, **kwargs):
+        raise AssertionError("the law's efforts were computed again")
+
+    monkeypatch.setattr(physical_runs, "_demanded", again)
+    bare = simulate_batch(robot, law, q0s, None, t, efforts=False, **kw)
+    assert bare.tau is None and full.tau is not None
+    np.testing.assert_array_equal(bare.q, full.q)
+    assert bare.limits == full.limits
+    assert all(any(e.kind == "effort" for e in events) for events in full.limits)

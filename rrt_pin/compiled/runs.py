@@ -25,10 +25,12 @@ if TYPE_CHECKING:
     from rrt_pin.simulate.physical_runs import RunPhysics
     from rrt_pin.simulate.results import BatchResult, SimulationResult
 
-__all__ = ["RECORDS_FAILURES", "batch", "inverse", "prepare", "single"]
+__all__ = ["EFFORTS_ALWAYS", "RECORDS_FAILURES", "batch", "inverse", "prepare", "single"]
 
 #: ``batch`` records each variant's failure itself (``failures="record"``).
 RECORDS_FAILURES = True
+#: ``batch`` computes the efforts in its kernels whether or not it returns them.
+EFFORTS_ALWAYS = True
 
 
 def _generated(robot: Robot, params: Any, controllers: Sequence[Any]) -> bool:

@@ -385,10 +385,13 @@ def simulate_batch(
                      position_limits=position_limits, losses=losses, name="q0s")  # fmt: skip
     run = runs.batch(robot, controllers, laws, q0s, qd0s, t, params, options, rp, keep=keep,
                      threads=chosen, failures=failures)  # fmt: skip
+    # the limit events need the demanded efforts: taken from the run where it makes them anyway
+    events = keep == "trajectories" and rp.measures and rp.needs_demand
+    asked = efforts or (events and runs.EFFORTS_ALWAYS)
     start = time.perf_counter()
     if failures == "record" and not runs.RECORDS_FAILURES:
         try:
-            result = run(options, start, efforts, keep)
+            result = run(options, start, asked, keep)
         except DivergenceError:  # which: each variant alone
 
             def alone(i: int) -> BatchResult:
@@ -405,11 +408,13 @@ def simulate_batch(
         if result.failures is None:
             result = dataclasses.replace(result, failures=(None,) * B)
     else:
-        result = run(options, start, efforts, keep)
+        result = run(options, start, asked, keep)
     if keep == "trajectories" and not result.limits and rp.measures:
         result = dataclasses.replace(
             result, limits=batch_limits(t, result.q, result.qd, result.tau, laws, rp)
         )
+    if asked and not efforts:
+        result = dataclasses.replace(result, tau=None)
     result = _with_units(result, robot)
     if result.failures is not None and any(f is not None for f in result.failures):
         why = "a variant failed" if estimate_error else None

@@ -13,6 +13,8 @@ hands over without asking which backend it has:
 
 :data:`RECORDS_FAILURES`: whether ``batch`` records each variant's failure itself
 (``failures="record"``); if not, the front door runs the variants one by one when one fails.
+:data:`EFFORTS_ALWAYS`: whether ``batch`` computes the efforts whether or not it returns
+them (then the front door measures limit events from them instead of computing them again).
 """
 
 from __future__ import annotations
@@ -32,10 +34,12 @@ if TYPE_CHECKING:
     from rrt_pin.simulate.options import Options
     from rrt_pin.simulate.results import BatchResult, SimulationResult
 
-__all__ = ["RECORDS_FAILURES", "batch", "prepare", "single"]
+__all__ = ["EFFORTS_ALWAYS", "RECORDS_FAILURES", "batch", "prepare", "single"]
 
 #: ``batch`` raises at a variant's failure; the front door then runs them one by one.
 RECORDS_FAILURES = False
+#: ``batch(efforts=False)`` computes no efforts (a limit check computes a variant's alone).
+EFFORTS_ALWAYS = False
 
 
 def prepare(
