@@ -430,10 +430,25 @@ def warn_once(message: str) -> None:
         )
 
 
+#: The generated modules' directory found writable, by the variables that name the candidates.
+_GENERATED: dict[tuple[str | None, ...], Path] = {}
+_NAMING = ("RRT_PIN_CACHE_DIR", "NUMBA_CACHE_DIR", "XDG_CACHE_HOME", "HOME")
+
+
 def generated_dir() -> Path | None:
-    """The writable directory of the generated modules (created), or None."""
+    """The writable directory of the generated modules (created), or None.
+
+    A directory found writable is remembered for the same environment (which names the
+    candidates) while it exists: asked before every run, it costs one ``stat``, not a
+    probe file.
+    """
+    key = tuple(os.environ.get(name) for name in _NAMING)
+    known = _GENERATED.get(key)
+    if known is not None and os.path.isdir(known):
+        return known
     for base in _base_candidates():
         path = base / "generated"
         if _writable(path):
+            _GENERATED[key] = path
             return path
     return None

@@ -25,6 +25,7 @@ Units: SI (rad or m, N·m or N, N·m·s/rad or N·s/m).
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
@@ -117,12 +118,12 @@ class Physical:
         """Joint coordinates."""
         return int(self.lower.shape[0])
 
-    @property
+    @functools.cached_property  # the arrays are read-only: computed once
     def has_positions(self) -> bool:
         """Whether a position limit applies to some joint."""
         return bool(np.isfinite(self.lower).any() or np.isfinite(self.upper).any())
 
-    @property
+    @functools.cached_property
     def active(self) -> bool:
         """Whether anything is applied (else a run is the law's alone, bit for bit)."""
         return bool(
@@ -303,6 +304,7 @@ def _chapter_urdf(robot: Robot, m: pin.Model) -> bool:
     )
 
 
+@functools.lru_cache(maxsize=64)  # immutable (read-only arrays): one a size
 def inactive(nv: int) -> Physical:
     """A model that applies nothing to ``nv`` coordinates (a run is its law's alone)."""
     return Physical(np.full(nv, -np.inf), np.full(nv, np.inf), np.full(nv, np.inf),
