@@ -164,19 +164,23 @@ def demanded(
     """The laws' efforts before saturation at the samples (B, T, nv) [N·m or N].
 
     ``tau``: the efforts applied (the laws', saturated at ``applied``'s effort limits);
-    a variant's demand is computed again (its law's ``efforts_many``) only where some
-    effort is at its limit (the one rule: single runs' events use it too).
+    elsewhere they are the demand, which is computed again (the law's ``efforts_many``)
+    only at the samples where some effort is at its limit (the one rule: single runs'
+    events use it too).
     """
     if applied is None or not np.isfinite(applied.effort).any():
         return tau
     out = tau
     for b, law in enumerate(laws):
-        if law is None or not (np.abs(tau[b]) >= applied.effort).any():
+        if law is None:
+            continue
+        rows = np.flatnonzero((np.abs(tau[b]) >= applied.effort).any(axis=1))
+        if rows.size == 0:
             continue
         if out is tau:
             out = tau.copy()
         with np.errstate(all="ignore"):
-            out[b] = np.asarray(law.efforts_many(t, q[b], qd[b]), dtype=float)
+            out[b, rows] = np.asarray(law.efforts_many(t[rows], q[b, rows], qd[b, rows]), float)
     return out
 
 
