@@ -194,7 +194,8 @@ def test_the_chapters_arm_refuses_it():
 
 
 def test_an_adams_run_compiles_its_entry_alone(ur5, monkeypatch):
-    """A single run or a batch with method='adams' asks for run_adams only (not run_many)."""
+    """A single run or a batch with method='adams' asks for its own entry only (not
+    run_many): under PD plus gravity its law-bound copy, else the general one."""
     from rrt_pin.compiled import robot_code, robot_runs
     from rrt_pin.simulate.options import resolve
 
@@ -208,4 +209,5 @@ def test_an_adams_run_compiles_its_entry_alone(ur5, monkeypatch):
     options = resolve(T, backend="compiled", method="adams", rtol=1e-9, atol=1e-11)
     robot_runs.prepare(ur5, [_pd(ur5)], options)
     robot_runs.prepare(ur5, [_pd(ur5), _pd(ur5)], options)
-    assert asked == ["run_adams", "run_adams"]
+    robot_runs.prepare(ur5, [_pd(ur5), None], options)
+    assert asked == ["run_adams_pd", "run_adams_pd", "run_adams"]

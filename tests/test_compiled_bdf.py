@@ -172,7 +172,8 @@ def test_the_chapters_arm_kernel_refuses_it():
 
 
 def test_a_bdf_run_compiles_its_entry_alone(ur5, monkeypatch):
-    """A single run or a batch with method='BDF' asks for run_bdf only (not run_many)."""
+    """A single run or a batch with method='BDF' asks for its own entry only (not
+    run_many): under PD plus gravity its law-bound copy, else the general one."""
     from rrt_pin.compiled import robot_code, robot_runs
     from rrt_pin.simulate.options import resolve
 
@@ -186,7 +187,8 @@ def test_a_bdf_run_compiles_its_entry_alone(ur5, monkeypatch):
     options = resolve(T, backend="compiled", method="BDF", rtol=1e-9, atol=1e-11)
     robot_runs.prepare(ur5, [_pd(ur5)], options)
     robot_runs.prepare(ur5, [_pd(ur5), _pd(ur5)], options)
-    assert asked == ["run_bdf", "run_bdf"]
+    robot_runs.prepare(ur5, [_pd(ur5), None], options)
+    assert asked == ["run_bdf_pd", "run_bdf_pd", "run_bdf"]
 
 
 @pytest.mark.parametrize("method", ["BDF", "adams"])
@@ -212,11 +214,16 @@ def test_auto_counts_a_method_ready_only_when_its_own_entry_is(monkeypatch):
     ur5 = robots.get("ur5")
     seen = []
 
-    def state(model, batch=False, code=None):  # noqa: ANN001, ANN202
+    def state(model, batch=False, code=None, pd=False):  # noqa: ANN001, ANN202
         seen.append(code)
+        laws.append(pd)
         return False, False, code not in robot_code.OWN_ENTRY  # run_many built, not run_bdf
 
+    laws = []
     monkeypatch.setattr(robot_code, "state", state)
     assert backends.choose(ur5, "simulate", "BDF", 1e6, controllers=[None]).name == "pinocchio"
     assert backends.choose(ur5, "simulate", "DOP853", 1e6, controllers=[None]).name == "compiled"
     assert robot_code.OWN_ENTRY.get(seen[0]) == "run_bdf" and seen[1] not in robot_code.OWN_ENTRY
+    # the laws tell which entry: PD plus gravity's own, else the general one
+    backends.choose(ur5, "simulate", "DOP853", 1e6, controllers=[_pd(ur5)])
+    assert laws == [False, False, True]

@@ -291,7 +291,8 @@ def test_the_front_door_gives_both_backends_the_physical_model(ur5, ur5_physics)
 
 
 def test_a_robots_first_use_compiles_only_the_entry_it_runs(ur5, monkeypatch):
-    """A batch of adaptive PD variants needs the lanes alone; a single run, run_many alone."""
+    """A batch of adaptive PD variants needs the lanes alone; a single run one entry alone:
+    under PD plus gravity its law-bound copy, else run_many."""
     from rrt_pin.compiled import robot_code, robot_runs
     from rrt_pin.simulate.options import resolve
 
@@ -310,7 +311,7 @@ def test_a_robots_first_use_compiles_only_the_entry_it_runs(ur5, monkeypatch):
     robot_runs.prepare(ur5, [pd], dop853)
     robot_runs.prepare(ur5, [pd, pd], rk4)
     robot_runs.prepare(ur5, [pd, None], dop853)
-    assert asked == ["run_lanes", "run_many", "run_many", "run_many"]
+    assert asked == ["run_lanes", "run_many_pd", "run_many_pd", "run_many"]
     with pytest.raises(InputError):  # refused before anything is compiled
         robot_runs.prepare(ur5, [lambda t, q, qd: q], dop853)
     assert len(asked) == 4
@@ -342,3 +343,58 @@ def test_the_lanes_call_pd_copies_that_name_no_other_laws_dynamics(ur5):
     assert not re.search(r"\befforts\(", body("limits_of_pd"))
     pd_law = body("efforts_pd_law") + body("rhs_pd_law")
     assert not re.search(r"\b(mass_matrix|bias|forward)\(", pd_law)
+
+
+def _calls(source: str) -> dict[str, set[str]]:
+    """Each function of a generated module and the names it calls."""
+    import ast
+
+    out = {}
+    for node in ast.parse(source).body:
+        if isinstance(node, ast.FunctionDef):
+            out[node.name] = {
+                c.func.id
+                for c in ast.walk(node)
+                if isinstance(c, ast.Call) and isinstance(c.func, ast.Name)
+            }
+    return out
+
+
+@pytest.mark.parametrize("entry", ["run_many_pd", "run_adams_pd", "run_bdf_pd", "run_lanes"])
+def test_the_pd_entries_reach_no_other_laws_dynamics(ur5, entry):
+    """Everything a PD entry calls, however deep, is PD plus gravity's: its first use
+    compiles no tracking law (M, bias), open-loop or general law dispatch; the general
+    entries do reach them (the walk sees through the calls)."""
+    from rrt_pin.compiled.robot_code import module_source
+
+    calls = _calls(module_source(ur5.model)[0])
+
+    def reached(name):
+        seen, todo = set(), [name]
+        while todo:
+            f = todo.pop()
+            if f in seen or f not in calls:
+                continue
+            seen.add(f)
+            todo.extend(calls[f])
+        return seen
+
+    other_laws = {"rhs", "efforts", "mass_matrix", "bias", "forward", "interp_at", "metrics_of"}
+    assert reached(entry) & other_laws == set()
+    if entry != "run_lanes":  # the lanes have dynamics of their own
+        assert "rhs_pd_law" in reached(entry)
+        assert {"mass_matrix", "bias", "forward"} <= reached(entry.removesuffix("_pd"))
+
+
+def test_a_pd_run_on_its_own_entry_equals_the_general_entry_bit_for_bit(ur5, monkeypatch):
+    """run_many_pd is run_many with the law's dispatch bound: the same bits."""
+    from rrt_pin.compiled import robot_entries
+
+    law = _pd(ur5)
+    q0 = np.full(6, 0.2)
+    own = rrt_pin.simulate(ur5, law, q0, None, T, backend="compiled", estimate_error=False)
+    monkeypatch.setattr(robot_entries, "entry", lambda method, count, pd: "run_many")
+    general = rrt_pin.simulate(ur5, law, q0, None, T, backend="compiled", estimate_error=False)
+    for name in ("q", "qd", "tau"):
+        np.testing.assert_array_equal(getattr(own, name), getattr(general, name))
+    assert own.n_evals == general.n_evals

@@ -170,14 +170,20 @@ def build_state() -> tuple[bool, bool, bool]:
 
 
 def state_for(
-    robot: Any, task: str, batch: bool = False, arm: bool = True, method: str | None = None
+    robot: Any,
+    task: str,
+    batch: bool = False,
+    arm: bool = True,
+    method: str | None = None,
+    controllers: Any = (),
 ) -> tuple[bool, bool, bool]:
     """(loaded in this process, built ahead of time, ready without compiling) for one job.
 
     ``arm``: the job runs the chapter arm's closed-form code (else ``robot``'s generated
-    code: its RNEA for ``inverse``, its integrators for ``simulate``, the entry of
-    ``method`` if it has its own). A ``batch`` runs on the JIT's threads, never on code
-    built ahead of time. Cheap: no numba import, nothing generated or compiled.
+    code: its RNEA for ``inverse``, its integrators for ``simulate``: the entry that
+    ``method`` and ``controllers``, the laws, run on). A ``batch`` runs on the JIT's
+    threads, never on code built ahead of time. Cheap: no numba import, nothing
+    generated or compiled.
     """
     if arm:
         from rrt_pin.compiled import _aot
@@ -194,11 +200,11 @@ def state_for(
         from rrt_pin.compiled import rnea
 
         return rnea.state(robot.model)
-    from rrt_pin.compiled import robot_code
+    from rrt_pin.compiled import robot_code, robot_runs
     from rrt_pin.simulate import methods
 
     code = methods.get(method).code if method is not None else None
-    return robot_code.state(robot.model, batch, code)
+    return robot_code.state(robot.model, batch, code, robot_runs.pd_only(list(controllers)))
 
 
 def refusal(

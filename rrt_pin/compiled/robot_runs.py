@@ -27,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from rrt_pin.compiled import robot_code
+from rrt_pin.compiled import robot_code, robot_entries
 from rrt_pin.compiled.lanes import MAX_STEPS, _in_slices, _raise_status, _threads_that_fit
 from rrt_pin.core import cpus
 from rrt_pin.core.errors import DivergenceError, InputError
@@ -133,15 +133,18 @@ def _laws(robot: Robot, controllers: Sequence[Any]) -> tuple[np.ndarray, np.ndar
 
 
 def _entry(count: int, options: Options, laws: np.ndarray) -> str:
-    """The compiled entry a batch runs on: ``run_lanes``, ``run_adams``, ``run_bdf`` or ``run_many``.
+    """The compiled entry a batch runs (:func:`rrt_pin.compiled.robot_entries.entry`).
 
     Adaptive PD variants run side by side in lanes; Adams's method, BDF and anything else
-    one after the other.
+    one after the other, on the entry bound to PD plus gravity when every law is that.
     """
-    if options.method.code in robot_code.OWN_ENTRY:
-        return robot_code.OWN_ENTRY[options.method.code]
-    lanes = count >= 2 and options.method.code < codes.FIXED_STEP_FROM
-    return "run_lanes" if lanes and bool(np.all(laws == codes.LAW_PD_GRAVITY)) else "run_many"
+    pd = bool(laws.size) and bool(np.all(laws == codes.LAW_PD_GRAVITY))
+    return robot_entries.entry(options.method.code, count, pd)
+
+
+def pd_only(controllers: Sequence[Any]) -> bool:
+    """Whether every law is PD plus gravity (their runs' entries: ``*_pd``)."""
+    return bool(controllers) and all(type(c) is PDGravityController for c in controllers)
 
 
 def _room(robot: Robot, physical: Physical) -> np.ndarray:

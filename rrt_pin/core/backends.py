@@ -344,7 +344,7 @@ def choose(
     elif why is None:
         if task == "simulate":
             arm = fast.entry("arm_kernel")(robot, params, controllers)
-        loaded, aot, built = fast.entry("state")(robot, task, batch, arm, method)
+        loaded, aot, built = fast.entry("state")(robot, task, batch, arm, method, controllers)
         if not built:
             why = "compiled code not built (auto never compiles: ask for backend 'compiled')"
         elif task == "simulate":  # the laws last: checking them imports the integrators

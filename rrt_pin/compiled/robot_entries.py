@@ -1,0 +1,128 @@
+"""The entry points of a robot's generated module: which one a job runs, and their signatures.
+
+A robot's module (:mod:`rrt_pin.compiled.robot_code`) has one entry per kind of job, each
+compiled on first use with one signature:
+
+* ``run_many``: single runs and small batches, any law, the explicit and fixed-step methods;
+* ``run_lanes``: a batch of PD-plus-gravity variants side by side (RK45, DOP853);
+* ``run_adams``, ``run_bdf``: Adams's method and SciPy's BDF (:data:`OWN_ENTRY`);
+* ``run_many_pd``, ``run_adams_pd``, ``run_bdf_pd``: the same under PD plus gravity alone,
+  the most common law: copies of the template's functions whose law-dispatching calls
+  are bound to that law (:data:`PD_COPIES`), so a first use compiles no other law's
+  dynamics (the mass matrix, the bias, the forward dynamics under given efforts): about
+  40 % less to compile. Their arithmetic is the general entry's, bit for bit.
+"""
+
+from __future__ import annotations
+
+import re
+from typing import Any
+
+from rrt_pin.simulate import codes
+
+__all__ = ["OWN_ENTRY", "PD_COPIES", "SIGNATURES", "entry", "law_bound", "pd_entries"]
+
+#: The entry of the methods that have their own (the others: ``run_many``, ``run_lanes``).
+OWN_ENTRY = {codes.METHOD_ADAMS: "run_adams", codes.METHOD_BDF: "run_bdf"}
+
+#: The template's functions copied as ``<name>_pd`` with these calls renamed: bound to PD
+#: plus gravity (the lanes' one law, and single runs under it). In order: a copy may call
+#: an earlier one.
+PD_COPIES = (
+    ("first_step", {"rhs": "rhs_pd_law"}),
+    ("limits_of", {"efforts": "efforts_pd_law"}),
+    ("metrics_of", {"limits_of": "limits_of_pd"}),
+    ("adaptive", {"rhs": "rhs_pd_law", "first_step": "first_step_pd"}),
+    ("fixed", {"rhs": "rhs_pd_law"}),
+    ("efforts_at", {"efforts": "efforts_pd_law"}),
+    (
+        "run_many",
+        {
+            "adaptive": "adaptive_pd",
+            "fixed": "fixed_pd",
+            "efforts_at": "efforts_at_pd",
+            "metrics_of": "metrics_of_pd",
+        },
+    ),  # fmt: skip
+)
+#: The same for the implicit and multistep methods' own files.
+PD_COPIES_ADAMS = (("adams", {"rhs": "rhs_pd_law"}),)
+PD_COPIES_BDF = (
+    ("bdf_jacobian", {"rhs": "rhs_pd_law"}),
+    (
+        "bdf",
+        {"rhs": "rhs_pd_law", "first_step": "first_step_pd", "bdf_jacobian": "bdf_jacobian_pd"},
+    ),
+)
+
+
+def law_bound(text: str, name: str, calls: dict[str, str], renamed: str = "") -> str:
+    """The function ``name`` of ``text`` as ``name_pd`` (or ``renamed``), its ``calls`` renamed."""
+    found = re.search(rf"@jit\ndef {name}\(.*?(?=\n@jit|\Z)", text, flags=re.DOTALL)
+    if found is None:  # pragma: no cover - the template's own functions
+        raise RuntimeError(f"the robot template lost its function {name}")
+    out = found.group(0).replace(f"def {name}(", f"def {renamed or name + '_pd'}(", 1)
+    for old, new in calls.items():
+        out, count = re.subn(rf"\b{old}\(", f"{new}(", out)
+        if not count:  # pragma: no cover
+            raise RuntimeError(f"the robot template's {name} no longer calls {old}")
+    return "\n\n" + out.rstrip() + "\n"
+
+
+def copies(text: str, table: tuple[tuple[str, dict[str, str]], ...]) -> str:
+    """The law-bound copies of ``table``'s functions of ``text``."""
+    return "".join(law_bound(text, name, calls) for name, calls in table)
+
+
+def entry(method: int, count: int, pd: bool) -> str:
+    """The entry a job runs: method code ``method``, ``count`` variants, all under PD + G (``pd``).
+
+    Adaptive PD-plus-gravity variants (two or more) run side by side in lanes; Adams's
+    method and BDF on their own entries; anything else one variant after the other.
+    """
+    if method in OWN_ENTRY:
+        return OWN_ENTRY[method] + ("_pd" if pd else "")
+    if pd and count >= 2 and method < codes.FIXED_STEP_FROM:
+        return "run_lanes"
+    return "run_many_pd" if pd else "run_many"
+
+
+def pd_entries(method: int | None, batch: bool, pd: bool) -> tuple[str, ...]:
+    """The entries one of which a job may run (a batch may run in lanes or not)."""
+    code = codes.METHOD_DOP853 if method is None else method
+    if not batch:
+        return (entry(code, 1, pd),)
+    return tuple(dict.fromkeys((entry(code, 2, pd), entry(code, 1, pd))))
+
+
+def _many_signature(numba: Any) -> Any:
+    i8, f8 = numba.int64, numba.float64
+    r1 = numba.types.Array(f8, 1, "C", readonly=True)
+    r2 = numba.types.Array(f8, 2, "C", readonly=True)
+    ri1 = numba.types.Array(i8, 1, "C", readonly=True)
+    return numba.types.void(
+        i8, r2, r1, f8, r1, f8, f8, i8, ri1, r2, r1, r2, i8, f8,
+        f8[:, :, ::1], f8[:, :, ::1], f8[:, ::1], i8[:, ::1], f8[::1], i8, i8, r2, ri1,
+    )  # fmt: skip
+
+
+def _lanes_signature(numba: Any) -> Any:
+    i8, f8 = numba.int64, numba.float64
+    r1 = numba.types.Array(f8, 1, "C", readonly=True)
+    r2 = numba.types.Array(f8, 2, "C", readonly=True)
+    ri1 = numba.types.Array(i8, 1, "C", readonly=True)
+    return numba.types.void(
+        i8, r2, r1, r1, f8, f8, i8, r2, i8, f8,
+        f8[:, :, ::1], f8[:, :, ::1], f8[:, ::1], i8[:, ::1], f8[::1], i8, i8, r2, ri1,
+    )  # fmt: skip
+
+
+#: Each entry's one signature (numba's types, given the numba module).
+SIGNATURES = {
+    "run_lanes": _lanes_signature,
+    **{
+        name + suffix: _many_signature
+        for name in ("run_many", "run_adams", "run_bdf")
+        for suffix in ("", "_pd")
+    },
+}
