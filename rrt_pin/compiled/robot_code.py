@@ -451,7 +451,6 @@ def module_source(model: pin.Model) -> tuple[str, int]:
         body,
         "",
         f"LANE_COUNT = {LANES}",
-        _lanes_source("rhs", [(fwd_free, "rhs_lanes", False)]),
         _lanes_source(
             "phys",
             [
