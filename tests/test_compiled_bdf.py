@@ -189,6 +189,18 @@ def test_a_bdf_run_compiles_its_entry_alone(ur5, monkeypatch):
     robot_runs.prepare(ur5, [_pd(ur5), _pd(ur5)], options)
     robot_runs.prepare(ur5, [_pd(ur5), None], options)
     assert asked == ["run_bdf_pd", "run_bdf_pd", "run_bdf"]
+    # where every Jacobian is numerical, the entry without the generated one
+    from rrt_pin.robot.limits import physical_model
+
+    applied = physical_model(ur5)
+    assert applied.active
+    numeric = resolve(T, backend="compiled", method="BDF", rtol=1e-9, atol=1e-11,
+                      jacobian="finite-difference")  # fmt: skip
+    robot_runs.prepare(ur5, [_pd(ur5)], options, applied)
+    robot_runs.prepare(ur5, [_pd(ur5)], numeric)
+    robot_runs.prepare(ur5, [None, None], options)
+    robot_runs.prepare(ur5, [_pd(ur5), None], options, applied)
+    assert asked[3:] == ["run_bdf_num_pd", "run_bdf_num_pd", "run_bdf_num", "run_bdf_num"]
 
 
 @pytest.mark.parametrize("method", ["BDF", "adams"])
@@ -214,7 +226,7 @@ def test_auto_counts_a_method_ready_only_when_its_own_entry_is(monkeypatch):
     ur5 = robots.get("ur5")
     seen = []
 
-    def state(model, batch=False, code=None, pd=False):  # noqa: ANN001, ANN202
+    def state(model, batch=False, code=None, pd=False, numeric=False):  # noqa: ANN001, ANN202
         seen.append(code)
         laws.append(pd)
         return False, False, code not in robot_code.OWN_ENTRY  # run_many built, not run_bdf
@@ -227,3 +239,53 @@ def test_auto_counts_a_method_ready_only_when_its_own_entry_is(monkeypatch):
     # the laws tell which entry: PD plus gravity's own, else the general one
     backends.choose(ur5, "simulate", "DOP853", 1e6, controllers=[_pd(ur5)])
     assert laws == [False, False, True]
+
+
+def test_auto_looks_at_the_bdf_entry_the_run_will_take(ur5, monkeypatch):
+    """BDF's entry differs by its Jacobian (generated, or numerical under a physical model
+    or finite differences): auto asks for the one the run takes; not knowing, for both."""
+    from rrt_pin.compiled import robot_code, robot_entries
+    from rrt_pin.simulate import codes
+
+    seen = []
+
+    def state(model, batch=False, code=None, pd=False, numeric=False):  # noqa: ANN001, ANN202
+        seen.append((pd, numeric))
+        return False, False, False  # nothing built: the runs below take Pinocchio
+
+    monkeypatch.setattr(robot_code, "state", state)
+    off = {"effort_limits": False, "position_limits": False, "losses": False}
+    t = np.linspace(0.0, 0.02, 3)
+    for kw in ({}, off, {"jacobian": "finite-difference", **off}):
+        run = rrt_pin.simulate(ur5, _pd(ur5), np.full(6, 0.1), None, t, method="BDF",
+                               backend="auto", estimate_error=False, **kw)  # fmt: skip
+        assert run.backend == "pinocchio"
+    assert seen == [(True, True), (True, False), (True, True)]
+    bdf = codes.METHOD_BDF
+    assert robot_entries.pd_entries(bdf, False, True, None) == (
+        ("run_bdf_pd",),
+        ("run_bdf_num_pd",),
+    )
+    assert robot_entries.pd_entries(bdf, True, False, True) == (("run_bdf_num",),)
+    assert robot_entries.pd_entries(None, True, True) == (("run_lanes", "run_many_pd"),)
+
+
+def test_a_bdf_run_under_a_physical_model_asks_for_the_numerical_entry_alone(ur5, monkeypatch):
+    """Under the URDF's limits (the default) BDF's Jacobian is numerical: the run asks for
+    run_bdf_num_pd only, at every step of the way (nothing generated to compile)."""
+    from rrt_pin.compiled import robot_code
+
+    asked = []
+    entry = robot_code.RobotCode.entry
+
+    def recording(self, name):  # noqa: ANN001, ANN202
+        asked.append(name)
+        return entry(self, name)
+
+    monkeypatch.setattr(robot_code.RobotCode, "entry", recording)
+    t = np.linspace(0.0, 0.05, 6)
+    rrt_pin.simulate(ur5, _pd(ur5), np.full(6, 0.1), None, t, method="BDF", backend="compiled",
+                     estimate_error=False)  # fmt: skip
+    rrt_pin.simulate_batch(ur5, _pd(ur5), np.full((2, 6), 0.1), None, t, method="BDF",
+                           backend="compiled", estimate_error=False)  # fmt: skip
+    assert set(asked) == {"run_bdf_num_pd"}

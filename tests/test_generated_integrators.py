@@ -393,7 +393,7 @@ def test_a_pd_run_on_its_own_entry_equals_the_general_entry_bit_for_bit(ur5, mon
     law = _pd(ur5)
     q0 = np.full(6, 0.2)
     own = rrt_pin.simulate(ur5, law, q0, None, T, backend="compiled", estimate_error=False)
-    monkeypatch.setattr(robot_entries, "entry", lambda method, count, pd: "run_many")
+    monkeypatch.setattr(robot_entries, "entry", lambda method, count, pd, numeric: "run_many")
     general = rrt_pin.simulate(ur5, law, q0, None, T, backend="compiled", estimate_error=False)
     for name in ("q", "qd", "tau"):
         np.testing.assert_array_equal(getattr(own, name), getattr(general, name))

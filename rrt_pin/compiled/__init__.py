@@ -176,14 +176,15 @@ def state_for(
     arm: bool = True,
     method: str | None = None,
     controllers: Any = (),
+    numeric: bool | None = None,
 ) -> tuple[bool, bool, bool]:
     """(loaded in this process, built ahead of time, ready without compiling) for one job.
 
     ``arm``: the job runs the chapter arm's closed-form code (else ``robot``'s generated
     code: its RNEA for ``inverse``, its integrators for ``simulate``: the entry that
-    ``method`` and ``controllers``, the laws, run on). A ``batch`` runs on the JIT's
-    threads, never on code built ahead of time. Cheap: no numba import, nothing
-    generated or compiled.
+    ``method`` and ``controllers``, the laws, run on; ``numeric``: whether BDF's Jacobian
+    will be numerical, None if not known). A ``batch`` runs on the JIT's threads, never
+    on code built ahead of time. Cheap: no numba import, nothing generated or compiled.
     """
     if arm:
         from rrt_pin.compiled import _aot
@@ -204,7 +205,10 @@ def state_for(
     from rrt_pin.simulate import methods
 
     code = methods.get(method).code if method is not None else None
-    return robot_code.state(robot.model, batch, code, robot_runs.pd_only(list(controllers)))
+    laws = list(controllers)
+    if laws and not any(robot_runs.pd_only([c]) for c in laws):
+        numeric = True  # no PD law: nothing to take a generated Jacobian of
+    return robot_code.state(robot.model, batch, code, robot_runs.pd_only(laws), numeric)
 
 
 def refusal(

@@ -87,6 +87,17 @@ BDF_MIN_JAC_FACTOR = 1e3 * BDF_EPS
 
 
 @jit
+def no_closed_loop_jac(y, c, out):
+    """NaN: stands for ``closed_loop_jac`` where BDF's Jacobian is always numerical.
+
+    In ``run_bdf_num`` and ``run_bdf_num_pd``: nothing generated to compile.
+    """
+    for i in range(out.shape[0]):
+        for j in range(out.shape[1]):
+            out[i, j] = math.nan
+
+
+@jit
 def bdf_rms(v, scale):
     """SciPy's ``norm(v / scale)``: ‖v / scale‖₂ / √n."""
     s = 0.0

@@ -134,9 +134,9 @@ class RobotCode:
         sig = robot_entries.SIGNATURES[name](numba).args
         dispatcher = getattr(self._module, name)
         what = {"run_lanes": "batch lanes", "run_adams": "Adams integrator",
-                "run_bdf": "BDF integrator"}.get(name.removesuffix("_pd"), "integrators")  # fmt: skip
+                "run_bdf": "BDF integrator"}.get(name.split("_pd")[0].replace("_num", ""), "integrators")  # fmt: skip
         jac = self._source.partition("def closed_loop_jac(")[2].partition("\n\n\n")[0]
-        bdf = name.startswith("run_bdf")
+        bdf = name.startswith("run_bdf") and "_num" not in name
         flops = self.flops + (jac.count("\n") if bdf else 0)  # + its Jacobian's
         estimate = _estimate(flops) * (0.7 if name == "run_lanes" else 1.0)
         if self._path is None:
@@ -416,7 +416,7 @@ def module_source(model: pin.Model) -> tuple[str, int]:
     if not mark:  # pragma: no cover - the template's own marker
         raise RuntimeError(f"{_TEMPLATE} lost its line {_MARK.strip()!r}")
     body += robot_entries.copies(body, robot_entries.PD_COPIES)
-    for method in ("adams", "bdf"):
+    for method in ("adams", "bdf", "bdf_num"):
         body += robot_entries.law_bound(body, "run_many", {"adaptive": method}, f"run_{method}")
         body += robot_entries.law_bound(
             body, "run_many_pd", {"adaptive_pd": f"{method}_pd"}, f"run_{method}_pd"
@@ -460,7 +460,9 @@ def module_source(model: pin.Model) -> tuple[str, int]:
         ),  # fmt: skip
         _LANES.read_text(encoding="utf-8").partition(_LANES_MARK)[2],
         adams + robot_entries.copies(adams, robot_entries.PD_COPIES_ADAMS),
-        bdf + robot_entries.copies(bdf, robot_entries.PD_COPIES_BDF),
+        bdf
+        + robot_entries.copies(bdf, robot_entries.PD_COPIES_BDF)
+        + robot_entries.copies(bdf, robot_entries.NUMERIC_COPIES_BDF),
     ]
     return "\n".join(lines), fwd.flops
 
@@ -533,23 +535,32 @@ OWN_ENTRY = robot_entries.OWN_ENTRY
 
 
 def state(
-    model: pin.Model, batch: bool = False, code: int | None = None, pd: bool = False
+    model: pin.Model,
+    batch: bool = False,
+    code: int | None = None,
+    pd: bool = False,
+    numeric: bool | None = False,
 ) -> tuple[bool, bool, bool]:
     """(loaded in this process, built ahead of time, ready without compiling): ``model``'s integrators.
 
     The entry a job of method ``code`` runs (:func:`rrt_pin.compiled.robot_entries.entry`;
-    ``pd``: its laws are all PD plus gravity; a batch's may also run in lanes). Cheap: no
-    numba import, no source generated (the index of :mod:`rrt_pin.compiled._models`).
-    Integrators are never built ahead of time.
+    ``pd``: its laws are all PD plus gravity; ``numeric``: BDF's Jacobian is numerical for
+    every variant, None if not known: then either entry may run, and both must be built;
+    a batch's may also run in lanes). Cheap: no numba import, no source generated (the
+    index of :mod:`rrt_pin.compiled._models`). Integrators are never built ahead of time.
     """
-    entries = robot_entries.pd_entries(code, batch, pd)
+    groups = robot_entries.pd_entries(code, batch, pd, numeric)
     found = _MODELS.get(model)
     if found is not None and bool(found[0] == model):
-        if any(e in found[1]._entries for e in entries):
+        loaded = found[1]._entries
+        if all(any(e in loaded for e in group) for group in groups):
             return True, False, True
     record = _models.recall("robot", model)
     where = rnea.generated_dir()
     if record is None or where is None:
         return False, False, False
     stem = f"robot_{record['digest'][:24]}"
-    return False, False, any((where / f"{stem}.{e}.cache.json").is_file() for e in entries)
+    built = all(
+        any((where / f"{stem}.{e}.cache.json").is_file() for e in group) for group in groups
+    )
+    return False, False, built

@@ -11,6 +11,10 @@ compiled on first use with one signature:
   are bound to that law (:data:`PD_COPIES`), so a first use compiles no other law's
   dynamics (the mass matrix, the bias, the forward dynamics under given efforts): about
   40 % less to compile. Their arithmetic is the general entry's, bit for bit.
+* ``run_bdf_num``, ``run_bdf_num_pd``: BDF where its Jacobian is SciPy's ``num_jac``
+  for every variant (a physical model applied, ``jacobian="finite-difference"``, or no
+  PD-plus-gravity law): without the generated closed-loop Jacobian, which is most of
+  BDF's compilation (Panda's: 20,898 lines against the forward dynamics' 2,531).
 """
 
 from __future__ import annotations
@@ -49,11 +53,17 @@ PD_COPIES = (
 PD_COPIES_ADAMS = (("adams", {"rhs": "rhs_pd_law"}),)
 PD_COPIES_BDF = (
     ("bdf_jacobian", {"rhs": "rhs_pd_law"}),
-    (
-        "bdf",
-        {"rhs": "rhs_pd_law", "first_step": "first_step_pd", "bdf_jacobian": "bdf_jacobian_pd"},
-    ),
-)
+    ("bdf", {"rhs": "rhs_pd_law", "first_step": "first_step_pd", "bdf_jacobian": "bdf_jacobian_pd"}),
+)  # fmt: skip
+#: BDF's copies without the generated Jacobian, by their names.
+NUMERIC_COPIES_BDF = (
+    ("bdf_jacobian", {"closed_loop_jac": "no_closed_loop_jac"}, "bdf_jacobian_num"),
+    ("bdf_jacobian", {"rhs": "rhs_pd_law", "closed_loop_jac": "no_closed_loop_jac"},
+     "bdf_jacobian_num_pd"),
+    ("bdf", {"bdf_jacobian": "bdf_jacobian_num"}, "bdf_num"),
+    ("bdf", {"rhs": "rhs_pd_law", "first_step": "first_step_pd",
+             "bdf_jacobian": "bdf_jacobian_num_pd"}, "bdf_num_pd"),
+)  # fmt: skip
 
 
 def law_bound(text: str, name: str, calls: dict[str, str], renamed: str = "") -> str:
@@ -69,30 +79,40 @@ def law_bound(text: str, name: str, calls: dict[str, str], renamed: str = "") ->
     return "\n\n" + out.rstrip() + "\n"
 
 
-def copies(text: str, table: tuple[tuple[str, dict[str, str]], ...]) -> str:
-    """The law-bound copies of ``table``'s functions of ``text``."""
-    return "".join(law_bound(text, name, calls) for name, calls in table)
+def copies(text: str, table: tuple[tuple[Any, ...], ...]) -> str:
+    """The copies of ``table``'s functions of ``text``: (name, calls[, renamed]) each."""
+    return "".join(law_bound(text, *row) for row in table)
 
 
-def entry(method: int, count: int, pd: bool) -> str:
+def entry(method: int, count: int, pd: bool, numeric: bool = False) -> str:
     """The entry a job runs: method code ``method``, ``count`` variants, all under PD + G (``pd``).
 
     Adaptive PD-plus-gravity variants (two or more) run side by side in lanes; Adams's
-    method and BDF on their own entries; anything else one variant after the other.
+    method and BDF on their own entries (BDF without its generated Jacobian where
+    ``numeric``: every variant's Jacobian is ``num_jac``); anything else one variant
+    after the other.
     """
     if method in OWN_ENTRY:
-        return OWN_ENTRY[method] + ("_pd" if pd else "")
+        name = OWN_ENTRY[method] + ("_num" if numeric and method == codes.METHOD_BDF else "")
+        return name + ("_pd" if pd else "")
     if pd and count >= 2 and method < codes.FIXED_STEP_FROM:
         return "run_lanes"
     return "run_many_pd" if pd else "run_many"
 
 
-def pd_entries(method: int | None, batch: bool, pd: bool) -> tuple[str, ...]:
-    """The entries one of which a job may run (a batch may run in lanes or not)."""
+def pd_entries(
+    method: int | None, batch: bool, pd: bool, numeric: bool | None = False
+) -> tuple[tuple[str, ...], ...]:
+    """The entries a job may run: groups, one entry of each built makes it ready.
+
+    A batch may run in lanes or not (one group of two); a BDF job whose Jacobian is not
+    known to be numerical for every variant (``numeric`` None) may need either entry (two
+    groups: both built).
+    """
     code = codes.METHOD_DOP853 if method is None else method
-    if not batch:
-        return (entry(code, 1, pd),)
-    return tuple(dict.fromkeys((entry(code, 2, pd), entry(code, 1, pd))))
+    ways = (False, True) if numeric is None else (bool(numeric),)
+    counts = (2, 1) if batch else (1,)
+    return tuple(tuple(dict.fromkeys(entry(code, n, pd, way) for n in counts)) for way in ways)
 
 
 def _many_signature(numba: Any) -> Any:
@@ -122,7 +142,7 @@ SIGNATURES = {
     "run_lanes": _lanes_signature,
     **{
         name + suffix: _many_signature
-        for name in ("run_many", "run_adams", "run_bdf")
+        for name in ("run_many", "run_adams", "run_bdf", "run_bdf_num")
         for suffix in ("", "_pd")
     },
 }

@@ -132,14 +132,27 @@ def _laws(robot: Robot, controllers: Sequence[Any]) -> tuple[np.ndarray, np.ndar
     return laws, C, reference or _NONE
 
 
-def _entry(count: int, options: Options, laws: np.ndarray) -> str:
+def _entry(count: int, options: Options, laws: np.ndarray, physical: Physical | None) -> str:
     """The compiled entry a batch runs (:func:`rrt_pin.compiled.robot_entries.entry`).
 
     Adaptive PD variants run side by side in lanes; Adams's method, BDF and anything else
     one after the other, on the entry bound to PD plus gravity when every law is that.
+    BDF's Jacobian is numerical for every variant (its entry then has no generated one)
+    under a physical model, with ``jacobian="finite-difference"``, or with no PD law.
     """
-    pd = bool(laws.size) and bool(np.all(laws == codes.LAW_PD_GRAVITY))
-    return robot_entries.entry(options.method.code, count, pd)
+    pd_laws = laws == codes.LAW_PD_GRAVITY
+    pd = bool(laws.size) and bool(np.all(pd_laws))
+    numeric = numeric_jacobian(options.jacobian, physical) or not bool(np.any(pd_laws))
+    return robot_entries.entry(options.method.code, count, pd, numeric)
+
+
+def numeric_jacobian(jacobian: str | None, physical: Physical | None) -> bool:
+    """Whether BDF's Jacobian is SciPy's ``num_jac`` whatever the law.
+
+    So when it is asked for, or a physical model is applied (the generated one is the
+    law's alone).
+    """
+    return jacobian == "finite-difference" or (physical is not None and physical.active)
 
 
 def pd_only(controllers: Sequence[Any]) -> bool:
@@ -159,11 +172,17 @@ def _room(robot: Robot, physical: Physical) -> np.ndarray:
     return np.where(np.isnan(room), np.inf, room)
 
 
-def prepare(robot: Robot, controllers: Sequence[Any], options: Options) -> tuple:
+def prepare(
+    robot: Robot,
+    controllers: Sequence[Any],
+    options: Options,
+    physical: Physical | None = None,
+) -> tuple:
     """Compile (or load) the one entry these runs need, before any run's clock starts.
 
-    A single run needs ``run_many``; a batch of adaptive PD variants only ``run_lanes``:
-    a robot's first use compiles one of the two, not both.
+    A single run needs ``run_many`` (or its copy for PD plus gravity); a batch of adaptive
+    PD variants only ``run_lanes``: a robot's first use compiles one entry, not all.
+    ``physical``: the model the runs apply (BDF's entry depends on it).
 
     Returns:
         The laws as arrays (:func:`_laws`), for the run.
@@ -173,7 +192,7 @@ def prepare(robot: Robot, controllers: Sequence[Any], options: Options) -> tuple
     """
     arrays = _laws(robot, controllers)
     code = robot_code.integrators_for(robot.model, robot.name)
-    code.entry(_entry(len(controllers), options, arrays[0]))
+    code.entry(_entry(len(controllers), options, arrays[0], physical))
     return arrays
 
 
@@ -201,7 +220,7 @@ def _run(
     stated = physical_model(robot)  # what the metrics measure against, applied or not
     laws, C, (rt, rv) = law_arrays or _laws(robot, controllers)
     count, n = Y0.shape[0], Y0.shape[1]
-    lanes = _entry(count, options, laws) == "run_lanes"
+    lanes = _entry(count, options, laws, physical) == "run_lanes"
     room = _room(robot, physical) if lanes and phys[0] else np.full(nv, -np.inf)
     P = np.ascontiguousarray(np.vstack([P, stated.lower, stated.upper, stated.effort, room]))
     keep_code = _KEEP[keep]
@@ -228,7 +247,7 @@ def _run(
         def run(a: int, b: int) -> None:
             lanes(*args, a, b, P, phys)
     else:
-        many = code.entry(_entry(count, options, laws))
+        many = code.entry(_entry(count, options, laws, physical))
         args = (
             method, Y0, t, step, atol, rtol, math.inf, max_steps, laws, C, rt, rv,
             keep_code, band, out_y, out_tau, metrics, info, reached,
@@ -297,7 +316,7 @@ def run_one(
         InputError: a law that does not run compiled.
         DivergenceError: the run failed (time and coordinate named).
     """
-    arrays = prepare(robot, [controller], options)  # compiled before the clock starts
+    arrays = prepare(robot, [controller], options, physical)  # compiled before the clock starts
     start = time.perf_counter() if start is None else start
     Y0 = np.concatenate([q0, qd0])[None, :]
     y, tau, _, info, reached, _ = _run(
@@ -375,7 +394,7 @@ def run_batch(
             "keep='metrics' measures each variant against its controller's target qf: "
             "every controller needs one (or keep='final')"
         )
-    arrays = prepare(robot, controllers, options)
+    arrays = prepare(robot, controllers, options, physical)
     start = time.perf_counter() if start is None else start
     count = q0s.shape[0]
     if threads is None:  # the slices are shared as threads finish (_in_slices)

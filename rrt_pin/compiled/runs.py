@@ -102,7 +102,7 @@ def single(
     if _generated(robot, params, [controller]):
         from rrt_pin.compiled import robot_runs
 
-        robot_runs.prepare(robot, [controller], options)  # compiled before the clock starts
+        robot_runs.prepare(robot, [controller], options, rp.applied)  # before the clock starts
         physical = {} if rp.applied is None else {"physical": rp.applied}
 
         def run(o: Options, began: float) -> SimulationResult:
@@ -144,7 +144,7 @@ def batch(
     if _generated(robot, params, controllers):
         from rrt_pin.compiled import robot_runs
 
-        robot_runs.prepare(robot, controllers, options)  # compiled before the clock starts
+        robot_runs.prepare(robot, controllers, options, rp.applied)  # before the clock starts
         physical = {} if rp.applied is None else {"physical": rp.applied}
 
         def run(o: Options, began: float, tau: bool, kept: str, main: bool = True) -> BatchResult:

@@ -300,6 +300,7 @@ def choose(
     params: Any = None,
     batch: bool = False,
     build: bool = False,
+    numeric_jacobian: bool | None = None,
 ) -> Choice:
     """The one ``auto`` policy (the default backend): the backend a job of ``work`` runs on.
 
@@ -328,6 +329,9 @@ def choose(
         build: the job may build the compiled code (a sweep: long, and it says so when
             it compiles): ``compiled`` whenever it computes the job as asked, whatever
             is built, so that every process of the job chooses alike.
+        numeric_jacobian: whether an implicit method's Jacobian will be numerical (a
+            physical model applied, or finite differences asked for), None if not known:
+            the compiled code built for it differs.
     """
     engine, fast, numpy_kernel = BACKENDS["pinocchio"], BACKENDS["compiled"], BACKENDS["symbolic"]
     why = _cannot(fast, robot, task, method)
@@ -344,7 +348,9 @@ def choose(
     elif why is None:
         if task == "simulate":
             arm = fast.entry("arm_kernel")(robot, params, controllers)
-        loaded, aot, built = fast.entry("state")(robot, task, batch, arm, method, controllers)
+        loaded, aot, built = fast.entry("state")(
+            robot, task, batch, arm, method, controllers, numeric_jacobian
+        )
         if not built:
             why = "compiled code not built (auto never compiles: ask for backend 'compiled')"
         elif task == "simulate":  # the laws last: checking them imports the integrators

@@ -158,7 +158,10 @@ def simulate(
     robot = as_robot(model, _checked_params(params))
     t = validate.times(t_eval)
     backend = backends.decide(robot, backend, "simulate", method, float(t[-1] - t[0]),
-                              controllers=[controller], params=params).name  # fmt: skip
+                              controllers=[controller], params=params,
+                              numeric_jacobian=_numeric_jacobian(robot, method, jacobian,
+                                                                 effort_limits, position_limits,
+                                                                 losses)).name  # fmt: skip
     runs = _runs(backend)
     runs.prepare(robot, method, False, params, [controller])  # not simulation time
     q0 = robot.as_coordinates("q0", q0)
@@ -182,6 +185,24 @@ def simulate(
     result = with_limits(_with_units(run(options, start), robot), rp, checked)
     check_energy(result, robot, energy_law(checked, result.limits, rp), plant)
     return _with_estimate(result, options, run) if estimate_error else result
+
+
+def _numeric_jacobian(robot: Robot, method: Any, jacobian: Any, *switches: Any) -> bool | None:
+    """Whether an implicit method's Jacobian will be numerical (for ``auto``), None if unknown.
+
+    Finite differences asked for, or a physical model applied (the generated Jacobian is
+    the law's alone). Looked at only for BDF, whose compiled code differs by it.
+    """
+    if method != "BDF" or not all(isinstance(s, (bool, np.bool_)) for s in switches):
+        return None
+    if jacobian == "finite-difference":
+        return True
+    from rrt_pin.robot.limits import physical_model
+
+    effort, position, losses = switches
+    return physical_model(
+        robot, effort_limits=effort, position_limits=position, losses=losses
+    ).active
 
 
 def _checked_params(params: Any, name: str = "params") -> Any:
@@ -364,7 +385,10 @@ def simulate_batch(
         raise InputError(f"{len(controllers)} controllers for {B} initial states")
     t = validate.times(t_eval)
     backend = backends.decide(robot, backend, "simulate", method, B * float(t[-1] - t[0]),
-                              controllers=controllers, params=params, batch=True).name  # fmt: skip
+                              controllers=controllers, params=params, batch=True,
+                              numeric_jacobian=_numeric_jacobian(robot, method, "analytic",
+                                                                 effort_limits, position_limits,
+                                                                 losses)).name  # fmt: skip
     runs = _runs(backend)
     runs.prepare(robot, method, True, params, controllers)  # not simulation time
     options = resolve(
