@@ -115,26 +115,30 @@ def pd_entries(
     return tuple(tuple(dict.fromkeys(entry(code, n, pd, way) for n in counts)) for way in ways)
 
 
-def _many_signature(numba: Any) -> Any:
+def _types(numba: Any) -> tuple[Any, ...]:
+    """(int64, float64, read-only 1-d and 2-d float arrays, read-only 1-d int array)."""
     i8, f8 = numba.int64, numba.float64
-    r1 = numba.types.Array(f8, 1, "C", readonly=True)
-    r2 = numba.types.Array(f8, 2, "C", readonly=True)
-    ri1 = numba.types.Array(i8, 1, "C", readonly=True)
+    readonly = numba.types.Array
+    return i8, f8, readonly(f8, 1, "C", readonly=True), readonly(f8, 2, "C", readonly=True), \
+        readonly(i8, 1, "C", readonly=True)  # fmt: skip
+
+
+def _outputs(numba: Any) -> tuple[Any, ...]:
+    """Every entry's last arguments: the outputs, the variants' range, the physical model."""
+    i8, f8, _, r2, ri1 = _types(numba)
+    return (f8[:, :, ::1], f8[:, :, ::1], f8[:, ::1], i8[:, ::1], f8[::1], i8, i8, r2, ri1)
+
+
+def _many_signature(numba: Any) -> Any:
+    i8, f8, r1, r2, ri1 = _types(numba)
     return numba.types.void(
-        i8, r2, r1, f8, r1, f8, f8, i8, ri1, r2, r1, r2, i8, f8,
-        f8[:, :, ::1], f8[:, :, ::1], f8[:, ::1], i8[:, ::1], f8[::1], i8, i8, r2, ri1,
-    )  # fmt: skip
+        i8, r2, r1, f8, r1, f8, f8, i8, ri1, r2, r1, r2, i8, f8, *_outputs(numba)
+    )
 
 
 def _lanes_signature(numba: Any) -> Any:
-    i8, f8 = numba.int64, numba.float64
-    r1 = numba.types.Array(f8, 1, "C", readonly=True)
-    r2 = numba.types.Array(f8, 2, "C", readonly=True)
-    ri1 = numba.types.Array(i8, 1, "C", readonly=True)
-    return numba.types.void(
-        i8, r2, r1, r1, f8, f8, i8, r2, i8, f8,
-        f8[:, :, ::1], f8[:, :, ::1], f8[:, ::1], i8[:, ::1], f8[::1], i8, i8, r2, ri1,
-    )  # fmt: skip
+    i8, f8, r1, r2, _ = _types(numba)
+    return numba.types.void(i8, r2, r1, r1, f8, f8, i8, r2, i8, f8, *_outputs(numba))
 
 
 #: Each entry's one signature (numba's types, given the numba module).
