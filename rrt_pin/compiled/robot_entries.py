@@ -117,10 +117,9 @@ def pd_entries(
 
 def _types(numba: Any) -> tuple[Any, ...]:
     """(int64, float64, read-only 1-d and 2-d float arrays, read-only 1-d int array)."""
-    i8, f8 = numba.int64, numba.float64
-    readonly = numba.types.Array
-    return i8, f8, readonly(f8, 1, "C", readonly=True), readonly(f8, 2, "C", readonly=True), \
-        readonly(i8, 1, "C", readonly=True)  # fmt: skip
+    i8, f8, array = numba.int64, numba.float64, numba.types.Array
+    r1, r2 = array(f8, 1, "C", readonly=True), array(f8, 2, "C", readonly=True)
+    return i8, f8, r1, r2, array(i8, 1, "C", readonly=True)
 
 
 def _outputs(numba: Any) -> tuple[Any, ...]:
