@@ -287,3 +287,25 @@ def test_lean_odeint_reports_lsodas_failure_like_scipy():
         _, theirs = scipy_odeint(f, np.array([1.0]), t, rtol=1e-9, atol=1e-11, mxstep=200,
                                  full_output=True)  # fmt: skip
     assert info["message"] == theirs["message"] != "Integration successful."
+
+
+_AUTO_LOOK = """
+import sys
+import numpy as np
+from rrt_pin.core import backends
+from rrt_pin.robot import robots
+from rrt_pin.simulate.control import pd_gravity_controller
+ur5 = robots.get("ur5")
+law = pd_gravity_controller(ur5, kp=100.0, kd=20.0, qf=np.zeros(6))
+choice = backends.choose(ur5, "simulate", "BDF", 5.0, controllers=[law], numeric_jacobian=True)
+print(choice.name, "rrt_pin.compiled.robot_runs" in sys.modules)
+"""
+
+
+def test_auto_looks_at_a_robots_code_without_importing_its_runs(tmp_path):
+    """Where nothing is built, auto's look at a robot's compiled entries (which one its laws
+    and method take) imports none of the runs' machinery: the job runs on Pinocchio."""
+    env = {**os.environ, "RRT_PIN_CACHE_DIR": str(tmp_path / "empty")}
+    proc = subprocess.run([sys.executable, "-c", _AUTO_LOOK], env=env, cwd=ROOT,
+                          capture_output=True, text=True, check=True)  # fmt: skip
+    assert proc.stdout.split() == ["pinocchio", "False"], proc.stdout + proc.stderr

@@ -201,14 +201,14 @@ def state_for(
         from rrt_pin.compiled import rnea
 
         return rnea.state(robot.model)
-    from rrt_pin.compiled import robot_code, robot_runs
+    from rrt_pin.compiled import robot_code, robot_entries
     from rrt_pin.simulate import methods
 
     code = methods.get(method).code if method is not None else None
     laws = list(controllers)
-    if laws and not any(robot_runs.pd_only([c]) for c in laws):
+    if laws and not any(robot_entries.pd_only([c]) for c in laws):
         numeric = True  # no PD law: nothing to take a generated Jacobian of
-    return robot_code.state(robot.model, batch, code, robot_runs.pd_only(laws), numeric)
+    return robot_code.state(robot.model, batch, code, robot_entries.pd_only(laws), numeric)
 
 
 def refusal(

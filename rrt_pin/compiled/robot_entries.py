@@ -20,11 +20,12 @@ compiled on first use with one signature:
 from __future__ import annotations
 
 import re
+from collections.abc import Sequence
 from typing import Any
 
 from rrt_pin.simulate import codes
 
-__all__ = ["OWN_ENTRY", "PD_COPIES", "SIGNATURES", "entry", "law_bound", "pd_entries"]
+__all__ = ["OWN_ENTRY", "PD_COPIES", "SIGNATURES", "entry", "law_bound", "pd_entries", "pd_only"]
 
 #: The entry of the methods that have their own (the others: ``run_many``, ``run_lanes``).
 OWN_ENTRY = {codes.METHOD_ADAMS: "run_adams", codes.METHOD_BDF: "run_bdf"}
@@ -82,6 +83,13 @@ def law_bound(text: str, name: str, calls: dict[str, str], renamed: str = "") ->
 def copies(text: str, table: tuple[tuple[Any, ...], ...]) -> str:
     """The copies of ``table``'s functions of ``text``: (name, calls[, renamed]) each."""
     return "".join(law_bound(text, *row) for row in table)
+
+
+def pd_only(controllers: Sequence[Any]) -> bool:
+    """Whether every law is PD plus gravity (their runs' entries: ``*_pd``)."""
+    from rrt_pin.simulate.control import PDGravityController  # loaded with any law's module
+
+    return bool(controllers) and all(type(c) is PDGravityController for c in controllers)
 
 
 def entry(method: int, count: int, pd: bool, numeric: bool = False) -> str:

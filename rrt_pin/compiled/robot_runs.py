@@ -155,11 +155,6 @@ def numeric_jacobian(jacobian: str | None, physical: Physical | None) -> bool:
     return jacobian == "finite-difference" or (physical is not None and physical.active)
 
 
-def pd_only(controllers: Sequence[Any]) -> bool:
-    """Whether every law is PD plus gravity (their runs' entries: ``*_pd``)."""
-    return bool(controllers) and all(type(c) is PDGravityController for c in controllers)
-
-
 def _room(robot: Robot, physical: Physical) -> np.ndarray:
     """Per joint, how large a PD effort may be with PD plus G(q) unsaturated (nv,) [N·m or N].
 
