@@ -54,6 +54,9 @@ LANES = 8
 #: operation (for the announcement's estimate only).
 _COMPILE_S = 12.0
 _COMPILE_S_PER_FLOP = 2e-3
+#: What an entry compiles, by its name's start, for the announcement.
+_WHAT = (("run_lanes", "batch lanes"), ("run_adams", "Adams integrator"),
+         ("run_bdf", "BDF integrator"))  # fmt: skip
 _CODES = (
     "LAW_NONE", "LAW_PD_GRAVITY", "LAW_TRACKING", "LAW_OPEN_LOOP",
     "KEEP_TRAJECTORIES", "KEEP_FINAL", "KEEP_METRICS",
@@ -133,8 +136,7 @@ class RobotCode:
 
         sig = robot_entries.SIGNATURES[name](numba).args
         dispatcher = getattr(self._module, name)
-        what = {"run_lanes": "batch lanes", "run_adams": "Adams integrator",
-                "run_bdf": "BDF integrator"}.get(name.split("_pd")[0].replace("_num", ""), "integrators")  # fmt: skip
+        what = next((label for prefix, label in _WHAT if name.startswith(prefix)), "integrators")
         jac = self._source.partition("def closed_loop_jac(")[2].partition("\n\n\n")[0]
         bdf = name.startswith("run_bdf") and "_num" not in name
         flops = self.flops + (jac.count("\n") if bdf else 0)  # + its Jacobian's
