@@ -484,3 +484,22 @@ def test_a_compiled_batch_without_efforts_reports_its_limit_events_from_its_own(
     np.testing.assert_array_equal(bare.q, full.q)
     assert bare.limits == full.limits
     assert all(any(e.kind == "effort" for e in events) for events in full.limits)
+
+
+def test_a_change_to_the_models_limits_between_runs_is_read():
+    """The physical model is kept per robot, but keyed by the model's values: a user's
+    change to them after a first run applies to the next, as it did when read each time."""
+    robot = slider(effort=100.0, damping=0.5)
+    first = physical_model(robot)
+    assert physical_model(robot) is first  # read once while nothing changes
+    robot.model.effortLimit[0] = 7.0
+    robot.model.damping[0] = 0.0
+    robot.model.lowerPositionLimit[0] = -0.5
+    now = physical_model(robot)
+    assert (first.effort[0], first.damping[0], first.lower[0]) == (100.0, 0.5, -DROP)
+    assert (now.effort[0], now.damping[0], now.lower[0]) == (7.0, 0.0, -0.5)
+    off = physical_model(robot, effort_limits=False, losses=False)
+    assert off.effort[0] == math.inf and off.lower[0] == -0.5
+    robot.model.damping[0] = -1.0  # a bad value is refused again, not served from before
+    with pytest.raises(InputError, match="damping of joint 'slide' is -1"):
+        physical_model(robot)

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import functools
 import math
+import weakref
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
@@ -227,16 +228,45 @@ def physical_model(
         InputError: a limit with lower > upper, a negative damping, friction, effort or
             velocity limit, or a NaN (the joint named).
     """
-    nv = robot.nv
     if robot.is_chapter_arm:  # before robot.model: the arm's needs no Pinocchio model
-        return inactive(nv)
+        return inactive(robot.nv)
     m = robot.model if model is None else model
+    # The model's arrays are read each call (a user may change them between runs); the
+    # model built from them is kept per robot, keyed by their values and the switches.
+    read = [np.asarray(a, dtype=float) for a in (m.lowerPositionLimit, m.upperPositionLimit,
+                                                 m.effortLimit, m.velocityLimit, m.damping,
+                                                 m.friction)]  # fmt: skip
+    key = (effort_limits, position_limits, losses, b"".join(a.tobytes() for a in read))
+    memo = _MEMO.setdefault(robot, {})
+    found = memo.get(key)
+    if found is None:
+        found = _physical(robot, m, read, effort_limits, position_limits, losses)
+        if len(memo) >= _MEMO_SIZE:
+            memo.clear()
+        memo[key] = found
+    return found
+
+
+#: Physical models already read, per robot (weakly: they go with the robot).
+_MEMO: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+_MEMO_SIZE = 16
+
+
+def _physical(
+    robot: Robot,
+    m: pin.Model,
+    read: list[np.ndarray],
+    effort_limits: bool,
+    position_limits: bool,
+    losses: bool,
+) -> Physical:
+    """:func:`physical_model` read from ``m``'s arrays (``read``, in the order of the key)."""
+    nv = robot.nv
     if _chapter_urdf(robot, m):
         return inactive(nv)
     names = joint_names(robot)
     lower, upper = np.full(nv, -np.inf), np.full(nv, np.inf)
-    lows = np.asarray(m.lowerPositionLimit, dtype=float)  # each read converts: once, not per joint
-    highs = np.asarray(m.upperPositionLimit, dtype=float)
+    lows, highs = read[0], read[1]
     not_given = []
     for j in robot.joints:
         if j.kind == "continuous" or j.nq != j.nv:
@@ -252,10 +282,7 @@ def physical_model(
             not_given.append(j.name)
             continue
         lower[j.idx_v], upper[j.idx_v] = lo, hi
-    effort = np.array(m.effortLimit, dtype=float)[:nv]
-    velocity = np.array(m.velocityLimit, dtype=float)[:nv]
-    damping = np.array(m.damping, dtype=float)[:nv]
-    friction = np.array(m.friction, dtype=float)[:nv]
+    effort, velocity, damping, friction = (a[:nv].copy() for a in read[2:])
     for name, values in (("effort limit", effort), ("velocity limit", velocity),
                          ("damping", damping), ("friction", friction)):  # fmt: skip
         if not values.min(initial=0.0) >= 0.0:  # a negative value or a NaN: say which joint
