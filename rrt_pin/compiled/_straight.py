@@ -1,0 +1,322 @@
+"""Generated straight-line functions lowered to LLVM IR directly, past numba's front end.
+
+numba types and lowers a function one statement at a time, in Python, and a robot's
+generated dynamics are thousands of statements (UR5's closed-loop Jacobian 7,585,
+Panda's ~21,000): their compilation was most of a robot's first use, and not LLVM's part
+of it (the same at O0). The generated functions use a small part of Python, which
+:func:`lowered` translates to LLVM IR inside one numba intrinsic: numba's IR then holds
+one call, and LLVM gets the instructions numba would have emitted (IEEE operations without
+fast-math flags, so no contraction into FMA; LLVM's ``sin``/``cos``/``fabs`` intrinsics and
+libm's ``sqrt`` and ``tanh``, as numba's math does), so the results are the same bits
+(``tests/test_straight.py`` compares both on random inputs). Compile times before and
+after: ``docs/benchmarks.md``.
+
+The part of Python, checked by :func:`supported` (pure, numba-free: the module writer asks
+it before choosing): a function of arrays only (1-D or 2-D, float64) whose body is
+assignments to names or to array elements at constant indices, ``+=`` and the like,
+``if``/``else`` blocks, conditional expressions, ``+ - * / &``, unary minus, one
+comparison at a time, and calls of ``abs``, ``int``, ``float``, ``sin``, ``cos``,
+``sqrt`` and ``tanh``. Names hold float64 or int64 values (an int meets a float as Python's does:
+converted); a name assigned in one branch of an ``if`` only is not read after it.
+
+Units: none (code).
+"""
+
+from __future__ import annotations
+
+import ast
+import re
+from typing import Any
+
+__all__ = ["lowered", "lowered_part", "stub", "supported"]
+
+_CALLS = frozenset({"abs", "int", "float", "sin", "cos", "sqrt", "tanh"})
+_BINOPS = (ast.Add, ast.Sub, ast.Mult, ast.Div, ast.BitAnd)
+_COMPARES = (ast.Lt, ast.Gt, ast.LtE, ast.GtE, ast.Eq, ast.NotEq)
+
+
+def _function(source: str) -> ast.FunctionDef:
+    tree = ast.parse(source)
+    if len(tree.body) != 1 or not isinstance(tree.body[0], ast.FunctionDef):
+        raise ValueError("expected the source of one function")
+    return tree.body[0]
+
+
+def supported(source: str) -> bool:
+    """Whether :func:`lowered` translates the function in ``source`` (see the module)."""
+    fn = _function(source)
+    arrays = {a.arg for a in fn.args.args}
+    if fn.args.vararg or fn.args.kwarg or fn.args.kwonlyargs or fn.args.defaults:
+        return False
+    return all(_statement_ok(s, arrays) for s in fn.body)
+
+
+def _statement_ok(s: ast.stmt, arrays: set[str]) -> bool:
+    if isinstance(s, ast.Assign):
+        return len(s.targets) == 1 and _target_ok(s.targets[0], arrays) and _ok(s.value, arrays)
+    if isinstance(s, ast.AugAssign):
+        return (
+            isinstance(s.target, ast.Name)
+            and s.target.id not in arrays
+            and isinstance(s.op, _BINOPS)
+            and _ok(s.value, arrays)
+        )
+    if isinstance(s, ast.If):
+        return _ok(s.test, arrays) and all(_statement_ok(x, arrays) for x in [*s.body, *s.orelse])
+    return False
+
+
+def _target_ok(t: ast.expr, arrays: set[str]) -> bool:
+    if isinstance(t, ast.Name):
+        return t.id not in arrays
+    return _element_ok(t, arrays)
+
+
+def _element_ok(t: ast.expr, arrays: set[str]) -> bool:
+    if not (isinstance(t, ast.Subscript) and isinstance(t.value, ast.Name)):
+        return False
+    if t.value.id not in arrays:
+        return False
+    index = t.slice.elts if isinstance(t.slice, ast.Tuple) else [t.slice]
+    return all(isinstance(i, ast.Constant) and type(i.value) is int for i in index)
+
+
+def _ok(e: ast.expr, arrays: set[str]) -> bool:
+    if isinstance(e, ast.Constant):
+        return type(e.value) in (int, float)
+    if isinstance(e, ast.Name):
+        return e.id not in arrays
+    if isinstance(e, ast.Subscript):
+        return _element_ok(e, arrays)
+    if isinstance(e, ast.BinOp):
+        return isinstance(e.op, _BINOPS) and _ok(e.left, arrays) and _ok(e.right, arrays)
+    if isinstance(e, ast.UnaryOp):
+        return isinstance(e.op, ast.USub) and _ok(e.operand, arrays)
+    if isinstance(e, ast.Compare):
+        return (
+            len(e.ops) == 1
+            and isinstance(e.ops[0], _COMPARES)
+            and _ok(e.left, arrays)
+            and _ok(e.comparators[0], arrays)
+        )
+    if isinstance(e, ast.IfExp):
+        return all(_ok(x, arrays) for x in (e.test, e.body, e.orelse))
+    if isinstance(e, ast.Call):
+        return (
+            isinstance(e.func, ast.Name)
+            and e.func.id in _CALLS
+            and len(e.args) == 1
+            and not e.keywords
+            and _ok(e.args[0], arrays)
+        )
+    return False
+
+
+def lowered(name: str, arrays: tuple[str, ...], source: str) -> Any:
+    """A numba intrinsic ``name_ir(*arrays)`` doing what the function in ``source`` does.
+
+    Called from a jitted function of the same arguments (float64 arrays); returns
+    nothing. ``source`` is read only when numba compiles a caller (a process that loads
+    its callers from numba's cache parses nothing).
+
+    Raises:
+        ValueError: at compilation, a function outside the supported part of Python.
+    """
+    from numba.core import types
+    from numba.extending import intrinsic
+
+    parsed: list[list[ast.stmt]] = []
+
+    def codegen(context: Any, builder: Any, signature: Any, args: Any) -> Any:
+        if not parsed:
+            fn = _function(source)
+            if not supported(source) or [a.arg for a in fn.args.args] != list(arrays):
+                raise ValueError(f"{name}: outside the part of Python this module lowers")
+            parsed.append(fn.body)
+        given = dict(zip(arrays, zip(signature.args, args, strict=True), strict=True))
+        _Emitter(context, builder, given).block(parsed[0])
+        return context.get_dummy_value()
+
+    def typer(typingctx: Any, *tys: Any) -> Any:
+        for arg, ty in zip(arrays, tys, strict=True):
+            if not (isinstance(ty, types.Array) and ty.dtype == types.float64):
+                raise TypeError(f"{name}: argument {arg} must be a float64 array, not {ty}")
+        return types.void(*tys), codegen
+
+    params = ", ".join(arrays)
+    space: dict[str, Any] = {"typer": typer}
+    exec(  # an intrinsic's typer takes its arguments by name: a function of their count
+        f"def {name}_ir(typingctx, {params}):\n    return typer(typingctx, {params})\n", space
+    )
+    return intrinsic(space[f"{name}_ir"])
+
+
+def stub(name: str, arrays: tuple[str, ...], source: str) -> str:
+    """Module text: ``name`` as a jitted call of its :func:`lowered` body (``source``)."""
+    args = ", ".join(arrays)
+    text = f'"""\\\n{source}"""' if '"""' not in source and "\\" not in source else repr(source)
+    return (
+        f"_{name}_ir = lowered({name!r}, {tuple(arrays)!r}, {text})\n\n\n"
+        f"@jit\ndef {name}({args}):\n    _{name}_ir({args})\n"
+    )
+
+
+def lowered_part(part: str) -> str:
+    """A module's ``@jit`` function (its text) as a jitted call of its lowered body.
+
+    A function outside the supported part of Python is returned as it is.
+    """
+    head, _, source = part.partition("\n")
+    if head != "@jit" or not supported(source):
+        return part
+    m = re.match(r"def (\w+)\(([^)]*)\):", source)
+    return stub(m[1], tuple(a.strip() for a in m[2].split(",")), source)
+
+
+class _Emitter:
+    """LLVM IR for a supported body, with numba's context and builder (see the module)."""
+
+    def __init__(self, context: Any, builder: Any, arrays: dict[str, tuple[Any, Any]]) -> None:
+        from llvmlite import ir
+
+        self.ir, self.context, self.builder = ir, context, builder
+        self.double, self.int = ir.DoubleType(), ir.IntType(64)
+        self.arrays = {
+            name: (ty, context.make_array(ty)(context, builder, value))
+            for name, (ty, value) in arrays.items()
+        }
+        self.values: dict[str, tuple[str, Any]] = {}  # name -> (kind "f" | "i" | "b", value)
+
+    # ---------------------------------------------------------------- statements
+    def block(self, statements: list[ast.stmt]) -> None:
+        for s in statements:
+            self.statement(s)
+
+    def statement(self, s: ast.stmt) -> None:
+        if isinstance(s, ast.Assign):
+            target, value = s.targets[0], self.expr(s.value)
+            if isinstance(target, ast.Name):
+                self.values[target.id] = value
+            else:
+                self.builder.store(self.as_float(value), self.element(target))
+        elif isinstance(s, ast.AugAssign):
+            name = s.target.id
+            self.values[name] = self.binop(s.op, self.values[name], self.expr(s.value))
+        else:
+            self.branches(s)
+
+    def branches(self, s: ast.If) -> None:
+        before = dict(self.values)
+        with self.builder.if_else(self.truth(self.expr(s.test))) as (then, otherwise):
+            with then:
+                self.block(s.body)
+                then_values, then_end = self.values, self.builder.block
+            self.values = dict(before)
+            with otherwise:
+                self.block(s.orelse)
+                else_values, else_end = self.values, self.builder.block
+        merged = {}
+        for name in then_values.keys() & else_values.keys():
+            a, b = then_values[name], else_values[name]
+            if a is b:
+                merged[name] = a
+                continue
+            if a[0] != b[0]:
+                a, b = ("f", self.as_float(a)), ("f", self.as_float(b))
+            phi = self.builder.phi(a[1].type)
+            phi.add_incoming(a[1], then_end)
+            phi.add_incoming(b[1], else_end)
+            merged[name] = (a[0], phi)
+        self.values = merged
+
+    # ---------------------------------------------------------------- expressions
+    def element(self, e: ast.Subscript) -> Any:
+        from numba.core import cgutils, types
+
+        ty, ary = self.arrays[e.value.id]
+        index = e.slice.elts if isinstance(e.slice, ast.Tuple) else [e.slice]
+        inds = [self.context.get_constant(types.intp, i.value) for i in index]
+        return cgutils.get_item_pointer(self.context, self.builder, ty, ary, inds)
+
+    def expr(self, e: ast.expr) -> tuple[str, Any]:
+        b, ir = self.builder, self.ir
+        if isinstance(e, ast.Constant):
+            if type(e.value) is int:
+                return "i", ir.Constant(self.int, e.value)
+            return "f", ir.Constant(self.double, e.value)
+        if isinstance(e, ast.Name):
+            return self.values[e.id]
+        if isinstance(e, ast.Subscript):
+            return "f", b.load(self.element(e))
+        if isinstance(e, ast.BinOp):
+            return self.binop(e.op, self.expr(e.left), self.expr(e.right))
+        if isinstance(e, ast.UnaryOp):
+            kind, v = self.expr(e.operand)
+            return (kind, b.fneg(v)) if kind == "f" else ("i", b.neg(self.as_int(kind, v)))
+        if isinstance(e, ast.Compare):
+            return self.compare(e.ops[0], self.expr(e.left), self.expr(e.comparators[0]))
+        if isinstance(e, ast.IfExp):
+            test = self.truth(self.expr(e.test))
+            x, y = self.expr(e.body), self.expr(e.orelse)
+            if x[0] != y[0]:
+                x, y = ("f", self.as_float(x)), ("f", self.as_float(y))
+            return x[0], b.select(test, x[1], y[1])
+        return self.call(e.func.id, self.expr(e.args[0]))
+
+    def binop(self, op: ast.operator, x: tuple[str, Any], y: tuple[str, Any]) -> tuple[str, Any]:
+        b = self.builder
+        if isinstance(op, ast.BitAnd):
+            return "i", b.and_(self.as_int(*x), self.as_int(*y))
+        if x[0] != "f" and y[0] != "f" and not isinstance(op, ast.Div):
+            f = {ast.Add: b.add, ast.Sub: b.sub, ast.Mult: b.mul}[type(op)]
+            return "i", f(self.as_int(*x), self.as_int(*y))
+        f = {ast.Add: b.fadd, ast.Sub: b.fsub, ast.Mult: b.fmul, ast.Div: b.fdiv}[type(op)]
+        return "f", f(self.as_float(x), self.as_float(y))
+
+    def compare(self, op: ast.cmpop, x: tuple[str, Any], y: tuple[str, Any]) -> tuple[str, Any]:
+        sign = {ast.Lt: "<", ast.Gt: ">", ast.LtE: "<=", ast.GtE: ">=", ast.Eq: "==",
+                ast.NotEq: "!="}[type(op)]  # fmt: skip
+        if x[0] == "f" or y[0] == "f":  # as numba: ordered, but != is unordered (NaN != NaN)
+            cmp = self.builder.fcmp_unordered if sign == "!=" else self.builder.fcmp_ordered
+            return "b", cmp(sign, self.as_float(x), self.as_float(y))
+        return "b", self.builder.icmp_signed(sign, self.as_int(*x), self.as_int(*y))
+
+    def call(self, name: str, x: tuple[str, Any]) -> tuple[str, Any]:
+        b = self.builder
+        if name == "int":
+            return ("i", self.as_int(*x)) if x[0] != "f" else ("i", b.fptosi(x[1], self.int))
+        if name == "float":
+            return "f", self.as_float(x)
+        if name == "abs" and x[0] != "f":
+            v = self.as_int(*x)
+            return "i", b.select(b.icmp_signed("<", v, v.type(0)), b.neg(v), v)
+        v = self.as_float(x)
+        module = b.module
+        if name in ("sqrt", "tanh"):  # numba calls libm's
+            fnty = self.ir.FunctionType(self.double, [self.double])
+            fn = module.globals.get(name) or self.ir.Function(module, fnty, name)
+            return "f", b.call(fn, [v])
+        intrinsic = {"abs": "llvm.fabs", "sin": "llvm.sin", "cos": "llvm.cos"}[name]
+        return "f", b.call(module.declare_intrinsic(intrinsic, [self.double]), [v])
+
+    # ---------------------------------------------------------------- conversions
+    def as_float(self, x: tuple[str, Any]) -> Any:
+        kind, v = x
+        if kind == "f":
+            return v
+        return self.builder.sitofp(self.as_int(kind, v), self.double)
+
+    def as_int(self, kind: str, v: Any) -> Any:
+        if kind == "i":
+            return v
+        if kind == "b":
+            return self.builder.zext(v, self.int)
+        raise TypeError("a float where an integer is needed (& or an int operation)")
+
+    def truth(self, x: tuple[str, Any]) -> Any:
+        kind, v = x
+        if kind == "b":
+            return v
+        if kind == "i":
+            return self.builder.icmp_signed("!=", v, v.type(0))
+        return self.builder.fcmp_unordered("!=", v, v.type(0.0))
