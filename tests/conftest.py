@@ -48,6 +48,14 @@ def fresh_cpu_readings(monkeypatch):
     monkeypatch.setattr(cpus, "_last", (-1.0, 0))
 
 
+@pytest.fixture(autouse=True)
+def fresh_auto_ledger():
+    """Each test's ``auto`` starts as a new process's: no earlier job's time counted."""
+    from rrt_pin.core import backends
+
+    backends.forget_forgone()
+
+
 @pytest.fixture
 def rng() -> np.random.Generator:
     return np.random.default_rng(20261122)

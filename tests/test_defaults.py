@@ -194,3 +194,40 @@ def test_the_cli_records_which_backend_ran_and_why(tmp_path):
         assert proc.returncode == 0, proc.stderr
         meta = json.loads(out.read_text())["metadata"]
         assert meta["backend"] == backend and meta["backend_reason"].startswith(why), meta
+
+
+def test_a_loop_of_short_jobs_loads_the_compiled_code_once_its_start_up_pays(monkeypatch):
+    """Rent or buy: a job too short to pay compiled's start-up runs on Pinocchio, but once
+    this process's such jobs have cost that start-up more than compiled would have, auto
+    takes compiled; a job of another robot or task counts its own."""
+    from rrt_pin import compiled
+    from rrt_pin.robot.robots import get
+    from rrt_pin.simulate.control import pd_gravity_controller
+
+    def scene(name):
+        robot = get(name)
+        return robot, pd_gravity_controller(robot, kp=100.0, kd=20.0, qf=np.zeros(robot.nv))
+
+    monkeypatch.delenv("RRT_PIN_BACKEND", raising=False)
+    monkeypatch.setattr(compiled, "state_for", lambda *a, **k: (False, False, True))
+    robot, law = scene("ur5")
+    fast = backends.BACKENDS["compiled"]
+    work = 1.0  # simulated seconds: far too short for compiled's start-up alone
+    first = backends.choose(robot, "simulate", None, work, controllers=[law])
+    assert first.name == "pinocchio"
+    sec = dict(first.estimates)
+    running = backends.estimated_seconds(fast, "simulate", work, True, False, False, robot.nv)
+    startup = sec["compiled"] - running
+    saving = sec["pinocchio"] - running
+    assert 0 < saving < startup  # the premise: one job does not pay the start-up
+    calls = [first] + [backends.choose(robot, "simulate", None, work, controllers=[law])
+                       for _ in range(int(startup / saving) + 2)]  # fmt: skip
+    names = [c.name for c in calls]
+    switch = names.index("compiled")
+    assert set(names[:switch]) == {"pinocchio"} and set(names[switch:]) == {"compiled"}
+    assert (switch - 1) * saving < startup <= switch * saving * (1 + 1e-12)
+    assert "start-up pays" in calls[switch].reason
+    # another robot, or another task, has spent nothing yet
+    other, its_law = scene("panda")
+    assert backends.choose(other, "simulate", None, work, controllers=[its_law]).name == "pinocchio"
+    assert backends.choose(robot, "inverse", None, 100.0).name != "compiled"

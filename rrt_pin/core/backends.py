@@ -290,6 +290,18 @@ def default() -> str:
     return value
 
 
+#: Per (task, robot name): the seconds this process spent on jobs beyond what ``compiled``
+#: (built in numba's disk cache, not loaded) would have taken. When they reach its
+#: start-up, ``auto`` loads it (rent or buy: a loop of short jobs never pays more than
+#: twice the better of the two in hindsight).
+_FORGONE: dict[tuple[str, str], float] = {}
+
+
+def forget_forgone() -> None:
+    """Start :data:`_FORGONE` afresh (as a new process would)."""
+    _FORGONE.clear()
+
+
 def choose(
     robot: Any,
     task: str,
@@ -312,7 +324,9 @@ def choose(
     from the JIT's disk cache (numba's import and the load: :attr:`Backend.startup`)
     only when the whole job, start-ups included, is estimated no slower than the
     others (:func:`estimated_seconds`: ``work`` is samples for ``inverse``, simulated
-    seconds for ``simulate``, all variants' for a ``batch``). Otherwise the cheaper by
+    seconds for ``simulate``, all variants' for a ``batch``), or when this process's
+    earlier such jobs, run elsewhere, already cost its start-up more than compiled
+    would have (:data:`_FORGONE`: a loop of short jobs loads it after a while). Otherwise the cheaper by
     the estimate of ``pinocchio``, the engine of record, and (the chapter arm's inverse
     dynamics) ``symbolic``, its numpy kernel: the same efforts without Pinocchio's
     import. A method left unnamed is the chosen backend's default, at the tolerances
@@ -370,6 +384,14 @@ def choose(
     best = found[min(known)[1]][0] if known else engine
     if best is fast:
         return Choice(fast.name, "in the disk cache, and faster by the estimate", estimates)
+    if why is None and known:  # built, not loaded: rent or buy its start-up
+        running = estimated_seconds(fast, task, work, True, aot, arm, robot.nv)
+        if running is not None and found[-1][1] is not None:
+            key, paid = (task, robot.name), _FORGONE.get((task, robot.name), 0.0)
+            if paid >= found[-1][1] - running:
+                return Choice(fast.name, f"this process has spent ~{paid:.2g} s more on such "
+                              "jobs than compiled would: its start-up pays", estimates)  # fmt: skip
+            _FORGONE[key] = paid + max(0.0, min(known)[0] - running)
     if best is numpy_kernel:
         return Choice(best.name, "the same efforts, faster by the estimate (no import)", estimates)
     if why is None:
