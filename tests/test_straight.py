@@ -56,7 +56,7 @@ def every(x, out):
 
 def _plain(source: str):
     """The function compiled by numba itself (its front end), as rrt-pin's modules were."""
-    space = {"sin": math.sin, "cos": math.cos, "sqrt": math.sqrt, "tanh": math.tanh}
+    space = {"sin": math.sin, "cos": math.cos, "sqrt": math.sqrt, "tanh": math.tanh, "math": math}
     exec(source, space)
     name = re.match(r"def (\w+)", source)[1]
     return numba.njit(error_model="numpy")(space[name])
@@ -66,7 +66,7 @@ def _lowered(source: str):
     """The same function as rrt-pin writes it now: a jitted call of its lowered body."""
     m = re.match(r"def (\w+)\(([^)]*)\)", source)
     args = tuple(a.strip() for a in m[2].split(","))
-    space = {"lowered": lowered, "jit": numba.njit(error_model="numpy")}
+    space = {"lowered": lowered, "jit": numba.njit(error_model="numpy"), "math": math}
     exec(stub(m[1], args, source), space)
     return space[m[1]]
 
@@ -99,10 +99,42 @@ def test_every_construct_gives_numbas_own_bits():
         assert ours.tolist() == python
 
 
+#: A lanes' function: one counted loop, indices offset by its index, max/min and math.nan.
+LANES = """\
+def lanes(w):
+    for l in range(8):
+        a = w[l]
+        b = w[8 + l]
+        m = max(abs(a), abs(b), 0.5)
+        n = min(a, 2, b)
+        w[16 + l] = (a * b + m) if m < 3.0 else math.nan
+        w[l + 24] = n - m
+"""
+
+
+def test_a_lanes_loop_gives_numbas_own_bits():
+    plain, low = _plain(LANES), _lowered(LANES)
+    rng = np.random.default_rng(5)
+    taken = set()
+    for scale in (0.5, 2.0, 10.0):
+        for _ in range(200):
+            w = rng.normal(0.0, scale, 32)
+            w[rng.integers(0, 16)] = rng.choice([np.nan, np.inf, -0.0, 2.0])
+            a, b = w.copy(), w.copy()
+            plain(a)
+            low(b)
+            assert _same_bits(a, b)
+            taken |= set(np.isnan(a[16:24]).tolist())
+    assert taken == {True, False}  # both sides of the conditional
+
+
 @pytest.mark.parametrize(
     "source",
     [
-        "def f(x, out):\n    for i in range(2):\n        out[i] = x[i]\n",  # a loop
+        "def f(x, out):\n    for i in range(2):\n        out[i] = x[i]\n    out[0] = 1.0\n",  # more than a loop
+        "def f(x, out):\n    for i in range(len(x)):\n        out[i] = x[i]\n",  # a loop not counted
+        "def f(x, out):\n    for i in range(2):\n        out[2 * i] = x[i]\n",  # an index not i + N
+        "def f(x, out):\n    out[0] = x[1 + 1]\n",  # an index computed outside a loop
         "def f(x, out):\n    out[0] = g(x[0])\n",  # a call of another function
         "def f(x, out):\n    i = 1\n    out[0] = x[i]\n",  # an index that is not a constant
         "def f(x, out):\n    out[0] = x[0] ** 2\n",  # an operator left out
@@ -124,9 +156,14 @@ def test_what_is_not_lowered_is_said_so(source):
         f(np.zeros(2), np.zeros(2))
 
 
+#: The lanes' work array's rows, per robot's nv (read from its module's text).
+_ROWS: dict[int, int] = {}
+
+
 def _parts(model: pin.Model) -> dict[str, str]:
     """Each lowered function of ``model``'s module: its name and source."""
     text, _ = robot_code.module_source(model)
+    _ROWS[model.nv] = int(re.search(r"^PHYS_ROWS = (\d+)$", text, re.M)[1])
     found = re.findall(r'_(\w+)_ir = lowered\(\'\w+\', \([^)]*\), """\\\n(.*?)"""\)', text, re.S)
     return dict(found)
 
@@ -135,7 +172,7 @@ def test_a_robots_module_lowers_every_generated_function():
     """The functions the module writer lowers (its templates stay numba's)."""
     assert set(_parts(robots.get("ur5").model)) == {
         "forward", "rhs_pd", "forward_free", "rhs_phys", "gravity", "mass_matrix", "bias",
-        "closed_loop_jac",
+        "closed_loop_jac", "phys_sincos", "gravity_lanes", "free_lanes",
     }  # fmt: skip
 
 
@@ -148,6 +185,8 @@ def _inputs(name: str, source: str, nv: int, rng: np.random.Generator) -> list[n
         "c": rng.normal(0.0, 10.0, 3 * nv),
         "P": _random_physical(nv, rng),
     }
+    if args == ["w"]:  # the lanes' work array: 8 lanes a row, any values (NaN past the limit)
+        return [rng.normal(0.0, 1.0, robot_code.LANES * _ROWS[nv]) * scale]
     rows = {"forward": 2 * nv, "forward_free": 2 * nv, "rhs_pd": 2 * nv, "rhs_phys": 2 * nv}
     shapes = {"mass_matrix": (nv, nv), "closed_loop_jac": (nv, 1 + 2 * nv)}
     out = np.zeros(shapes.get(name, (rows.get(name, nv),)))
@@ -169,13 +208,14 @@ def _random_physical(nv: int, rng: np.random.Generator) -> np.ndarray:
 
 @pytest.mark.parametrize("robot", ["ur5", "panda", "double_pendulum"])
 def test_a_robots_lowered_functions_give_numbas_own_bits(robot):
-    """UR5 (CRBA + LDLᵀ), Panda (ABA): every function numba compiles fast enough here; the
-    closed-loop Jacobian on the double pendulum (UR5's takes numba 9 s)."""
+    """UR5 (CRBA + LDLᵀ), Panda (ABA): the functions numba compiles fast enough here (the
+    lanes' too); the closed-loop Jacobian on the double pendulum (UR5's is long for numba)."""
     model = robots.get(robot).model
     nv, rng = model.nv, np.random.default_rng(11)
     parts = _parts(model)
     names = ["closed_loop_jac", "rhs_phys"] if robot == "double_pendulum" else [
-        "forward", "rhs_pd", "rhs_phys", "gravity", "mass_matrix", "bias"
+        "forward", "rhs_pd", "rhs_phys", "gravity", "mass_matrix", "bias", "phys_sincos",
+        "gravity_lanes", "free_lanes",
     ]  # fmt: skip
     if robot == "panda":
         names = ["rhs_phys", "mass_matrix"]

@@ -33,6 +33,7 @@ __all__ = ["lowered", "lowered_part", "stub", "supported"]
 _CALLS = frozenset({"abs", "int", "float", "sin", "cos", "sqrt", "tanh"})
 _BINOPS = (ast.Add, ast.Sub, ast.Mult, ast.Div, ast.BitAnd)
 _COMPARES = (ast.Lt, ast.Gt, ast.LtE, ast.GtE, ast.Eq, ast.NotEq)
+_MATH = {"nan": float("nan"), "inf": float("inf")}
 
 
 def _function(source: str) -> ast.FunctionDef:
@@ -45,71 +46,118 @@ def _function(source: str) -> ast.FunctionDef:
 def supported(source: str) -> bool:
     """Whether :func:`lowered` translates the function in ``source`` (see the module)."""
     fn = _function(source)
-    arrays = {a.arg for a in fn.args.args}
     if fn.args.vararg or fn.args.kwarg or fn.args.kwonlyargs or fn.args.defaults:
         return False
-    return all(_statement_ok(s, arrays) for s in fn.body)
+    check = _Check({a.arg for a in fn.args.args}, None)
+    if len(fn.body) == 1 and isinstance(fn.body[0], ast.For):  # lanes: one loop, the body
+        loop = fn.body[0]
+        count = _range_count(loop)
+        if count is None or not isinstance(loop.target, ast.Name) or loop.orelse:
+            return False
+        check = _Check(check.arrays, loop.target.id)
+        return loop.target.id not in check.arrays and all(check.statement(x) for x in loop.body)
+    return all(check.statement(x) for x in fn.body)
 
 
-def _statement_ok(s: ast.stmt, arrays: set[str]) -> bool:
-    if isinstance(s, ast.Assign):
-        return len(s.targets) == 1 and _target_ok(s.targets[0], arrays) and _ok(s.value, arrays)
-    if isinstance(s, ast.AugAssign):
-        return (
-            isinstance(s.target, ast.Name)
-            and s.target.id not in arrays
-            and isinstance(s.op, _BINOPS)
-            and _ok(s.value, arrays)
-        )
-    if isinstance(s, ast.If):
-        return _ok(s.test, arrays) and all(_statement_ok(x, arrays) for x in [*s.body, *s.orelse])
-    return False
+def _range_count(loop: ast.For) -> int | None:
+    """N of ``for l in range(N)`` (a constant), else None."""
+    it = loop.iter
+    if (
+        isinstance(it, ast.Call)
+        and isinstance(it.func, ast.Name)
+        and it.func.id == "range"
+        and len(it.args) == 1
+        and not it.keywords
+        and isinstance(it.args[0], ast.Constant)
+        and type(it.args[0].value) is int
+    ):
+        return it.args[0].value
+    return None
 
 
-def _target_ok(t: ast.expr, arrays: set[str]) -> bool:
-    if isinstance(t, ast.Name):
-        return t.id not in arrays
-    return _element_ok(t, arrays)
+class _Check:
+    """The supported part of Python: ``arrays`` the arguments, ``loop`` the lanes' index."""
 
+    def __init__(self, arrays: set[str], loop: str | None) -> None:
+        self.arrays, self.loop = arrays, loop
 
-def _element_ok(t: ast.expr, arrays: set[str]) -> bool:
-    if not (isinstance(t, ast.Subscript) and isinstance(t.value, ast.Name)):
+    def name(self, n: str) -> bool:
+        return n not in self.arrays and n != self.loop
+
+    def statement(self, s: ast.stmt) -> bool:
+        if isinstance(s, ast.Assign):
+            return len(s.targets) == 1 and self.target(s.targets[0]) and self.expr(s.value)
+        if isinstance(s, ast.AugAssign):
+            return (
+                isinstance(s.target, ast.Name)
+                and self.name(s.target.id)
+                and isinstance(s.op, _BINOPS)
+                and self.expr(s.value)
+            )
+        if isinstance(s, ast.If):
+            return self.expr(s.test) and all(self.statement(x) for x in [*s.body, *s.orelse])
         return False
-    if t.value.id not in arrays:
+
+    def target(self, t: ast.expr) -> bool:
+        return self.name(t.id) if isinstance(t, ast.Name) else self.element(t)
+
+    def element(self, t: ast.expr) -> bool:
+        if not (isinstance(t, ast.Subscript) and isinstance(t.value, ast.Name)):
+            return False
+        if t.value.id not in self.arrays:
+            return False
+        index = t.slice.elts if isinstance(t.slice, ast.Tuple) else [t.slice]
+        return all(self.index(i) for i in index)
+
+    def index(self, i: ast.expr) -> bool:
+        """A constant, or (in the loop) the loop's index plus a constant."""
+        if isinstance(i, ast.Constant):
+            return type(i.value) is int
+        if self.loop is None:
+            return False
+        if isinstance(i, ast.Name):
+            return i.id == self.loop
+        return (
+            isinstance(i, ast.BinOp)
+            and isinstance(i.op, ast.Add)
+            and {type(i.left), type(i.right)} == {ast.Constant, ast.Name}
+            and all(
+                (isinstance(x, ast.Name) and x.id == self.loop)
+                or (isinstance(x, ast.Constant) and type(x.value) is int)
+                for x in (i.left, i.right)
+            )
+        )
+
+    def expr(self, e: ast.expr) -> bool:
+        if isinstance(e, ast.Constant):
+            return type(e.value) in (int, float)
+        if isinstance(e, ast.Attribute):  # math.nan, math.inf
+            return isinstance(e.value, ast.Name) and e.value.id == "math" and e.attr in _MATH
+        if isinstance(e, ast.Name):
+            return self.name(e.id)
+        if isinstance(e, ast.Subscript):
+            return self.element(e)
+        if isinstance(e, ast.BinOp):
+            return isinstance(e.op, _BINOPS) and self.expr(e.left) and self.expr(e.right)
+        if isinstance(e, ast.UnaryOp):
+            return isinstance(e.op, ast.USub) and self.expr(e.operand)
+        if isinstance(e, ast.Compare):
+            return (
+                len(e.ops) == 1
+                and isinstance(e.ops[0], _COMPARES)
+                and self.expr(e.left)
+                and self.expr(e.comparators[0])
+            )
+        if isinstance(e, ast.IfExp):
+            return all(self.expr(x) for x in (e.test, e.body, e.orelse))
+        if isinstance(e, ast.Call):
+            if not (isinstance(e.func, ast.Name) and not e.keywords):
+                return False
+            many = e.func.id in ("max", "min") and len(e.args) >= 2
+            return (many or (e.func.id in _CALLS and len(e.args) == 1)) and all(
+                self.expr(x) for x in e.args
+            )
         return False
-    index = t.slice.elts if isinstance(t.slice, ast.Tuple) else [t.slice]
-    return all(isinstance(i, ast.Constant) and type(i.value) is int for i in index)
-
-
-def _ok(e: ast.expr, arrays: set[str]) -> bool:
-    if isinstance(e, ast.Constant):
-        return type(e.value) in (int, float)
-    if isinstance(e, ast.Name):
-        return e.id not in arrays
-    if isinstance(e, ast.Subscript):
-        return _element_ok(e, arrays)
-    if isinstance(e, ast.BinOp):
-        return isinstance(e.op, _BINOPS) and _ok(e.left, arrays) and _ok(e.right, arrays)
-    if isinstance(e, ast.UnaryOp):
-        return isinstance(e.op, ast.USub) and _ok(e.operand, arrays)
-    if isinstance(e, ast.Compare):
-        return (
-            len(e.ops) == 1
-            and isinstance(e.ops[0], _COMPARES)
-            and _ok(e.left, arrays)
-            and _ok(e.comparators[0], arrays)
-        )
-    if isinstance(e, ast.IfExp):
-        return all(_ok(x, arrays) for x in (e.test, e.body, e.orelse))
-    if isinstance(e, ast.Call):
-        return (
-            isinstance(e.func, ast.Name)
-            and e.func.id in _CALLS
-            and len(e.args) == 1
-            and not e.keywords
-            and _ok(e.args[0], arrays)
-        )
-    return False
 
 
 def lowered(name: str, arrays: tuple[str, ...], source: str) -> Any:
@@ -193,7 +241,9 @@ class _Emitter:
             self.statement(s)
 
     def statement(self, s: ast.stmt) -> None:
-        if isinstance(s, ast.Assign):
+        if isinstance(s, ast.For):
+            self.loop(s)
+        elif isinstance(s, ast.Assign):
             target, value = s.targets[0], self.expr(s.value)
             if isinstance(target, ast.Name):
                 self.values[target.id] = value
@@ -204,6 +254,17 @@ class _Emitter:
             self.values[name] = self.binop(s.op, self.values[name], self.expr(s.value))
         else:
             self.branches(s)
+
+    def loop(self, s: ast.For) -> None:
+        """``for l in range(N)``: LLVM's counted loop (as numba's), its names its own."""
+        from numba.core import cgutils
+
+        before = dict(self.values)
+        count = self.ir.Constant(self.int, _range_count(s))
+        with cgutils.for_range(self.builder, count) as loop:
+            self.values[s.target.id] = ("i", loop.index)
+            self.block(s.body)
+        self.values = before
 
     def branches(self, s: ast.If) -> None:
         before = dict(self.values)
@@ -235,7 +296,12 @@ class _Emitter:
 
         ty, ary = self.arrays[e.value.id]
         index = e.slice.elts if isinstance(e.slice, ast.Tuple) else [e.slice]
-        inds = [self.context.get_constant(types.intp, i.value) for i in index]
+        inds = [
+            self.context.get_constant(types.intp, i.value)
+            if isinstance(i, ast.Constant)
+            else self.as_int(*self.expr(i))
+            for i in index
+        ]
         return cgutils.get_item_pointer(self.context, self.builder, ty, ary, inds)
 
     def expr(self, e: ast.expr) -> tuple[str, Any]:
@@ -246,6 +312,8 @@ class _Emitter:
             return "f", ir.Constant(self.double, e.value)
         if isinstance(e, ast.Name):
             return self.values[e.id]
+        if isinstance(e, ast.Attribute):
+            return "f", ir.Constant(self.double, _MATH[e.attr])
         if isinstance(e, ast.Subscript):
             return "f", b.load(self.element(e))
         if isinstance(e, ast.BinOp):
@@ -261,6 +329,15 @@ class _Emitter:
             if x[0] != y[0]:
                 x, y = ("f", self.as_float(x)), ("f", self.as_float(y))
             return x[0], b.select(test, x[1], y[1])
+        if e.func.id in ("max", "min"):  # numba's: left to right, select(v > acc, v, acc)
+            acc = self.expr(e.args[0])
+            for arg in e.args[1:]:
+                v = self.expr(arg)
+                if v[0] != acc[0]:
+                    v, acc = ("f", self.as_float(v)), ("f", self.as_float(acc))
+                pred = self.compare(ast.Gt() if e.func.id == "max" else ast.Lt(), v, acc)[1]
+                acc = (acc[0], b.select(pred, v[1], acc[1]))
+            return acc
         return self.call(e.func.id, self.expr(e.args[0]))
 
     def binop(self, op: ast.operator, x: tuple[str, Any], y: tuple[str, Any]) -> tuple[str, Any]:

@@ -321,7 +321,11 @@ def _lanes_source(
                 f"        {at(name, shift + k)} = {x} if {at('amax', 0)} < {limit} else math.nan"
             )
         constants.append(f"{name.upper()}_OUT = {row[name, 0]}")
-    return "\n".join([*src, "", *constants, ""])
+    functions = "\n".join(src).split("\n@jit\n")  # each lowered past numba's front end
+    lowered = [
+        _straight.lowered_part(f if i == 0 else f"@jit\n{f}") for i, f in enumerate(functions)
+    ]
+    return "\n".join([*lowered, "", *constants, ""])
 
 
 def _phys_source(
@@ -385,11 +389,7 @@ def _phys_source(
 
 
 def _passive_lines(k: int, nv: int) -> list[str]:
-    """``u_k = (u_k − G_k) + passive(y, P, k)``, the template's ``losses`` written out.
-
-    The same operations in the same order (``max(0.0, x)`` is numba's ``x if x > 0.0 else
-    0.0``), so that ``rhs_phys`` holds no call and is lowered whole (:mod:`._straight`).
-    """
+    """``u_k = (u_k − G_k) + passive(y, P, k)`` with the template's ``losses`` written out."""
     q, v = f"y[{k}]", f"y[{nv + k}]"
     lower, upper, damping, friction, stiffness, limit_damping = (
         f"P[{r}, {k}]" for r in (0, 1, 3, 4, 5, 6)
