@@ -142,6 +142,8 @@ def test_a_lanes_loop_gives_numbas_own_bits():
         "def f(x, out, k=1):\n    out[0] = x[0]\n",  # a default
         "def f(x, out):\n    x = 1.0\n",  # an array rebound
         "def f(x, out):\n    return x[0]\n",  # a return
+        "def f(x, out):\n    if x[0] < 1.0:\n        a = 1.0\n    out[0] = a\n",  # not on every path
+        "def f(x, out):\n    a += 1.0\n    out[0] = a\n",  # read before it is assigned
     ],
 )
 def test_what_is_not_lowered_is_said_so(source):

@@ -16,8 +16,8 @@ it before choosing): a function of arrays only (1-D or 2-D, float64) whose body 
 assignments to names or to array elements at constant indices, ``+=`` and the like,
 ``if``/``else`` blocks, conditional expressions, ``+ - * / &``, unary minus, one
 comparison at a time, and calls of ``abs``, ``int``, ``float``, ``sin``, ``cos``,
-``sqrt`` and ``tanh``. Names hold float64 or int64 values (an int meets a float as Python's does:
-converted); a name assigned in one branch of an ``if`` only is not read after it.
+``sqrt`` and ``tanh``. Names hold float64 or int64 values (an int meets a float as
+Python's does: converted), each assigned before it is read on every path.
 
 Units: none (code).
 """
@@ -76,30 +76,44 @@ def _range_count(loop: ast.For) -> int | None:
 
 
 class _Check:
-    """The supported part of Python: ``arrays`` the arguments, ``loop`` the lanes' index."""
+    """The supported part of Python: ``arrays`` the arguments, ``loop`` the lanes' index.
+
+    Every name read is assigned before on every path (``defined``), as the lowering needs.
+    """
 
     def __init__(self, arrays: set[str], loop: str | None) -> None:
-        self.arrays, self.loop = arrays, loop
+        self.arrays, self.loop, self.defined = arrays, loop, set()
 
     def name(self, n: str) -> bool:
         return n not in self.arrays and n != self.loop
 
     def statement(self, s: ast.stmt) -> bool:
         if isinstance(s, ast.Assign):
-            return len(s.targets) == 1 and self.target(s.targets[0]) and self.expr(s.value)
+            if len(s.targets) != 1 or not self.expr(s.value):
+                return False
+            t = s.targets[0]
+            if isinstance(t, ast.Name) and self.name(t.id):
+                self.defined.add(t.id)
+                return True
+            return self.element(t)
         if isinstance(s, ast.AugAssign):
             return (
                 isinstance(s.target, ast.Name)
                 and self.name(s.target.id)
+                and s.target.id in self.defined
                 and isinstance(s.op, _BINOPS)
                 and self.expr(s.value)
             )
         if isinstance(s, ast.If):
-            return self.expr(s.test) and all(self.statement(x) for x in [*s.body, *s.orelse])
+            if not self.expr(s.test):
+                return False
+            before = set(self.defined)
+            ok = all(self.statement(x) for x in s.body)
+            after_body, self.defined = self.defined, before
+            ok = ok and all(self.statement(x) for x in s.orelse)
+            self.defined &= after_body
+            return ok
         return False
-
-    def target(self, t: ast.expr) -> bool:
-        return self.name(t.id) if isinstance(t, ast.Name) else self.element(t)
 
     def element(self, t: ast.expr) -> bool:
         if not (isinstance(t, ast.Subscript) and isinstance(t.value, ast.Name)):
@@ -134,7 +148,7 @@ class _Check:
         if isinstance(e, ast.Attribute):  # math.nan, math.inf
             return isinstance(e.value, ast.Name) and e.value.id == "math" and e.attr in _MATH
         if isinstance(e, ast.Name):
-            return self.name(e.id)
+            return self.name(e.id) and e.id in self.defined
         if isinstance(e, ast.Subscript):
             return self.element(e)
         if isinstance(e, ast.BinOp):
