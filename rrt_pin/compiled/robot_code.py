@@ -143,8 +143,8 @@ class RobotCode:
         what = next((label for prefix, label in _WHAT if name.startswith(prefix)), "integrators")
         jac = self._source.partition("def closed_loop_jac(")[2].partition("\n\n\n")[0]
         bdf = name.startswith("run_bdf") and "_num" not in name
-        flops = self.flops + (jac.count("\n") if bdf else 0)  # + its Jacobian's
-        estimate = _estimate(flops) * (0.7 if name == "run_lanes" else 1.0)
+        flops = self.flops + (0.6 * jac.count("\n") if bdf else 0)  # + its Jacobian's
+        estimate = _estimate(flops) * (1.1 if name == "run_lanes" else 1.0)
         if self._path is None:
             note(f"compiling {self.name}'s {what} (~{estimate:.0f} s, not kept on disk)")
             dispatcher.compile(sig)
@@ -530,7 +530,7 @@ def _in_memory(source: str) -> types.ModuleType:
     return namespace
 
 
-def _estimate(flops: int) -> float:
+def _estimate(flops: float) -> float:
     return _COMPILE_S + _COMPILE_S_PER_FLOP * flops
 
 
