@@ -128,6 +128,37 @@ def test_a_lanes_loop_gives_numbas_own_bits():
     assert taken == {True, False}  # both sides of the conditional
 
 
+#: A block's loop as the generated RNEA's: its length an integer argument.
+BLOCK = """\
+def block(w, m):
+    for j in range(m):
+        x = w[j]
+        y = w[16 + j]
+        w[32 + j] = abs(x * y - sin(x)) if x < y else cos(y) / x
+"""
+
+
+def test_a_loop_of_given_length_gives_numbas_own_bits():
+    plain = _plain(BLOCK)
+    body = lowered("block", ("w", "m"), BLOCK, counts=("m",))
+
+    @numba.njit(error_model="numpy")
+    def low(w, m):
+        body(w, m)
+
+    rng = np.random.default_rng(9)
+    for m in (0, 1, 5, 16):
+        w = rng.normal(0.0, 2.0, 48)
+        w[3] = 0.0
+        a, b = w.copy(), w.copy()
+        plain(a, m)
+        low(b, m)
+        assert _same_bits(a, b)
+        assert np.array_equal(b[32 + m :], w[32 + m :])  # nothing past the m-th lane
+    assert supported(BLOCK, counts=("m",)) and not supported(BLOCK)
+    assert not supported(BLOCK.replace("x = w[j]", "m = 2.0\n        x = w[j]"), counts=("m",))
+
+
 @pytest.mark.parametrize(
     "source",
     [

@@ -43,35 +43,45 @@ def _function(source: str) -> ast.FunctionDef:
     return tree.body[0]
 
 
-def supported(source: str) -> bool:
-    """Whether :func:`lowered` translates the function in ``source`` (see the module)."""
+def supported(source: str, counts: tuple[str, ...] = ()) -> bool:
+    """Whether :func:`lowered` translates the function in ``source`` (see the module).
+
+    ``counts``: the arguments that are integers (loop counts), the others arrays.
+    """
     fn = _function(source)
     if fn.args.vararg or fn.args.kwarg or fn.args.kwonlyargs or fn.args.defaults:
         return False
-    check = _Check({a.arg for a in fn.args.args}, None)
+    names = [a.arg for a in fn.args.args]
+    if not set(counts) <= set(names):
+        return False
+    check = _Check(set(names) - set(counts), None, counts)
     if len(fn.body) == 1 and isinstance(fn.body[0], ast.For):  # lanes: one loop, the body
         loop = fn.body[0]
-        count = _range_count(loop)
-        if count is None or not isinstance(loop.target, ast.Name) or loop.orelse:
+        if _range_of(loop, counts) is None or not isinstance(loop.target, ast.Name):
             return False
-        check = _Check(check.arrays, loop.target.id)
-        return loop.target.id not in check.arrays and all(check.statement(x) for x in loop.body)
+        if loop.orelse or not check.name(loop.target.id) or loop.target.id in counts:
+            return False
+        check.loop = loop.target.id
+        return all(check.statement(x) for x in loop.body)
     return all(check.statement(x) for x in fn.body)
 
 
-def _range_count(loop: ast.For) -> int | None:
-    """N of ``for l in range(N)`` (a constant), else None."""
+def _range_of(loop: ast.For, counts: tuple[str, ...] = ()) -> int | str | None:
+    """N of ``for l in range(N)``: a constant, or the name of an integer argument; else None."""
     it = loop.iter
-    if (
+    if not (
         isinstance(it, ast.Call)
         and isinstance(it.func, ast.Name)
         and it.func.id == "range"
         and len(it.args) == 1
         and not it.keywords
-        and isinstance(it.args[0], ast.Constant)
-        and type(it.args[0].value) is int
     ):
-        return it.args[0].value
+        return None
+    n = it.args[0]
+    if isinstance(n, ast.Constant) and type(n.value) is int:
+        return n.value
+    if isinstance(n, ast.Name) and n.id in counts:
+        return n.id
     return None
 
 
@@ -81,8 +91,9 @@ class _Check:
     Every name read is assigned before on every path (``defined``), as the lowering needs.
     """
 
-    def __init__(self, arrays: set[str], loop: str | None) -> None:
-        self.arrays, self.loop, self.defined = arrays, loop, set()
+    def __init__(self, arrays: set[str], loop: str | None, counts: tuple[str, ...] = ()) -> None:
+        self.arrays, self.loop, self.counts = arrays, loop, set(counts)
+        self.defined = set(counts)  # read as integers, never assigned
 
     def name(self, n: str) -> bool:
         return n not in self.arrays and n != self.loop
@@ -92,7 +103,7 @@ class _Check:
             if len(s.targets) != 1 or not self.expr(s.value):
                 return False
             t = s.targets[0]
-            if isinstance(t, ast.Name) and self.name(t.id):
+            if isinstance(t, ast.Name) and self.name(t.id) and t.id not in self.counts:
                 self.defined.add(t.id)
                 return True
             return self.element(t)
@@ -100,6 +111,7 @@ class _Check:
             return (
                 isinstance(s.target, ast.Name)
                 and self.name(s.target.id)
+                and s.target.id not in self.counts
                 and s.target.id in self.defined
                 and isinstance(s.op, _BINOPS)
                 and self.expr(s.value)
@@ -174,12 +186,12 @@ class _Check:
         return False
 
 
-def lowered(name: str, arrays: tuple[str, ...], source: str) -> Any:
-    """A numba intrinsic ``name_ir(*arrays)`` doing what the function in ``source`` does.
+def lowered(name: str, args: tuple[str, ...], source: str, counts: tuple[str, ...] = ()) -> Any:
+    """A numba intrinsic ``name_ir(*args)`` doing what the function in ``source`` does.
 
-    Called from a jitted function of the same arguments (float64 arrays); returns
-    nothing. ``source`` is read only when numba compiles a caller (a process that loads
-    its callers from numba's cache parses nothing).
+    Called from a jitted function of the same arguments: float64 arrays, and the integers
+    named in ``counts`` (loop counts); returns nothing. ``source`` is read only when numba
+    compiles a caller (a process that loads its callers from numba's cache parses nothing).
 
     Raises:
         ValueError: at compilation, a function outside the supported part of Python.
@@ -189,23 +201,31 @@ def lowered(name: str, arrays: tuple[str, ...], source: str) -> Any:
 
     parsed: list[list[ast.stmt]] = []
 
-    def codegen(context: Any, builder: Any, signature: Any, args: Any) -> Any:
+    def codegen(context: Any, builder: Any, signature: Any, values: Any) -> Any:
         if not parsed:
             fn = _function(source)
-            if not supported(source) or [a.arg for a in fn.args.args] != list(arrays):
+            if not supported(source, counts) or [a.arg for a in fn.args.args] != list(args):
                 raise ValueError(f"{name}: outside the part of Python this module lowers")
             parsed.append(fn.body)
-        given = dict(zip(arrays, zip(signature.args, args, strict=True), strict=True))
-        _Emitter(context, builder, given).block(parsed[0])
+        given = dict(zip(args, zip(signature.args, values, strict=True), strict=True))
+        emitter = _Emitter(context, builder, {k: v for k, v in given.items() if k not in counts})
+        for k in counts:
+            ty, value = given[k]
+            emitter.values[k] = ("i", context.cast(builder, value, ty, types.int64))
+        emitter.counts = counts
+        emitter.block(parsed[0])
         return context.get_dummy_value()
 
     def typer(typingctx: Any, *tys: Any) -> Any:
-        for arg, ty in zip(arrays, tys, strict=True):
-            if not (isinstance(ty, types.Array) and ty.dtype == types.float64):
+        for arg, ty in zip(args, tys, strict=True):
+            if arg in counts:
+                if not isinstance(ty, types.Integer):
+                    raise TypeError(f"{name}: argument {arg} must be an integer, not {ty}")
+            elif not (isinstance(ty, types.Array) and ty.dtype == types.float64):
                 raise TypeError(f"{name}: argument {arg} must be a float64 array, not {ty}")
         return types.void(*tys), codegen
 
-    params = ", ".join(arrays)
+    params = ", ".join(args)
     space: dict[str, Any] = {"typer": typer}
     exec(  # an intrinsic's typer takes its arguments by name: a function of their count
         f"def {name}_ir(typingctx, {params}):\n    return typer(typingctx, {params})\n", space
@@ -213,13 +233,14 @@ def lowered(name: str, arrays: tuple[str, ...], source: str) -> Any:
     return intrinsic(space[f"{name}_ir"])
 
 
-def stub(name: str, arrays: tuple[str, ...], source: str) -> str:
+def stub(name: str, args: tuple[str, ...], source: str, counts: tuple[str, ...] = ()) -> str:
     """Module text: ``name`` as a jitted call of its :func:`lowered` body (``source``)."""
-    args = ", ".join(arrays)
+    params = ", ".join(args)
     text = f'"""\\\n{source}"""' if '"""' not in source and "\\" not in source else repr(source)
+    more = f", counts={tuple(counts)!r}" if counts else ""
     return (
-        f"_{name}_ir = lowered({name!r}, {tuple(arrays)!r}, {text})\n\n\n"
-        f"@jit\ndef {name}({args}):\n    _{name}_ir({args})\n"
+        f"_{name}_ir = lowered({name!r}, {tuple(args)!r}, {text}{more})\n\n\n"
+        f"@jit\ndef {name}({params}):\n    _{name}_ir({params})\n"
     )
 
 
@@ -248,6 +269,7 @@ class _Emitter:
             for name, (ty, value) in arrays.items()
         }
         self.values: dict[str, tuple[str, Any]] = {}  # name -> (kind "f" | "i" | "b", value)
+        self.counts: tuple[str, ...] = ()  # the integer arguments (loop counts)
 
     # ---------------------------------------------------------------- statements
     def block(self, statements: list[ast.stmt]) -> None:
@@ -274,7 +296,8 @@ class _Emitter:
         from numba.core import cgutils
 
         before = dict(self.values)
-        count = self.ir.Constant(self.int, _range_count(s))
+        n = _range_of(s, self.counts)
+        count = self.ir.Constant(self.int, n) if isinstance(n, int) else self.values[n][1]
         with cgutils.for_range(self.builder, count) as loop:
             self.values[s.target.id] = ("i", loop.index)
             self.block(s.body)
@@ -306,17 +329,22 @@ class _Emitter:
 
     # ---------------------------------------------------------------- expressions
     def element(self, e: ast.Subscript) -> Any:
-        from numba.core import cgutils, types
+        from numba.core import cgutils
 
         ty, ary = self.arrays[e.value.id]
         index = e.slice.elts if isinstance(e.slice, ast.Tuple) else [e.slice]
-        inds = [
-            self.context.get_constant(types.intp, i.value)
-            if isinstance(i, ast.Constant)
-            else self.as_int(*self.expr(i))
-            for i in index
-        ]
+        inds = [self.offset(i) for i in index]
+        if ty.ndim == 1 and ty.layout == "C":  # in bounds, no wrap: consecutive lanes
+            return self.builder.gep(ary.data, inds, inbounds=True)
         return cgutils.get_item_pointer(self.context, self.builder, ty, ary, inds)
+
+    def offset(self, i: ast.expr) -> Any:
+        """An index: a constant, or the loop's index plus one (never wraps: ``nsw``)."""
+        if isinstance(i, ast.Constant):
+            return self.ir.Constant(self.int, i.value)
+        if isinstance(i, ast.Name):
+            return self.values[i.id][1]
+        return self.builder.add(self.offset(i.left), self.offset(i.right), flags=["nsw"])
 
     def expr(self, e: ast.expr) -> tuple[str, Any]:
         b, ir = self.builder, self.ir

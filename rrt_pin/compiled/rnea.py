@@ -144,7 +144,7 @@ _pairwise_sum = rnea_vector.pairwise_sum
 
 
 def module_source(gen: rnea_source.GeneratedRnea) -> str:
-    """The Python module of the batch kernel around ``gen``'s straight-line RNEA (no numba import).
+    """The Python module of the batch kernel around ``gen``'s straight-line RNEA.
 
     ``kernel(Q, V, A, out)`` writes the efforts of each row into ``out`` and returns
     0.0 when every entry of Q, V, A and out is finite, else NaN; it is vectorised
@@ -325,7 +325,7 @@ def _build_ahead(path: Path, digest: str, jit: Any, nq: int, nv: int) -> None:
 
     if not _aot.enabled() or _aot.kernel_built(digest) or not _aot.can_build_kernel(digest):
         return
-    note(f"building the generated inverse dynamics ({nv} joints) ahead of time once (~8 s)")
+    note(f"building the generated inverse dynamics ({nv} joints) ahead of time once (~5 s)")
     rng = np.random.default_rng(0)
     Q, V, A = rng.uniform(-2.0, 2.0, (67, nq)), *rng.uniform(-2.0, 2.0, (2, 67, nv))
 
