@@ -286,3 +286,18 @@ def test_the_written_out_losses_are_the_definitions():
         expected = pin.aba(model, data, q, v, tau)
         assert np.array_equal(out[:nv], v)
         np.testing.assert_allclose(out[nv:], expected, rtol=1e-9, atol=1e-9)
+
+
+def test_a_change_to_the_lowering_changes_the_modules_it_wrote(monkeypatch):
+    """Numba's cache is keyed by a module's text: the lowering's fingerprint is part of it,
+    so code lowered by an older ``_straight`` is not loaded after an upgrade."""
+    from rrt_pin.compiled import _straight
+    from rrt_pin.compiled.rnea import module_source as rnea_source_of
+    from rrt_pin.dynamics.rnea_source import rnea_source
+
+    model = robots.get("double_pendulum").model
+    before = (robot_code.module_source(model)[0], rnea_source_of(rnea_source(model)))
+    assert all(_straight.VERSION in text for text in before)
+    monkeypatch.setattr(_straight, "VERSION", "another lowering")
+    after = (robot_code.module_source(model)[0], rnea_source_of(rnea_source(model)))
+    assert before[0] != after[0] and before[1] != after[1]

@@ -25,7 +25,9 @@ Units: none (code).
 from __future__ import annotations
 
 import ast
+import hashlib
 import re
+from pathlib import Path
 from typing import Any
 
 __all__ = ["lowered", "lowered_part", "stub", "supported"]
@@ -34,6 +36,9 @@ _CALLS = frozenset({"abs", "int", "float", "sin", "cos", "sqrt", "tanh"})
 _BINOPS = (ast.Add, ast.Sub, ast.Mult, ast.Div, ast.BitAnd)
 _COMPARES = (ast.Lt, ast.Gt, ast.LtE, ast.GtE, ast.Eq, ast.NotEq)
 _MATH = {"nan": float("nan"), "inf": float("inf")}
+#: This module's own fingerprint, written into every stub: a change to the lowering
+#: changes the generated modules' text, so their caches are not reused.
+VERSION = hashlib.sha256(Path(__file__).read_bytes()).hexdigest()[:16]
 
 
 def _function(source: str) -> ast.FunctionDef:
@@ -239,6 +244,7 @@ def stub(name: str, args: tuple[str, ...], source: str, counts: tuple[str, ...] 
     text = f'"""\\\n{source}"""' if '"""' not in source and "\\" not in source else repr(source)
     more = f", counts={tuple(counts)!r}" if counts else ""
     return (
+        f"# lowered by rrt_pin.compiled._straight {VERSION}\n"
         f"_{name}_ir = lowered({name!r}, {tuple(args)!r}, {text}{more})\n\n\n"
         f"@jit\ndef {name}({params}):\n    _{name}_ir({params})\n"
     )
