@@ -398,3 +398,27 @@ def test_a_pd_run_on_its_own_entry_equals_the_general_entry_bit_for_bit(ur5, mon
     for name in ("q", "qd", "tau"):
         np.testing.assert_array_equal(getattr(own, name), getattr(general, name))
     assert own.n_evals == general.n_evals
+
+
+def test_the_cli_compiles_only_the_entry_its_run_takes(ur5, tmp_path, monkeypatch):
+    """`rrt-pin simulate --backend compiled` loads the robot's code before the run, to report
+    its cost apart: it compiles the entry the run then takes (PD plus gravity's, here), and
+    no other (it compiled the general `run_many` too, twice the first use)."""
+    from rrt_pin.cli.app import main
+    from rrt_pin.compiled import robot_code
+
+    asked = []
+    entry = robot_code.RobotCode.entry
+
+    def recording(self, name):
+        asked.append(name)
+        return entry(self, name)
+
+    monkeypatch.setattr(robot_code.RobotCode, "entry", recording)
+    out = tmp_path / "run.csv"
+    main(["simulate", "--robot", "ur5", "--backend", "compiled", "--tf", "0.1",
+          "--q0", "0.3,-0.9,1.5,-0.7,-0.9,0.3", "--qf", "0,-1.2,1.2,-1,-1.2,0",
+          "--kp", "184,311,85,24,25,1.7", "--kd", "37,62,17,4.8,5.1,0.34",
+          "--csv", str(out)])  # fmt: skip
+    assert out.stat().st_size > 0
+    assert set(asked) == {"run_many_pd"}

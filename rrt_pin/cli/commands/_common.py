@@ -461,10 +461,16 @@ def report_run(args: argparse.Namespace, how: str, summary: str) -> None:
     to.write(summary)
 
 
-def _load_generated(robot: Robot, task: str) -> str:
-    """Load (or compile) ``robot``'s generated code for ``task``, and say how long it took."""
-    from rrt_pin.compiled import rnea, robot_code
+def _load_generated(robot: Robot, task: str, method: str | None, job: dict[str, Any]) -> str:
+    """Load (or compile) ``robot``'s generated code for ``task``, and say how long it took.
+
+    A simulation's: the entry the job will run (its method, its laws, one run or a batch:
+    :func:`rrt_pin.compiled.robot_entries.pd_entries`), not another one besides.
+    """
+    from rrt_pin.compiled import rnea, robot_code, robot_entries
+    from rrt_pin.core import backends
     from rrt_pin.core.errors import InputError
+    from rrt_pin.simulate import methods
 
     try:
         if task == "inverse":
@@ -473,7 +479,11 @@ def _load_generated(robot: Robot, task: str) -> str:
             where = f" ({kernel.path.parent})" if kernel.path is not None else ""
         else:
             kernel = robot_code.integrators_for(robot.model, robot.name)
-            kernel.entry("run_many")  # a single run's
+            code = methods.get(method or backends.get("compiled").default_method).code
+            pd = robot_entries.pd_only(job.get("controllers", ()))
+            numeric = job.get("numeric_jacobian")
+            for group in robot_entries.pd_entries(code, bool(job.get("batch")), pd, numeric):
+                kernel.entry(group[0])
             what, where = "integrators", ""
     except ImportError as e:
         raise InputError(f"backend 'compiled' is not available: {e}") from e
@@ -537,7 +547,7 @@ def resolve_backend(
 
         backends.get("compiled").require()
         if not robot.supports("compiled"):  # not the arm: its generated code
-            return _load_generated(robot, task)
+            return _load_generated(robot, task, method, job)
         try:
             from rrt_pin import compiled
 

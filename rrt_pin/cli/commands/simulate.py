@@ -302,9 +302,19 @@ def run(args: argparse.Namespace) -> int:
     law, law_name, start = (
         law_from_args(args, robot, source) if passive else (regulator(robot), robot.regulator, None)
     )
+    switches = {
+        "effort_limits": getattr(args, "effort_limits", True),
+        "position_limits": getattr(args, "position_limits", True),
+        "losses": getattr(args, "losses", True),
+    }
+    numeric = None  # BDF's compiled code differs by whether its Jacobian is numerical
+    if args.method == "BDF":
+        from rrt_pin.robot.limits import physical_model
+
+        numeric = physical_model(robot, **switches).active
     args.backend = resolve_backend(
         args.backend, robot, "simulate", args.method, work=float(args.tf), args=args,
-        controllers=[law],
+        controllers=[law], numeric_jacobian=numeric,
     )  # fmt: skip
     method = args.method or backends.get(args.backend).default_method
     fixed = not methods.get(method).adaptive
@@ -333,11 +343,6 @@ def run(args: argparse.Namespace) -> int:
     if start is not None:  # a tracked motion starts the run on it unless told otherwise
         q0 = start[0] if args.q0 is None else q0
         qd0 = start[1] if args.qd0 is None else qd0
-    switches = {
-        "effort_limits": getattr(args, "effort_limits", True),
-        "position_limits": getattr(args, "position_limits", True),
-        "losses": getattr(args, "losses", True),
-    }
     from rrt_pin.core._logging import note
     from rrt_pin.simulate.physical_runs import outside_messages, physics_facts
 
