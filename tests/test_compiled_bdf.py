@@ -267,7 +267,7 @@ def test_auto_looks_at_the_bdf_entry_the_run_will_take(ur5, monkeypatch):
         ("run_bdf_num_pd",),
     )
     assert robot_entries.pd_entries(bdf, True, False, True) == (("run_bdf_num",),)
-    assert robot_entries.pd_entries(None, True, True) == (("run_lanes", "run_many_pd"),)
+    assert robot_entries.pd_entries(None, True, True) == (("run_lanes", "run_adaptive_pd"),)
 
 
 def test_a_bdf_run_under_a_physical_model_asks_for_the_numerical_entry_alone(ur5, monkeypatch):

@@ -292,7 +292,8 @@ def test_the_front_door_gives_both_backends_the_physical_model(ur5, ur5_physics)
 
 def test_a_robots_first_use_compiles_only_the_entry_it_runs(ur5, monkeypatch):
     """A batch of adaptive PD variants needs the lanes alone; a single run one entry alone:
-    under PD plus gravity its law-bound copy, else run_many."""
+    under PD plus gravity its law-bound copy, else the general one; an adaptive method's
+    without the fixed-step integrators (``run_adaptive``), a fixed step's ``run_many``."""
     from rrt_pin.compiled import robot_code, robot_runs
     from rrt_pin.simulate.options import resolve
 
@@ -311,7 +312,7 @@ def test_a_robots_first_use_compiles_only_the_entry_it_runs(ur5, monkeypatch):
     robot_runs.prepare(ur5, [pd], dop853)
     robot_runs.prepare(ur5, [pd, pd], rk4)
     robot_runs.prepare(ur5, [pd, None], dop853)
-    assert asked == ["run_lanes", "run_many_pd", "run_many_pd", "run_many"]
+    assert asked == ["run_lanes", "run_adaptive_pd", "run_many_pd", "run_adaptive"]
     with pytest.raises(InputError):  # refused before anything is compiled
         robot_runs.prepare(ur5, [lambda t, q, qd: q], dop853)
     assert len(asked) == 4
@@ -360,7 +361,9 @@ def _calls(source: str) -> dict[str, set[str]]:
     return out
 
 
-@pytest.mark.parametrize("entry", ["run_many_pd", "run_adams_pd", "run_bdf_pd", "run_lanes"])
+@pytest.mark.parametrize(
+    "entry", ["run_many_pd", "run_adaptive_pd", "run_adams_pd", "run_bdf_pd", "run_lanes"]
+)
 def test_the_pd_entries_reach_no_other_laws_dynamics(ur5, entry):
     """Everything a PD entry calls, however deep, is PD plus gravity's: its first use
     compiles no tracking law (M, bias), open-loop or general law dispatch; the general
@@ -384,6 +387,13 @@ def test_the_pd_entries_reach_no_other_laws_dynamics(ur5, entry):
     if entry != "run_lanes":  # the lanes have dynamics of their own
         assert "rhs_pd_law" in reached(entry)
         assert {"mass_matrix", "bias", "forward"} <= reached(entry.removesuffix("_pd"))
+        # only the fixed-step methods' entry compiles their integrators
+        general = entry.removesuffix("_pd")
+        assert (
+            ("fixed_pd" in reached(entry))
+            == ("fixed" in reached(general))
+            == (entry == "run_many_pd")
+        )
 
 
 def test_a_pd_run_on_its_own_entry_equals_the_general_entry_bit_for_bit(ur5, monkeypatch):
@@ -402,8 +412,8 @@ def test_a_pd_run_on_its_own_entry_equals_the_general_entry_bit_for_bit(ur5, mon
 
 def test_the_cli_compiles_only_the_entry_its_run_takes(ur5, tmp_path, monkeypatch):
     """`rrt-pin simulate --backend compiled` loads the robot's code before the run, to report
-    its cost apart: it compiles the entry the run then takes (PD plus gravity's, here), and
-    no other (it compiled the general `run_many` too, twice the first use)."""
+    its cost apart: it compiles the entry the run then takes (DOP853 under PD plus gravity,
+    here), and no other (it compiled the general `run_many` too, twice the first use)."""
     from rrt_pin.cli.app import main
     from rrt_pin.compiled import robot_code
 
@@ -421,4 +431,4 @@ def test_the_cli_compiles_only_the_entry_its_run_takes(ur5, tmp_path, monkeypatc
           "--kp", "184,311,85,24,25,1.7", "--kd", "37,62,17,4.8,5.1,0.34",
           "--csv", str(out)])  # fmt: skip
     assert out.stat().st_size > 0
-    assert set(asked) == {"run_many_pd"}
+    assert set(asked) == {"run_adaptive_pd"}

@@ -541,6 +541,16 @@ def adaptive(method, y0, t_eval, atol, rtol, max_step, max_steps, law, c, rt, rv
 
 
 @jit
+def no_fixed(method, y0, t_eval, dt, max_steps, law, c, rt, rv, dense, out_y, ws):
+    """Stands for ``fixed`` in the entries of the adaptive methods (never called there).
+
+    ``run_adaptive``, ``run_adams``, ``run_bdf`` …: their first use compiles no fixed-step
+    integrator.
+    """
+    return STATUS_MAX_STEPS, 0, 0, 0, t_eval[0]
+
+
+@jit
 def fixed(method, y0, t_eval, dt, max_steps, law, c, rt, rv, dense, out_y, ws):
     """Symplectic Euler (10), RK4 (11) or velocity Verlet (12), landing on every t_eval.
 

@@ -447,11 +447,12 @@ def module_source(model: pin.Model) -> tuple[str, int]:
     if not mark:  # pragma: no cover - the template's own marker
         raise RuntimeError(f"{_TEMPLATE} lost its line {_MARK.strip()!r}")
     body += robot_entries.copies(body, robot_entries.PD_COPIES)
-    for method in ("adams", "bdf", "bdf_num"):
-        body += robot_entries.law_bound(body, "run_many", {"adaptive": method}, f"run_{method}")
-        body += robot_entries.law_bound(
-            body, "run_many_pd", {"adaptive_pd": f"{method}_pd"}, f"run_{method}_pd"
-        )
+    for method in ("adaptive", "adams", "bdf", "bdf_num"):  # no fixed-step integrator
+        general, pd = {"fixed": "no_fixed"}, {"fixed_pd": "no_fixed"}
+        if method != "adaptive":
+            general, pd = general | {"adaptive": method}, pd | {"adaptive_pd": f"{method}_pd"}
+        body += robot_entries.law_bound(body, "run_many", general, f"run_{method}")
+        body += robot_entries.law_bound(body, "run_many_pd", pd, f"run_{method}_pd")
     adams = _ADAMS.read_text(encoding="utf-8").partition("# --- adams ---\n")[2]
     bdf = _BDF.read_text(encoding="utf-8").partition("# --- bdf ---\n")[2]
     lines = [
