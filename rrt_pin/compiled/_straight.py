@@ -340,7 +340,7 @@ class _Emitter:
         ty, ary = self.arrays[e.value.id]
         index = e.slice.elts if isinstance(e.slice, ast.Tuple) else [e.slice]
         inds = [self.offset(i) for i in index]
-        if ty.ndim == 1 and ty.layout == "C":  # in bounds, no wrap: consecutive lanes
+        if ty.ndim == 1 and ty.is_c_contig:  # in bounds, no wrap: consecutive lanes
             return self.builder.gep(ary.data, inds, inbounds=True)
         return cgutils.get_item_pointer(self.context, self.builder, ty, ary, inds)
 
