@@ -190,15 +190,7 @@ def vector_source(gen: GeneratedFunction, block: int = VECTOR_BLOCK) -> tuple[st
     src += [f"{i1}else:", f"{i2}for j in range(m):"]
     src += rnea_vector._sincos_block(order, at, i3, libm=True)
     src.append(f"{i1}for j in range(m):")
-    trig = {t: (fn, k) for k, d in angles.items() for fn, t in d.items()}
-    for line in gen.lines:
-        name = line.split(" = ", 1)[0]
-        if name in inputs:
-            src.append(f"{i2}{name} = {at(inputs[name])}")
-        elif name in trig:
-            src.append(f"{i2}{name} = {at(trig[name])}")
-        else:
-            src.append(f"{i2}{line}")
+    src += rnea_vector.block_lines(gen.lines, inputs, angles, at, i2)
     src += [f"{i2}{at(('out', f))} = {gen.outputs[f]}" for f in results]
     used = set(inputs.values())
     checked = sorted({gen.outputs[f] for f in results})

@@ -159,15 +159,7 @@ def vector_source(gen: GeneratedRnea, block: int = BLOCK) -> tuple[str, int]:
     # the RNEA over a block, one sample a lane, lowered past numba's front end
     flag = len(row_of)  # each sample's sum of checked values, tested by the kernel
     body = ["def body(w, m):", "    for j in range(m):"]
-    trig = {t: (fn, k) for k, d in angles.items() for fn, t in d.items()}
-    for line in gen.lines:
-        name = line.split(" = ", 1)[0]
-        if name in inputs:
-            body.append(f"{i2[4:]}{name} = {at(inputs[name])}")
-        elif name in trig:
-            body.append(f"{i2[4:]}{name} = {at(trig[name])}")
-        else:
-            body.append(f"{i2[4:]}{line}")
+    body += block_lines(gen.lines, inputs, angles, at, i2[4:])
     checked = []
     for k, row in tau_rows.items():
         body.append(f"{i2[4:]}w[{row * stride} + j] = {gen.tau[k]}")
@@ -240,6 +232,30 @@ def vector_source(gen: GeneratedRnea, block: int = BLOCK) -> tuple[str, int]:
         src.append(f"{i2}out[r, {k}] = {at(('tau', k)) if k in tau_rows else t}")
     src += ["    return np.nan if bad else 0.0", ""]
     return "\n".join(src), len(order)
+
+
+def block_lines(
+    lines: tuple[str, ...] | list[str],
+    inputs: dict[str, tuple[str, int]],
+    angles: dict[int, dict[str, str]],
+    at: Callable[[tuple[str, int]], str],
+    indent: str,
+) -> list[str]:
+    """Generated straight-line ``lines`` over a block, inputs and sines from scratch rows.
+
+    Inputs, sines and cosines are read from their rows (``at``); the rest is as it is.
+    """
+    trig = {t: (fn, k) for k, d in angles.items() for fn, t in d.items()}
+    out = []
+    for line in lines:
+        name = line.split(" = ", 1)[0]
+        if name in inputs:
+            out.append(f"{indent}{name} = {at(inputs[name])}")
+        elif name in trig:
+            out.append(f"{indent}{name} = {at(trig[name])}")
+        else:
+            out.append(f"{indent}{line}")
+    return out
 
 
 def _sincos_block(
