@@ -12,12 +12,15 @@ libm's ``sqrt`` and ``tanh``, as numba's math does), so the results are the same
 after: ``docs/benchmarks.md``.
 
 The part of Python, checked by :func:`supported` (pure, numba-free: the module writer asks
-it before choosing): a function of arrays only (1-D or 2-D, float64) whose body is
-assignments to names or to array elements at constant indices, ``+=`` and the like,
+it before choosing): a function of float64 arrays (1-D or 2-D) and integer loop counts
+whose body is assignments to names or to array elements, ``+=`` and the like,
 ``if``/``else`` blocks, conditional expressions, ``+ - * / &``, unary minus, one
-comparison at a time, and calls of ``abs``, ``int``, ``float``, ``sin``, ``cos``,
-``sqrt`` and ``tanh``. Names hold float64 or int64 values (an int meets a float as
-Python's does: converted), each assigned before it is read on every path.
+comparison at a time, ``math.nan``/``math.inf``, and calls of ``abs``, ``int``,
+``float``, ``sin``, ``cos``, ``sqrt``, ``tanh``, ``max`` and ``min``; or one counted loop
+``for j in range(N)`` (N a constant or a count) around such a body, its array indices
+``j + constant`` (the lanes' and the RNEA's blocks). Elsewhere indices are constants.
+Names hold float64 or int64 values (an int meets a float as Python's does: converted),
+each assigned before it is read on every path.
 
 Units: none (code).
 """
@@ -30,7 +33,7 @@ import re
 from pathlib import Path
 from typing import Any
 
-__all__ = ["lowered", "lowered_part", "stub", "supported"]
+__all__ = ["VERSION", "lowered", "lowered_part", "stub", "supported"]
 
 _CALLS = frozenset({"abs", "int", "float", "sin", "cos", "sqrt", "tanh"})
 _BINOPS = (ast.Add, ast.Sub, ast.Mult, ast.Div, ast.BitAnd)
