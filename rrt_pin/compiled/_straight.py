@@ -28,20 +28,31 @@ Units: none (code).
 from __future__ import annotations
 
 import ast
-import hashlib
 import re
-from pathlib import Path
 from typing import Any
 
-__all__ = ["VERSION", "lowered", "lowered_part", "stub", "supported"]
+__all__ = ["lowered", "lowered_part", "stub", "supported"]  # and VERSION (lazy)
 
 _CALLS = frozenset({"abs", "int", "float", "sin", "cos", "sqrt", "tanh"})
 _BINOPS = (ast.Add, ast.Sub, ast.Mult, ast.Div, ast.BitAnd)
 _COMPARES = (ast.Lt, ast.Gt, ast.LtE, ast.GtE, ast.Eq, ast.NotEq)
 _MATH = {"nan": float("nan"), "inf": float("inf")}
-#: This module's own fingerprint, written into every stub: a change to the lowering
-#: changes the generated modules' text, so their caches are not reused.
-VERSION = hashlib.sha256(Path(__file__).read_bytes()).hexdigest()[:16]
+
+
+def __getattr__(name: str) -> Any:
+    """``VERSION``: this module's fingerprint, computed when a module is written.
+
+    Written into every stub, so that a change to the lowering changes the generated
+    modules' text and their caches are not reused. Not at import: no hashing at start-up.
+    """
+    if name != "VERSION":
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    import hashlib
+    from pathlib import Path
+
+    value = hashlib.sha256(Path(__file__).read_bytes()).hexdigest()[:16]
+    globals()["VERSION"] = value
+    return value
 
 
 def _function(source: str) -> ast.FunctionDef:
@@ -246,8 +257,9 @@ def stub(name: str, args: tuple[str, ...], source: str, counts: tuple[str, ...] 
     params = ", ".join(args)
     text = f'"""\\\n{source}"""' if '"""' not in source and "\\" not in source else repr(source)
     more = f", counts={tuple(counts)!r}" if counts else ""
+    version = globals().get("VERSION") or __getattr__("VERSION")  # a test may set it
     return (
-        f"# lowered by rrt_pin.compiled._straight {VERSION}\n"
+        f"# lowered by rrt_pin.compiled._straight {version}\n"
         f"_{name}_ir = lowered({name!r}, {tuple(args)!r}, {text}{more})\n\n\n"
         f"@jit\ndef {name}({params}):\n    _{name}_ir({params})\n"
     )

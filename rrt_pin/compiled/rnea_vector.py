@@ -35,7 +35,6 @@ import re
 from collections.abc import Callable
 from typing import Any
 
-from rrt_pin.compiled._straight import stub
 from rrt_pin.dynamics.rnea_source import GeneratedRnea
 
 __all__ = [
@@ -156,6 +155,8 @@ def vector_source(gen: GeneratedRnea, block: int = BLOCK) -> tuple[str, int]:
         return f"w[{row_of[key] * stride} + j]"
 
     i1, i2, i3 = (" " * n for n in (8, 12, 16))
+    from rrt_pin.compiled._straight import stub  # where a module is written, not at import
+
     # the RNEA over a block, one sample a lane, lowered past numba's front end
     flag = len(row_of)  # each sample's sum of checked values, tested by the kernel
     body = ["def body(w, m):", "    for j in range(m):"]

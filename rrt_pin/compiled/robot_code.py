@@ -30,7 +30,7 @@ import types
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from rrt_pin.compiled import _models, _straight, rnea, rnea_vector, robot_entries
+from rrt_pin.compiled import _models, rnea, rnea_vector, robot_entries
 from rrt_pin.core import backends
 from rrt_pin.core._logging import note
 from rrt_pin.core.identity import IdentityCache
@@ -53,9 +53,8 @@ _ADAMS = Path(__file__).with_name("_robot_adams.py")  # run_adams: run_many with
 _BDF = Path(__file__).with_name("_robot_bdf.py")  # run_bdf: run_many with SciPy's BDF
 #: A batch's variants a thread runs side by side (vectors of 8 doubles, AVX-512).
 LANES = 8
-#: What compiling ``run_many`` takes, roughly [s]: a constant and a share per generated
-#: operation (for the announcement's estimate only; fitted to UR5's and Panda's first
-#: use with the generated functions lowered, docs/benchmarks.md).
+#: What compiling an entry takes, roughly [s]: a constant and a share per generated
+#: operation (the announcement's estimate only; fitted to UR5's and Panda's first use).
 _COMPILE_S = 9.0
 _COMPILE_S_PER_FLOP = 1.1e-3
 #: What an entry compiles, by its name's start, for the announcement.
@@ -321,10 +320,10 @@ def _lanes_source(
                 f"        {at(name, shift + k)} = {x} if {at('amax', 0)} < {limit} else math.nan"
             )
         constants.append(f"{name.upper()}_OUT = {row[name, 0]}")
+    from rrt_pin.compiled._straight import lowered_part  # where a module is written
+
     functions = "\n".join(src).split("\n@jit\n")  # each lowered past numba's front end
-    lowered = [
-        _straight.lowered_part(f if i == 0 else f"@jit\n{f}") for i, f in enumerate(functions)
-    ]
+    lowered = [lowered_part(f if i == 0 else f"@jit\n{f}") for i, f in enumerate(functions)]
     return "\n".join([*lowered, "", *constants, ""])
 
 
@@ -421,6 +420,8 @@ def module_source(model: pin.Model) -> tuple[str, int]:
     """
     import pinocchio as pin
 
+    from rrt_pin.compiled._straight import lowered_part  # where a module is written, not at import
+
     free = pin.Model(model)
     free.gravity = pin.Motion.Zero()
     nv = int(model.nv)
@@ -441,7 +442,7 @@ def module_source(model: pin.Model) -> tuple[str, int]:
         _on_state(forward_source.bias_source(model), "bias", 0),
         _on_state(closed_loop_derivatives_source(model), "closed_loop_jac", 0),
     ]
-    parts = [_straight.lowered_part(part) for part in parts]
+    parts = [lowered_part(part) for part in parts]
     template = _TEMPLATE.read_text(encoding="utf-8")
     head, mark, body = template.partition(_MARK)
     if not mark:  # pragma: no cover - the template's own marker
