@@ -339,9 +339,8 @@ def test_the_lanes_call_pd_copies_that_name_no_other_laws_dynamics(ur5):
     assert "stage_lanes(" in body("first_steps") and not re.search(
         r"\brhs\w*\(", body("first_steps")
     )
-    assert "limits_of_pd(" in body("metrics_of_pd")
-    assert "efforts_pd_law(" in body("limits_of_pd")
-    assert not re.search(r"\befforts\(", body("limits_of_pd"))
+    assert "efforts_pd_law(" in body("metrics_of_pd")
+    assert not re.search(r"\befforts\(", body("metrics_of_pd"))
     pd_law = body("efforts_pd_law") + body("rhs_pd_law")
     assert not re.search(r"\b(mass_matrix|bias|forward)\(", pd_law)
 

@@ -692,7 +692,17 @@ def metrics_of(t_eval, ys, taus, qf, band, row, law, c, rt, rv, ws):
     """
     T = t_eval.shape[0]
     nv = taus.shape[1]
-    limits_of(t_eval, ys, taus, row, law, c, rt, rv, ws)
+    demand, work, m, P, phys = ws
+    depth = 5 * nv + 1
+    saturated = 6 * nv + 1
+    peak = 7 * nv + 1
+    # One pass over the samples, row after row (the arrays are C-ordered): every metric
+    # is a running max, a last or first index, or a sum in the samples' order, so it has
+    # the bits of a pass of its own.
+    band_of = np.empty(nv)
+    last = np.full(nv, -1, dtype=np.int64)
+    when = np.zeros(nv, dtype=np.int64)
+    over = np.zeros(nv)
     for k in range(nv):
         row[k] = abs(ys[T - 1, k] - qf[k])
         scale = abs(ys[0, k] - qf[k])
@@ -700,65 +710,14 @@ def metrics_of(t_eval, ys, taus, qf, band, row, law, c, rt, rv, ws):
             scale = 0.0
             for i in range(T):
                 scale = max(scale, abs(ys[i, k] - qf[k]))
-        last = -1
-        for i in range(T - 1, -1, -1):
-            if abs(ys[i, k] - qf[k]) > band * scale:
-                last = i
-                break
-        if last == -1:
-            row[nv + k] = t_eval[0]
-        elif last == T - 1:
-            row[nv + k] = np.nan
-        else:
-            row[nv + k] = t_eval[last + 1]
-        peak = -1.0
-        when = 0
-        for i in range(T):
-            a = abs(taus[i, k])
-            if a > peak:
-                peak = a
-                when = i
-        row[2 * nv + k] = peak
-        row[3 * nv + k] = t_eval[when]
-        exc = 0.0
-        for i in range(T):
-            exc = max(exc, abs(ys[i, k] - ys[0, k]))
-        row[4 * nv + k] = exc
-    energy = 0.0
-    before = 0.0
-    for i in range(T):
-        p = 0.0
-        for k in range(nv):
-            p += abs(taus[i, k] * ys[i, nv + k])
-        if i > 0:
-            energy += 0.5 * (p + before) * (t_eval[i] - t_eval[i - 1])
-        before = p
-    row[5 * nv] = energy
-
-
-@jit
-def limits_of(t_eval, ys, taus, row, law, c, rt, rv, ws):
-    """The ``limits`` group of :func:`metrics_of` into row[5·nv + 1 …] (see its docstring)."""
-    T = t_eval.shape[0]
-    nv = taus.shape[1]
-    demand, work, m, P, phys = ws
-    depth = 5 * nv + 1
-    saturated = 6 * nv + 1
-    peak = 7 * nv + 1
-    for k in range(nv):
-        worst = 0.0
-        lo = P[8, k]
-        hi = P[9, k]
-        for i in range(T):
-            q = ys[i, k]
-            if lo - q > worst:
-                worst = lo - q
-            if q - hi > worst:
-                worst = q - hi
-        row[depth + k] = worst
+        band_of[k] = band * scale
+        row[2 * nv + k] = -1.0
+        row[4 * nv + k] = 0.0
+        row[depth + k] = 0.0
         row[saturated + k] = 0.0
         row[peak + k] = 0.0
-    over = np.zeros(nv)
+    energy = 0.0
+    before = 0.0
     for i in range(T):
         again = False
         if phys[0] != 0:
@@ -767,14 +726,43 @@ def limits_of(t_eval, ys, taus, row, law, c, rt, rv, ws):
                     again = True
         if again:
             efforts(t_eval[i], ys[i], law, c, rt, rv, demand, work, m)
+        dt = t_eval[i] - t_eval[i - 1] if i > 0 else 0.0
+        p = 0.0
         for k in range(nv):
-            a = abs(demand[k]) if again else abs(taus[i, k])
-            if a > row[peak + k]:
-                row[peak + k] = a
-            now = 1.0 if a > P[10, k] else 0.0
+            q = ys[i, k]
+            if abs(q - qf[k]) > band_of[k]:
+                last[k] = i
+            a = abs(taus[i, k])
+            if a > row[2 * nv + k]:
+                row[2 * nv + k] = a
+                when[k] = i
+            row[4 * nv + k] = max(row[4 * nv + k], abs(q - ys[0, k]))
+            worst = row[depth + k]
+            if P[8, k] - q > worst:
+                worst = P[8, k] - q
+            if q - P[9, k] > worst:
+                worst = q - P[9, k]
+            row[depth + k] = worst
+            d = abs(demand[k]) if again else a
+            if d > row[peak + k]:
+                row[peak + k] = d
+            now = 1.0 if d > P[10, k] else 0.0
             if i > 0:
-                row[saturated + k] += 0.5 * (now + over[k]) * (t_eval[i] - t_eval[i - 1])
+                row[saturated + k] += 0.5 * (now + over[k]) * dt
             over[k] = now
+            p += abs(taus[i, k] * ys[i, nv + k])
+        if i > 0:
+            energy += 0.5 * (p + before) * dt
+        before = p
+    for k in range(nv):
+        if last[k] == -1:
+            row[nv + k] = t_eval[0]
+        elif last[k] == T - 1:
+            row[nv + k] = np.nan
+        else:
+            row[nv + k] = t_eval[last[k] + 1]
+        row[3 * nv + k] = t_eval[when[k]]
+    row[5 * nv] = energy
 
 
 @jit

@@ -39,8 +39,7 @@ OWN_ENTRY = {codes.METHOD_ADAMS: "run_adams", codes.METHOD_BDF: "run_bdf"}
 #: an earlier one.
 PD_COPIES = (
     ("first_step", {"rhs": "rhs_pd_law"}),
-    ("limits_of", {"efforts": "efforts_pd_law"}),
-    ("metrics_of", {"limits_of": "limits_of_pd"}),
+    ("metrics_of", {"efforts": "efforts_pd_law"}),
     ("adaptive", {"rhs": "rhs_pd_law", "first_step": "first_step_pd"}),
     ("fixed", {"rhs": "rhs_pd_law"}),
     ("efforts_at", {"efforts": "efforts_pd_law"}),
