@@ -70,6 +70,15 @@ LAW_NONE, LAW_PD_GRAVITY, LAW_TRACKING, LAW_OPEN_LOOP = 0, 1, 2, 3
 FRICTION_VELOCITY = 1e-3
 KEEP_TRAJECTORIES, KEEP_FINAL, KEEP_METRICS = 0, 1, 2
 METHOD_DOP853, METHOD_RK4, METHOD_SYMPLECTIC_EULER, FIXED_STEP_FROM = 1, 11, 10, 10
+METHOD_DOP853_RKC = 5
+N_STIFF = 15
+STIFF_H_RHO = 3.25
+
+
+def rkc_tail(*args):  # rrt_pin/compiled/_robot_rkc.py's, appended
+    raise NotImplementedError
+
+
 STATUS_OK, STATUS_NONFINITE, STATUS_STEP_UNDERFLOW = 0, 1, 2
 STATUS_MAX_STEPS, STATUS_NO_CONVERGENCE, STATUS_EFFORT_NONFINITE = 4, 5, 6
 # --- template ---
@@ -351,13 +360,17 @@ def first_step(
 
 @jit
 def adaptive(method, y0, t_eval, atol, rtol, max_step, max_steps, law, c, rt, rv, dense, out_y, ws):
-    """RK45 (0) or DOP853 (1) from (t_eval[0], y0) with SciPy's error control.
+    """RK45 (0), DOP853 (1) or DOP853-RKC from (t_eval[0], y0) with SciPy's error control.
 
     ``dense``: the state at every t_eval into out_y (T, n); else only the final one
     into out_y[0] (the same steps). Returns (status, coordinate, evals, rows, t).
+    DOP853-RKC is DOP853 handing over to ``rkc_tail`` after N_STIFF steps in a row at
+    the edge of its stability (h·ρ̂ > STIFF_H_RHO, from the step's last two stages at
+    t + h), and on again where RKC hands back.
     """
     n = y0.shape[0]
-    dop853 = method == METHOD_DOP853
+    handover = method == METHOD_DOP853_RKC
+    dop853 = method == METHOD_DOP853 or handover
     if dop853:
         n_stages, exponent, order, A, Cs = D8_NS, -1.0 / 8.0, 7.0, D8_A, D8_C
     else:
@@ -383,6 +396,7 @@ def adaptive(method, y0, t_eval, atol, rtol, max_step, max_steps, law, c, rt, rv
     n_steps = 0
     n_rejected = 0
     limiting = 0
+    streak = 0
     while True:
         min_step = 10.0 * abs(np.nextafter(t, np.inf) - t)
         if h_abs > max_step:
@@ -473,6 +487,16 @@ def adaptive(method, y0, t_eval, atol, rtol, max_step, max_steps, law, c, rt, rv
                 rejected = True
                 n_rejected += 1
         n_steps += 1
+        if handover:  # before the dense output's stages overwrite ytmp (stage 11's state)
+            num = 0.0
+            den = 0.0
+            for i in range(n):
+                a = K[n_stages, i] - K[n_stages - 1, i]
+                b = y_new[i] - ytmp[i]
+                num += a * a
+                den += b * b
+            stiff = den > 0.0 and h * h * num > STIFF_H_RHO * STIFF_H_RHO * den
+            streak = streak + 1 if stiff else 0
         if dense and i_out < n_out and t_eval[i_out] <= t_new:
             if dop853:
                 for s in range(n_stages + 1, 16):
@@ -532,7 +556,18 @@ def adaptive(method, y0, t_eval, atol, rtol, max_step, max_steps, law, c, rt, rv
         for i in range(n):
             y[i] = y_new[i]
             f[i] = K[n_stages, i]
-        if t - t_bound >= 0.0:
+        done = t - t_bound >= 0.0
+        if handover and streak >= N_STIFF and not done:
+            status, k, evals, steps, i_out, t, h_abs, done = rkc_tail(
+                t, y, f, h_abs, t_eval, i_out, atol, rtol, max_step,
+                max_steps - n_steps - n_rejected, law, c, rt, rv, dense, out_y, ws,
+            )  # fmt: skip
+            n_evals += evals
+            n_steps += steps
+            streak = 0
+            if status != STATUS_OK:
+                return status, k, n_evals, i_out, t
+        if done:
             if not dense:
                 for i in range(n):
                     out_y[0, i] = y[i]

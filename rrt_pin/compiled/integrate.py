@@ -175,7 +175,7 @@ def _params(params: Any) -> Params:
 
 def _arm_method(method: methods.Method) -> None:
     """Refuse a method the arm's kernel does not run (Adams's and BDF run generated code only)."""
-    if method.code in (codes.METHOD_ADAMS, codes.METHOD_BDF):
+    if method.code in (codes.METHOD_ADAMS, codes.METHOD_BDF, codes.METHOD_DOP853_RKC):
         raise InputError(
             f"{argument('method')} {method.name} runs the generated integrators of other "
             f"robots, not the chapter's arm's own kernel: use {argument('method')} DOP853 or "

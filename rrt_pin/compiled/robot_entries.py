@@ -28,19 +28,30 @@ from typing import Any
 
 from rrt_pin.simulate import codes
 
-__all__ = ["OWN_ENTRY", "PD_COPIES", "SIGNATURES", "entry", "law_bound", "pd_entries", "pd_only"]
+__all__ = [
+    "OWN_ENTRY",
+    "PD_COPIES",
+    "PD_COPIES_RKC",
+    "SIGNATURES",
+    "entry",
+    "law_bound",
+    "pd_entries",
+    "pd_only",
+]
 
 #: The entry of the methods that have their own (the others: ``run_adaptive``,
 #: ``run_many``, ``run_lanes``).
 OWN_ENTRY = {codes.METHOD_ADAMS: "run_adams", codes.METHOD_BDF: "run_bdf"}
 
+#: The methods a batch runs in lanes (the others' variants one after the other).
+LANE_METHODS = (codes.METHOD_RK45, codes.METHOD_DOP853)
 #: The template's functions copied as ``<name>_pd`` with these calls renamed: bound to PD
 #: plus gravity (the lanes' one law, and single runs under it). In order: a copy may call
 #: an earlier one.
 PD_COPIES = (
     ("first_step", {"rhs": "rhs_pd_law"}),
     ("metrics_of", {"efforts": "efforts_pd_law"}),
-    ("adaptive", {"rhs": "rhs_pd_law", "first_step": "first_step_pd"}),
+    ("adaptive", {"rhs": "rhs_pd_law", "first_step": "first_step_pd", "rkc_tail": "rkc_tail_pd"}),
     ("fixed", {"rhs": "rhs_pd_law"}),
     ("efforts_at", {"efforts": "efforts_pd_law"}),
     (
@@ -52,6 +63,12 @@ PD_COPIES = (
             "metrics_of": "metrics_of_pd",
         },
     ),  # fmt: skip
+)
+#: The same for DOP853-RKC's tail (``_robot_rkc.py``, called by ``adaptive``).
+PD_COPIES_RKC = (
+    ("rkc_rho", {"rhs": "rhs_pd_law"}),
+    ("rkc_step", {"rhs": "rhs_pd_law"}),
+    ("rkc_tail", {"rhs": "rhs_pd_law", "rkc_rho": "rkc_rho_pd", "rkc_step": "rkc_step_pd"}),
 )
 #: The same for the implicit and multistep methods' own files.
 PD_COPIES_ADAMS = (("adams", {"rhs": "rhs_pd_law"}),)
@@ -107,7 +124,7 @@ def entry(method: int, count: int, pd: bool, numeric: bool = False) -> str:
         name = OWN_ENTRY[method] + ("_num" if numeric and method == codes.METHOD_BDF else "")
         return name + ("_pd" if pd else "")
     if method < codes.FIXED_STEP_FROM:
-        if pd and count >= 2:
+        if pd and count >= 2 and method in LANE_METHODS:
             return "run_lanes"
         return "run_adaptive_pd" if pd else "run_adaptive"
     return "run_many_pd" if pd else "run_many"

@@ -43,6 +43,7 @@ __all__ = [
 ODEPACK = "odepack"
 SCIPY = "scipy"
 ADAMS = "adams"  # Shampine and Gordon's DE/STEP/INTRP, compiled
+CHEBYSHEV = "chebyshev"  # DOP853 handing over to Runge–Kutta–Chebyshev, compiled
 FIXED_STEP = "fixed-step"
 SYMPLECTIC = "symplectic"
 
@@ -71,6 +72,7 @@ class Method:
     Attributes:
         name: the name users type (``--method NAME``, ``method=NAME``).
         family: ``odepack``, ``scipy`` (``solve_ivp``), ``adams`` (compiled Shampine–Gordon),
+            ``chebyshev`` (compiled DOP853 with a Runge–Kutta–Chebyshev tail),
             ``fixed-step`` or ``symplectic``.
         summary: one line for help texts.
         adaptive: error-controlled (``rtol``/``atol`` apply); else fixed steps (``step``).
@@ -193,6 +195,16 @@ METHODS: dict[str, Method] = {
             backends=("compiled",),
             batch=("compiled",),
             code=codes.METHOD_ADAMS,
+        ),
+        Method(
+            "DOP853-RKC",
+            CHEBYSHEV,
+            "DOP853, handing over to Runge–Kutta–Chebyshev (order 2) where its stability "
+            "sets its steps, and back (any robot but the chapter's arm)",
+            adaptive=True,
+            backends=("compiled",),
+            batch=("compiled",),
+            code=codes.METHOD_DOP853_RKC,
         ),
         Method("LSODA", SCIPY, "scipy's LSODA, analytic Jacobian", adaptive=True, implicit=True),
         Method("Radau", SCIPY, "implicit Runge–Kutta of order 5", adaptive=True, implicit=True),
