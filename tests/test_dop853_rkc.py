@@ -148,16 +148,36 @@ def test_the_physical_model_is_applied_in_the_tail(ur5):
 
 
 @pytest.mark.parametrize("keep", ["trajectories", "final", "metrics"])
-def test_batch_rows_equal_single_runs(ur5, keep):
+def test_batch_rows_equal_single_runs_bit_for_bit(ur5, keep):
+    """In lanes, each variant hands over (and back) on its own: 19 variants whose gains
+    and offsets spread their handovers, so that lanes in DOP853 and in RKC run side by
+    side; every row is its single run's, on one thread and on two."""
     law, q0 = _scene(ur5, "ur5")
-    q0s = q0 + np.linspace(-0.05, 0.05, 3)[:, None]
-    batch = rrt_pin.simulate_batch(ur5, [law] * 3, q0s, None, T, backend="compiled",
-                                   method="DOP853-RKC", keep=keep, rtol=1e-9, atol=1e-9 / 100,
-                                   estimate_error=False, threads=2, **LAW_ONLY)  # fmt: skip
-    assert batch.method == "DOP853-RKC"
-    for b in range(3):
-        one = _run(ur5, law, "DOP853-RKC", 1e-9, q0=q0s[b])
-        assert np.array_equal(batch.q[b], one.q if keep == "trajectories" else one.q[-1:])
+    rng = np.random.default_rng(7)
+    scale = np.exp(rng.uniform(np.log(0.2), np.log(5.0), 19))
+    laws = [pd_gravity_controller(ur5, kp=k * np.array(law.kp), kd=np.sqrt(k) * np.array(law.kd),
+                                 qf=law.qf)
+            for k in scale]  # fmt: skip
+    q0s = q0 + rng.uniform(-0.2, 0.2, (19, 6))
+    singles = [_run(ur5, laws[b], "DOP853-RKC", 1e-9, q0=q0s[b]) for b in range(19)]
+    dop = [_run(ur5, laws[b], "DOP853", 1e-9, q0=q0s[b]).n_evals for b in range(19)]
+    assert sum(one.n_evals for one in singles) < 0.7 * sum(dop)  # they did hand over
+    metrics = []
+    for threads in (1, 2):
+        batch = rrt_pin.simulate_batch(ur5, laws, q0s, None, T, backend="compiled",
+                                       method="DOP853-RKC", keep=keep, rtol=1e-9,
+                                       atol=1e-9 / 100, estimate_error=False, threads=threads,
+                                       **LAW_ONLY)  # fmt: skip
+        assert batch.method == "DOP853-RKC"
+        for b, one in enumerate(singles):
+            assert np.array_equal(batch.q[b], one.q if keep == "trajectories" else one.q[-1:])
+            assert np.array_equal(batch.qd[b], one.qd if keep == "trajectories" else one.qd[-1:])
+        if keep == "metrics":
+            metrics.append(batch.metrics)
+    if keep == "metrics":  # measured on the rows above: the same on any thread count
+        assert metrics[0].keys() == metrics[1].keys()
+        for name, column in metrics[0].items():
+            assert np.array_equal(column, metrics[1][name], equal_nan=True), name
 
 
 def test_a_pd_run_on_its_own_entry_equals_the_general_entry(ur5, monkeypatch):

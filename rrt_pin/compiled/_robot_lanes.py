@@ -47,6 +47,9 @@ D8_NS = D8_A = D8_C = D8_E3 = D8_E5 = D8_D = RK45_AB = RK45_C = RK45_E = RK45_P 
 LAW_PD_GRAVITY = METHOD_DOP853 = KEEP_FINAL = KEEP_METRICS = KEEP_TRAJECTORIES = 0
 STATUS_OK = STATUS_STEP_UNDERFLOW = STATUS_MAX_STEPS = STATUS_EFFORT_NONFINITE = 0
 STATUS_NONFINITE = 0
+METHOD_DOP853_RKC = N_STIFF = RKC_MAX_STAGES = RKC_RHO_EVERY = 0
+STIFF_H_RHO = D8_STABLE_H_RHO = HAND_BACK = RKC_EPS = 0.0
+rkc_stages = free_lanes  # _robot_rkc.py's
 # --- lanes ---
 
 
@@ -206,10 +209,21 @@ def stage_lanes(phys, Y, K, A, s, h, wf, CL, P, fold, okay):
     ``okay`` (LANE_COUNT,) integers: scratch.
     """
     n = Y.shape[0]
-    nv = n // 2
     L = LANE_COUNT
     Ks = K[s]
     combine_lanes(Y, K, A, s, h, wf)
+    eval_lanes(phys, n, wf, CL, P, fold, okay)
+    out = FREE_LANES_OUT * L
+    for i in range(n):
+        for lane in range(L):
+            Ks[i, lane] = wf[out + i * L + lane]
+
+
+@jit_inline
+def eval_lanes(phys, n, wf, CL, P, fold, okay):
+    """ẏ of the states in wf's rows 0 … n − 1 into its rows from FREE_LANES_OUT (stage_lanes's)."""
+    nv = n // 2
+    L = LANE_COUNT
     phys_sincos(wf)  # once for G and the forward dynamics
     # The PD efforts go into rows n… first (the forward dynamics' efforts, completed below).
     if phys[0] == 0:
@@ -222,10 +236,6 @@ def stage_lanes(phys, Y, K, A, s, h, wf, CL, P, fold, okay):
     else:
         physical_efforts(nv, wf, CL, P, fold, okay)
     free_lanes(wf)
-    out = FREE_LANES_OUT * L
-    for i in range(n):
-        for lane in range(L):
-            Ks[i, lane] = wf[out + i * L + lane]
 
 
 @jit
@@ -368,6 +378,439 @@ def first_steps(phys, Y, start, F0, F1, Ytmp, hz, atol, rtol, order, interval, m
         out[1, lane], out[2, lane], out[3, lane] = -1, 2, min(100.0 * h0, h1, interval, max_step)
 
 
+#: The rows of the lanes' RKC state (``ri``: integers, ``rf``: floats), one column a lane.
+RI_PC, RI_J, RI_S, RI_SINCE, RI_IT, RI_LIMIT, RI_PENDING, RI_BACK = range(8)
+RI_ROWS = 8
+RF_H, RF_TNEW, RF_RHO, RF_RAW, RF_DZ, RF_W0, RF_W1, RF_DNORM = range(8)
+RF_ROWS = 8
+#: What a lane in RKC's tail does next: decide its step, estimate ρ, a stage, ẏ at the
+#: step's end, or nothing until the next round (done, failed, or handed back).
+PC_DECIDE, PC_RHO, PC_STAGE, PC_END, PC_IDLE = 0, 1, 2, 3, 4
+
+
+@jit_inline
+def rkc_prepare(lane_b, mode, finished, ri, rf, Y, K, V, Z, Yold, Yolder, cheb, t, h_abs,
+                attempts, evals, info, t_reached, t_eval, max_step, max_steps, wf, asks):  # fmt: skip
+    """Each lane in RKC's tail (mode 1): the state it needs ẏ at, into wf's rows 0 … n − 1.
+
+    ``rkc_tail``'s decisions, in its order, where a lane is at a step's start: a
+    non-finite error's check (after its new ρ), the hand-back test of the step just
+    accepted (after its new ρ, if due), ρ not finite (hand back), the step budget, the
+    smallest step; then the step's stages and first state (``rkc_step``'s arithmetic:
+    Yolder the stage before, Yold the last). A lane that hands back waits for the next
+    round (mode 2); one that fails is recorded and let go. ``asks`` (L,): 1 where the
+    lane wants ẏ. Returns whether some lane does.
+    """
+    n = Y.shape[0]
+    L = LANE_COUNT
+    T = t_eval.shape[0]
+    t_bound = t_eval[T - 1]
+    wanted = False
+    for lane in range(L):
+        asks[lane] = 0
+        b = lane_b[lane]
+        if b < 0 or mode[lane] != 1 or finished[lane] or ri[RI_PC, lane] == PC_IDLE:
+            continue
+        if ri[RI_PC, lane] == PC_DECIDE:
+            tl = t[lane]
+            min_step = 10.0 * abs(np.nextafter(tl, np.inf) - tl)
+            status = STATUS_OK
+            coordinate = 0
+            if ri[RI_PENDING, lane] != 0:
+                ri[RI_PENDING, lane] = 0
+                if not h_abs[lane] >= min_step:
+                    status, coordinate = STATUS_NONFINITE, ri[RI_LIMIT, lane]
+            rho = rf[RF_RHO, lane]
+            if status == STATUS_OK and ri[RI_BACK, lane] != 0:
+                ri[RI_BACK, lane] = 0
+                h_stable = D8_STABLE_H_RHO / rho
+                s_next, h_next = rkc_stages(min(h_abs[lane], max_step), rho)
+                if (s_next + 1) * h_stable > HAND_BACK * 12.0 * h_next:
+                    h_abs[lane] = min(h_abs[lane], h_stable)
+                    mode[lane] = 2
+                    ri[RI_PC, lane] = PC_IDLE
+                    continue
+            if status == STATUS_OK:
+                if not math.isfinite(rho):
+                    mode[lane] = 2
+                    ri[RI_PC, lane] = PC_IDLE
+                    continue
+                if attempts[lane] >= max_steps:
+                    status = STATUS_MAX_STEPS
+                elif min(h_abs[lane], max_step) < min_step:
+                    status = STATUS_STEP_UNDERFLOW
+            if status != STATUS_OK:
+                info[b, 0] = status
+                info[b, 1] = coordinate
+                info[b, 2] = evals[lane]
+                t_reached[b] = tl
+                lane_b[lane] = -1
+                ri[RI_PC, lane] = PC_IDLE
+                continue
+            s, h = rkc_stages(min(h_abs[lane], max_step), rho)
+            t_new = tl + h
+            if t_new - t_bound > 0.0:
+                t_new = t_bound
+            h = t_new - tl
+            rf[RF_H, lane] = h
+            rf[RF_TNEW, lane] = t_new
+            ri[RI_S, lane] = s
+            # rkc_step's coefficients and first stage (the lane's own)
+            Tc, dT, d2T, bc = cheb[lane, 0], cheb[lane, 1], cheb[lane, 2], cheb[lane, 3]
+            w0 = 1.0 + RKC_EPS / (s * s)
+            Tc[0], dT[0], d2T[0] = 1.0, 0.0, 0.0
+            Tc[1], dT[1], d2T[1] = w0, 1.0, 0.0
+            for j in range(2, s + 1):
+                Tc[j] = 2.0 * w0 * Tc[j - 1] - Tc[j - 2]
+                dT[j] = 2.0 * Tc[j - 1] + 2.0 * w0 * dT[j - 1] - dT[j - 2]
+                d2T[j] = 4.0 * dT[j - 1] + 2.0 * w0 * d2T[j - 1] - d2T[j - 2]
+            w1 = dT[s] / d2T[s]
+            for j in range(2, s + 1):
+                bc[j] = d2T[j] / (dT[j] * dT[j])
+            bc[0] = bc[1] = bc[2]
+            rf[RF_W0, lane] = w0
+            rf[RF_W1, lane] = w1
+            mu1 = bc[1] * w1
+            for i in range(n):
+                Yolder[i, lane] = Y[i, lane]
+                Yold[i, lane] = Y[i, lane] + mu1 * h * K[0, i, lane]
+            ri[RI_J, lane] = 2
+            ri[RI_PC, lane] = PC_STAGE
+        if ri[RI_PC, lane] == PC_RHO:
+            if ri[RI_IT, lane] < 0:  # rkc_rho's start
+                ynorm = 0.0
+                vnorm = 0.0
+                for i in range(n):
+                    ynorm += Y[i, lane] * Y[i, lane]
+                    vnorm += V[i, lane] * V[i, lane]
+                ynorm = math.sqrt(ynorm)
+                vnorm = math.sqrt(vnorm)
+                dz = math.sqrt(2.220446049250313e-16) * max(ynorm, 1e-3)
+                if not vnorm > 0.0:
+                    for i in range(n):
+                        V[i, lane] = 1.0
+                    vnorm = math.sqrt(n)
+                for i in range(n):
+                    Z[i, lane] = Y[i, lane] + V[i, lane] * (dz / vnorm)
+                rf[RF_DZ, lane] = dz
+                rf[RF_RAW, lane] = 0.0
+                ri[RI_IT, lane] = 0
+            asks[lane] = 1
+        else:  # a stage, or the step's end: ẏ at Yold
+            asks[lane] = 2
+        wanted = True
+    for lane in range(L):  # the states asked for (the other lanes' rows left as they are)
+        a = asks[lane]
+        if a == 1:
+            for i in range(n):
+                wf[i * L + lane] = Z[i, lane]
+        elif a == 2:
+            for i in range(n):
+                wf[i * L + lane] = Yold[i, lane]
+    return wanted
+
+
+@jit_inline
+def rkc_consume(lane_b, mode, finished, ri, rf, Y, K, V, Z, Yold, Yolder, FN, cheb, t, h_abs,
+                evals, attempts, i_out, t_eval, atol, rtol, keep, out_y, scratch, wf, asks, c):  # fmt: skip
+    """Each lane that asked ẏ of ``rkc_prepare`` takes it from wf's rows (FREE_LANES_OUT …).
+
+    A step of ρ's power iteration (``rkc_rho``'s), of a stage (``rkc_step``'s
+    recurrence), or the step's end: its error, rejected (then a new ρ) or accepted (its
+    outputs, the new state, the next step; a new ρ every RKC_RHO_EVERY steps; the
+    hand-back test at the next decision), as ``rkc_tail``'s. The sums over the
+    coordinates run lane by lane side by side, each lane's in rkc_tail's order.
+    ``c`` (9, L): scratch.
+    """
+    n = Y.shape[0]
+    L = LANE_COUNT
+    T = t_eval.shape[0]
+    t_bound = t_eval[T - 1]
+    out = FREE_LANES_OUT * L
+    # Per lane: its kind of evaluation (1 ρ, 2 stage, 3 end) and a stage's coefficients.
+    kind = c[0]
+    sums = False
+    stages = False
+    for lane in range(L):
+        kind[lane] = 0.0
+        if asks[lane] == 0:
+            continue
+        pc = ri[RI_PC, lane]
+        kind[lane] = 1.0 if pc == PC_RHO else (2.0 if pc == PC_STAGE else 3.0)
+        sums = sums or pc != PC_STAGE
+        stages = stages or pc == PC_STAGE
+        c[4, lane] = rf[RF_H, lane]
+        if pc == PC_STAGE:
+            j = ri[RI_J, lane]
+            Tc, bc = cheb[lane, 0], cheb[lane, 3]
+            w0, w1 = rf[RF_W0, lane], rf[RF_W1, lane]
+            mu = 2.0 * bc[j] * w0 / bc[j - 1]
+            nu = -bc[j] / bc[j - 2]
+            mut = 2.0 * bc[j] * w1 / bc[j - 1]
+            gt = -(1.0 - bc[j - 1] * Tc[j - 1]) * mut
+            c[1, lane] = 1.0 - mu - nu
+            c[2, lane] = mu
+            c[3, lane] = nu
+            c[4, lane] = rf[RF_H, lane]
+            c[5, lane] = mut
+            c[6, lane] = gt
+    # Sums over the coordinates, in rkc_tail's order: the step's error Σ a² (its end) and
+    # |f(z) − f(y)|² (ρ); ẏ at the step's end kept in FN.
+    accE = c[7]
+    accR = c[8]
+    Hh = c[4]
+    for lane in range(L if sums else 0):
+        k = kind[lane]
+        if k == 1.0:
+            e = 0.0
+            for i in range(n):
+                d = wf[out + i * L + lane] - K[0, i, lane]
+                e += d * d
+            accR[lane] = e
+        elif k == 3.0:
+            e = 0.0
+            h = Hh[lane]
+            for i in range(n):
+                f = wf[out + i * L + lane]
+                k0 = K[0, i, lane]
+                y = Y[i, lane]
+                yn = Yold[i, lane]
+                FN[i, lane] = f
+                est = 0.8 * (y - yn) + 0.4 * h * (k0 + f)
+                a = est / (atol[i] + max(abs(y), abs(yn)) * rtol)
+                e += a * a
+            accE[lane] = e
+    for lane in range(L):
+        k = kind[lane]
+        if k == 2.0:
+            j = ri[RI_J, lane]
+            if j == ri[RI_S, lane]:
+                ri[RI_PC, lane] = PC_END
+            ri[RI_J, lane] = j + 1
+        elif k == 1.0:
+            it = ri[RI_IT, lane]
+            evals[lane] += 1
+            dnorm = math.sqrt(accR[lane])
+            dz = rf[RF_DZ, lane]
+            before = rf[RF_RAW, lane]
+            rho = dnorm / dz
+            rf[RF_RAW, lane] = rho
+            if not math.isfinite(rho):
+                rf[RF_RHO, lane] = rho
+                ri[RI_PC, lane] = PC_DECIDE
+                continue
+            if dnorm == 0.0 or (it > 1 and abs(rho - before) <= 0.01 * max(rho, before)):
+                done = True
+            else:
+                for i in range(n):
+                    Z[i, lane] = Y[i, lane] + (wf[out + i * L + lane] - K[0, i, lane]) * (
+                        dz / dnorm
+                    )
+                ri[RI_IT, lane] = it + 1
+                done = it + 1 == 20
+            if done:  # v = z − y (z as it is: moved on after the twentieth)
+                for i in range(n):
+                    V[i, lane] = Z[i, lane] - Y[i, lane]
+                rf[RF_RHO, lane] = 1.2 * rho
+                ri[RI_PC, lane] = PC_DECIDE
+        elif k == 3.0:
+            b = lane_b[lane]
+            h = rf[RF_H, lane]
+            tl = t[lane]
+            t_new = rf[RF_TNEW, lane]
+            evals[lane] += ri[RI_S, lane]
+            attempts[lane] += 1
+            err = math.sqrt(accE[lane] / n)
+            if not math.isfinite(err) or err > 1.0:
+                if math.isfinite(err):
+                    h_abs[lane] = h * max(0.1, 0.8 * err ** (-1.0 / 3.0))
+                else:
+                    h_abs[lane] = h * MIN_FACTOR
+                    worst = 0.0
+                    limiting = 0
+                    for i in range(n):  # the first coordinate of the largest |a| (or NaN)
+                        yn = Yold[i, lane]
+                        est = 0.8 * (Y[i, lane] - yn) + 0.4 * h * (K[0, i, lane] + FN[i, lane])
+                        a = est / (atol[i] + max(abs(Y[i, lane]), abs(yn)) * rtol)
+                        if not abs(a) <= worst:
+                            worst = abs(a)
+                            limiting = i
+                    ri[RI_PENDING, lane] = 1
+                    ri[RI_LIMIT, lane] = limiting
+                ri[RI_SINCE, lane] = 0
+                ri[RI_IT, lane] = -1
+                ri[RI_PC, lane] = PC_RHO
+                continue
+            if keep != KEEP_FINAL:
+                ys = out_y[b] if keep == KEEP_TRAJECTORIES else scratch[lane]
+                m = i_out[lane]
+                while m < T and t_eval[m] <= t_new:
+                    x = (t_eval[m] - tl) / h
+                    x2 = x * x
+                    x3 = x2 * x
+                    h00 = 2.0 * x3 - 3.0 * x2 + 1.0
+                    h10 = x3 - 2.0 * x2 + x
+                    h01 = 3.0 * x2 - 2.0 * x3
+                    h11 = x3 - x2
+                    for i in range(n):
+                        ys[m, i] = (
+                            h00 * Y[i, lane] + h10 * h * K[0, i, lane] + h01 * Yold[i, lane]
+                            + h11 * h * FN[i, lane]
+                        )  # fmt: skip
+                    m += 1
+                i_out[lane] = m
+            for i in range(n):
+                Y[i, lane] = Yold[i, lane]
+                K[0, i, lane] = FN[i, lane]
+            t[lane] = t_new
+            factor = 10.0 if err == 0.0 else min(10.0, max(0.1, 0.8 * err ** (-1.0 / 3.0)))
+            h_abs[lane] = h * factor
+            if t_new - t_bound >= 0.0:
+                finished[lane] = True
+                ri[RI_PC, lane] = PC_IDLE
+            else:
+                ri[RI_BACK, lane] = 1
+                ri[RI_SINCE, lane] += 1
+                if ri[RI_SINCE, lane] == RKC_RHO_EVERY:
+                    ri[RI_SINCE, lane] = 0
+                    ri[RI_IT, lane] = -1
+                    ri[RI_PC, lane] = PC_RHO
+                else:
+                    ri[RI_PC, lane] = PC_DECIDE
+    # The stages' recurrence (rkc_step's expression), every lane side by side: a lane not
+    # at a stage computes with stale coefficients into rows it no longer reads (its end
+    # was taken above; a new step sets both rows afresh). The 8 lanes written out (as
+    # combine_lanes's), so that LLVM runs them a vector at a time.
+    if stages:
+        cc1 = c[1]
+        cc2 = c[2]
+        cc3 = c[3]
+        cc4 = c[4]
+        cc5 = c[5]
+        cc6 = c[6]
+        a0, b0, d0, e0, g0, m0 = cc1[0], cc2[0], cc3[0], cc4[0], cc5[0], cc6[0]
+        a1, b1, d1, e1, g1, m1 = cc1[1], cc2[1], cc3[1], cc4[1], cc5[1], cc6[1]
+        a2, b2, d2, e2, g2, m2 = cc1[2], cc2[2], cc3[2], cc4[2], cc5[2], cc6[2]
+        a3, b3, d3, e3, g3, m3 = cc1[3], cc2[3], cc3[3], cc4[3], cc5[3], cc6[3]
+        a4, b4, d4, e4, g4, m4 = cc1[4], cc2[4], cc3[4], cc4[4], cc5[4], cc6[4]
+        a5, b5, d5, e5, g5, m5 = cc1[5], cc2[5], cc3[5], cc4[5], cc5[5], cc6[5]
+        a6, b6, d6, e6, g6, m6 = cc1[6], cc2[6], cc3[6], cc4[6], cc5[6], cc6[6]
+        a7, b7, d7, e7, g7, m7 = cc1[7], cc2[7], cc3[7], cc4[7], cc5[7], cc6[7]
+        for i in range(n):
+            r = out + i * L
+            y, yo, yy, k0 = Y[i], Yold[i], Yolder[i], K[0, i]
+            v0 = a0 * y[0] + b0 * yo[0] + d0 * yy[0] + e0 * (g0 * wf[r + 0] + m0 * k0[0])
+            v1 = a1 * y[1] + b1 * yo[1] + d1 * yy[1] + e1 * (g1 * wf[r + 1] + m1 * k0[1])
+            v2 = a2 * y[2] + b2 * yo[2] + d2 * yy[2] + e2 * (g2 * wf[r + 2] + m2 * k0[2])
+            v3 = a3 * y[3] + b3 * yo[3] + d3 * yy[3] + e3 * (g3 * wf[r + 3] + m3 * k0[3])
+            v4 = a4 * y[4] + b4 * yo[4] + d4 * yy[4] + e4 * (g4 * wf[r + 4] + m4 * k0[4])
+            v5 = a5 * y[5] + b5 * yo[5] + d5 * yy[5] + e5 * (g5 * wf[r + 5] + m5 * k0[5])
+            v6 = a6 * y[6] + b6 * yo[6] + d6 * yy[6] + e6 * (g6 * wf[r + 6] + m6 * k0[6])
+            v7 = a7 * y[7] + b7 * yo[7] + d7 * yy[7] + e7 * (g7 * wf[r + 7] + m7 * k0[7])
+            yy[0] = yo[0]
+            yy[1] = yo[1]
+            yy[2] = yo[2]
+            yy[3] = yo[3]
+            yy[4] = yo[4]
+            yy[5] = yo[5]
+            yy[6] = yo[6]
+            yy[7] = yo[7]
+            yo[0] = v0
+            yo[1] = v1
+            yo[2] = v2
+            yo[3] = v3
+            yo[4] = v4
+            yo[5] = v5
+            yo[6] = v6
+            yo[7] = v7
+
+
+@jit
+def accept_lanes(dop853, n_stages, exponent, lane_b, dop_lane, accepted, rejected, evals,
+                 attempts, h, h_abs, e5s, e3s, ERR, Ynew, K, limiting, dense, i_out, t_eval,
+                 t_next):  # fmt: skip
+    """Each DOP853 (or RK45) lane's step from its error norm: accepted, or rejected.
+
+    SciPy's rules (a smaller step after a rejection). Returns whether some accepted lane
+    has outputs in its step.
+    """
+    n = Ynew.shape[0]
+    L = LANE_COUNT
+    T = t_eval.shape[0]
+    any_dense = False
+    for lane in range(L):
+        accepted[lane] = False
+        b = lane_b[lane]
+        if b < 0 or not dop_lane[lane]:
+            continue
+        evals[lane] += n_stages
+        attempts[lane] += 1
+        hl = h[lane]
+        e5 = e5s[lane]
+        e3 = e3s[lane]
+        if dop853:
+            if e5 == 0.0 and e3 == 0.0:
+                error_norm = 0.0
+            else:
+                error_norm = abs(hl) * e5 / math.sqrt((e5 + 0.01 * e3) * n)
+        else:
+            error_norm = math.sqrt(e5 / n)
+        k = -1
+        for i in range(n):
+            if not (math.isfinite(Ynew[i, lane]) and math.isfinite(K[n_stages, i, lane])):
+                k = i
+                break
+        if k >= 0 or not math.isfinite(error_norm):
+            if k < 0:
+                for s in range(n_stages):
+                    for i in range(n):
+                        if not math.isfinite(K[s, i, lane]):
+                            k = i
+                            break
+                    if k >= 0:
+                        break
+            limiting[lane] = max(k, 0)
+            h_abs[lane] *= MIN_FACTOR
+            rejected[lane] = True
+            continue
+        worst = 0.0
+        for i in range(n):
+            if abs(ERR[i, lane]) > worst:
+                worst = abs(ERR[i, lane])
+                limiting[lane] = i
+        if error_norm < 1.0:
+            if error_norm == 0.0:
+                factor = MAX_FACTOR
+            else:
+                factor = min(MAX_FACTOR, SAFETY * error_norm**exponent)
+            if rejected[lane]:
+                factor = min(1.0, factor)
+            h_abs[lane] *= factor
+            accepted[lane] = True
+            rejected[lane] = False
+            if dense and i_out[lane] < T and t_eval[i_out[lane]] <= t_next[lane]:
+                any_dense = True
+        else:
+            h_abs[lane] *= max(MIN_FACTOR, SAFETY * error_norm**exponent)
+            rejected[lane] = True
+    return any_dense
+
+
+@jit
+def no_rkc_prepare(lane_b, mode, finished, ri, rf, Y, K, V, Z, Yold, Yolder, cheb, t, h_abs,
+                   attempts, evals, info, t_reached, t_eval, max_step, max_steps, wf, asks):  # fmt: skip
+    """``run_lanes``'s stand-in for rkc_prepare: no lane is ever in RKC's tail there."""
+    return False
+
+
+@jit
+def no_rkc_consume(lane_b, mode, finished, ri, rf, Y, K, V, Z, Yold, Yolder, FN, cheb, t,
+                   h_abs, evals, attempts, i_out, t_eval, atol, rtol, keep, out_y, scratch, wf,
+                   asks, c):  # fmt: skip
+    """``run_lanes``'s stand-in for rkc_consume (never called)."""
+    return
+
+
 @jit
 def efforts_lanes(ys, rows, c, taus, gw, P, phys):
     """PD plus G(q) at the first ``rows`` states ys (…, n) into taus, LANE_COUNT at a time.
@@ -402,7 +845,7 @@ def efforts_lanes(ys, rows, c, taus, gw, P, phys):
 
 
 @jit
-def run_lanes(
+def run_lanes_rkc(
     method, Y0, t_eval, atol, rtol, max_step, max_steps, C, keep, band,
     out_y, out_tau, metrics, info, t_reached, first, stop, P, phys,
 ):  # fmt: skip
@@ -419,7 +862,8 @@ def run_lanes(
     T = t_eval.shape[0]
     t0 = t_eval[0]
     t_bound = t_eval[T - 1]
-    dop853 = method == METHOD_DOP853
+    handover = method == METHOD_DOP853_RKC
+    dop853 = method == METHOD_DOP853 or handover
     if dop853:
         n_stages, exponent, order, A = D8_NS, -1.0 / 8.0, 7.0, D8_A
     else:
@@ -461,6 +905,23 @@ def run_lanes(
     work = (wf, CL, P, fold, okay)
     rt = np.zeros(1)
     rv = np.zeros((1, 1))
+    # DOP853-RKC: each lane's mode (0 DOP853, 1 in RKC's tail, 2 handed back: DOP853
+    # from the next round) and its RKC state (rkc_prepare's and rkc_consume's).
+    mode = np.zeros(L, dtype=np.int64)
+    streak = np.zeros(L, dtype=np.int64)
+    dop_lane = np.zeros(L, dtype=np.bool_)
+    finished = np.zeros(L, dtype=np.bool_)
+    ri = np.zeros((RI_ROWS, L), dtype=np.int64)
+    rf = np.zeros((RF_ROWS, L))
+    V = np.zeros((n, L))
+    Z = np.zeros((n, L))
+    Yold = np.zeros((n, L))
+    Yolder = np.zeros((n, L))
+    FN = np.zeros((n, L))
+    Ys11 = np.zeros((n, L))
+    cheb = np.zeros((L, 4, RKC_MAX_STAGES + 1 if handover else 1))
+    asks = np.zeros(L, dtype=np.int64)
+    cw = np.zeros((9, L))
     next_b = first
     live = 0
     for lane in range(L):
@@ -497,6 +958,8 @@ def run_lanes(
                     continue
                 lane_b[lane] = b
                 live += 1
+                mode[lane] = 0
+                streak[lane] = 0
                 for i in range(n):
                     K[0, i, lane] = F0[0, i, lane]
                 t[lane] = t0
@@ -509,10 +972,16 @@ def run_lanes(
         if live == 0:
             return
         # Each lane's step: SciPy's bounds, then the stages of every lane at once.
+        any_dop = False
         for lane in range(L):
             h[lane] = 0.0
+            dop_lane[lane] = False
+            accepted[lane] = False  # (accept_lanes's, where it runs this round)
+            if mode[lane] == 2:  # handed back by RKC: DOP853 from this round
+                mode[lane] = 0
+                streak[lane] = 0
             b = lane_b[lane]
-            if b < 0:
+            if b < 0 or mode[lane] != 0:
                 continue
             tl = t[lane]
             min_step = 10.0 * abs(np.nextafter(tl, np.inf) - tl)
@@ -538,72 +1007,69 @@ def run_lanes(
             h[lane] = t_new - tl
             h_abs[lane] = abs(h[lane])
             t_next[lane] = t_new
-        for s in range(1, n_stages + 1):
-            stage_lanes(phys, Y, K, A, s, h, wf, CL, P, fold, okay)
-        for i in range(n):  # the last stage's state
-            for lane in range(L):
-                Ynew[i, lane] = wf[i * L + lane]
-        # Each lane's error norm: accepted, or rejected with a smaller step.
-        error_lanes(dop853, n_stages, K, Y, Ynew, h, atol, rtol, ERR, e5s, e3s, acc3)
+            any_dop = True
+            dop_lane[lane] = True
         any_dense = False
-        for lane in range(L):
-            accepted[lane] = False
-            b = lane_b[lane]
-            if b < 0:
-                continue
-            evals[lane] += n_stages
-            attempts[lane] += 1
-            hl = h[lane]
-            e5 = e5s[lane]
-            e3 = e3s[lane]
-            if dop853:
-                if e5 == 0.0 and e3 == 0.0:
-                    error_norm = 0.0
-                else:
-                    error_norm = abs(hl) * e5 / math.sqrt((e5 + 0.01 * e3) * n)
-            else:
-                error_norm = math.sqrt(e5 / n)
-            k = -1
-            for i in range(n):
-                if not (math.isfinite(Ynew[i, lane]) and math.isfinite(K[n_stages, i, lane])):
-                    k = i
-                    break
-            if k >= 0 or not math.isfinite(error_norm):
-                if k < 0:
-                    for s in range(n_stages):
+        if handover:
+            # One loop of evaluations: DOP853's stages 1 … 12 (then its error and its
+            # lanes' acceptance, then the dense output's stages 13 … 15 where due), the
+            # lanes in RKC's tail a step of theirs at each; with no lane in DOP853, up to
+            # 16 of RKC's alone.
+            last = n_stages if any_dop else 0
+            s = 1
+            while True:
+                dop_stage = s <= last
+                if dop_stage:
+                    combine_lanes(Y, K, D8_A, s, h, wf)
+                    if s == n_stages - 1:  # stage 11's state: the stiffness test's
                         for i in range(n):
-                            if not math.isfinite(K[s, i, lane]):
-                                k = i
-                                break
-                        if k >= 0:
-                            break
-                limiting[lane] = max(k, 0)
-                h_abs[lane] *= MIN_FACTOR
-                rejected[lane] = True
-                continue
-            worst = 0.0
-            for i in range(n):
-                if abs(ERR[i, lane]) > worst:
-                    worst = abs(ERR[i, lane])
-                    limiting[lane] = i
-            if error_norm < 1.0:
-                if error_norm == 0.0:
-                    factor = MAX_FACTOR
-                else:
-                    factor = min(MAX_FACTOR, SAFETY * error_norm**exponent)
-                if rejected[lane]:
-                    factor = min(1.0, factor)
-                h_abs[lane] *= factor
-                accepted[lane] = True
-                rejected[lane] = False
-                if dense and i_out[lane] < T and t_eval[i_out[lane]] <= t_next[lane]:
-                    any_dense = True
-            else:
-                h_abs[lane] *= max(MIN_FACTOR, SAFETY * error_norm**exponent)
-                rejected[lane] = True
-        if any_dense and dop853:
-            for s in range(n_stages + 1, 16):
-                stage_lanes(phys, Y, K, D8_A, s, h, wf, CL, P, fold, okay)
+                            for lane in range(L):
+                                Ys11[i, lane] = wf[i * L + lane]
+                wanted = rkc_prepare(lane_b, mode, finished, ri, rf, Y, K, V, Z, Yold, Yolder,
+                                     cheb, t, h_abs, attempts, evals, info, t_reached, t_eval,
+                                     max_step, max_steps, wf, asks)  # fmt: skip
+                if (any_dop and not dop_stage) or (not any_dop and (not wanted or s > 16)):
+                    break
+                eval_lanes(phys, n, wf, CL, P, fold, okay)
+                if dop_stage:
+                    out = FREE_LANES_OUT * L
+                    for i in range(n):
+                        for lane in range(L):
+                            K[s, i, lane] = wf[out + i * L + lane]
+                if wanted:
+                    rkc_consume(lane_b, mode, finished, ri, rf, Y, K, V, Z, Yold, Yolder, FN,
+                                cheb, t, h_abs, evals, attempts, i_out, t_eval, atol, rtol, keep,
+                                out_y, scratch, wf, asks, cw)  # fmt: skip
+                if dop_stage and s == n_stages:
+                    for i in range(n):  # the last stage's state
+                        for lane in range(L):
+                            Ynew[i, lane] = wf[i * L + lane]
+                    error_lanes(dop853, n_stages, K, Y, Ynew, h, atol, rtol, ERR, e5s, e3s, acc3)
+                    any_dense = accept_lanes(
+                        dop853, n_stages, exponent, lane_b, dop_lane, accepted, rejected, evals,
+                        attempts, h, h_abs, e5s, e3s, ERR, Ynew, K, limiting, dense, i_out,
+                        t_eval, t_next,
+                    )  # fmt: skip
+                    if any_dense:
+                        last = 15
+                s += 1
+        else:
+            if any_dop:
+                for s in range(1, n_stages + 1):
+                    stage_lanes(phys, Y, K, A, s, h, wf, CL, P, fold, okay)
+                for i in range(n):  # the last stage's state
+                    for lane in range(L):
+                        Ynew[i, lane] = wf[i * L + lane]
+                # Each lane's error norm: accepted, or rejected with a smaller step.
+                error_lanes(dop853, n_stages, K, Y, Ynew, h, atol, rtol, ERR, e5s, e3s, acc3)
+            any_dense = accept_lanes(
+                dop853, n_stages, exponent, lane_b, dop_lane, accepted, rejected, evals,
+                attempts, h, h_abs, e5s, e3s, ERR, Ynew, K, limiting, dense, i_out, t_eval,
+                t_next,
+            )  # fmt: skip
+            if any_dense and dop853:
+                for s in range(n_stages + 1, 16):
+                    stage_lanes(phys, Y, K, D8_A, s, h, wf, CL, P, fold, okay)
         if any_dense:
             dense_lanes(dop853, n_stages, K, Y, Ynew, h, FL)
         # Accepted lanes: dense output, then their new state; a finished one lets go.
@@ -614,6 +1080,16 @@ def run_lanes(
             tl = t[lane]
             hl = h[lane]
             t_new = t_next[lane]
+            if handover:  # DOP853's stiffness test (adaptive's, the same sums)
+                num = 0.0
+                den = 0.0
+                for i in range(n):
+                    a = K[n_stages, i, lane] - K[n_stages - 1, i, lane]
+                    d = Ynew[i, lane] - Ys11[i, lane]
+                    num += a * a
+                    den += d * d
+                stiff = den > 0.0 and hl * hl * num > STIFF_H_RHO * STIFF_H_RHO * den
+                streak[lane] = streak[lane] + 1 if stiff else 0
             if dense and i_out[lane] < T and t_eval[i_out[lane]] <= t_new:
                 ys = out_y[b] if keep == KEEP_TRAJECTORIES else scratch[lane]
                 if dop853:
@@ -656,8 +1132,26 @@ def run_lanes(
                 Y[i, lane] = Ynew[i, lane]
                 K[0, i, lane] = K[n_stages, i, lane]
             t[lane] = t_new
-            if t_new - t_bound < 0.0:
+            if t_new - t_bound >= 0.0:
+                finished[lane] = True
+            elif handover and streak[lane] >= N_STIFF:  # to RKC (rkc_tail's start)
+                mode[lane] = 1
+                streak[lane] = 0
+                ri[RI_PC, lane] = PC_RHO
+                ri[RI_IT, lane] = -1
+                ri[RI_SINCE, lane] = ri[RI_BACK, lane] = ri[RI_PENDING, lane] = 0
+                for i in range(n):
+                    V[i, lane] = 1.0
+        if handover:  # lanes RKC let go (failed) leave the count
+            live = 0
+            for lane in range(L):
+                live += lane_b[lane] >= 0
+        for lane in range(L):
+            if not finished[lane]:
                 continue
+            finished[lane] = False
+            b = lane_b[lane]
+            t_new = t[lane]
             # The variant is done: its efforts (and metrics) at the samples kept.
             if keep == KEEP_FINAL:
                 ys = out_y[b]

@@ -144,7 +144,7 @@ class RobotCode:
         jac = self._source.partition("def closed_loop_jac(")[2].partition("\n\n\n")[0]
         bdf = name.startswith("run_bdf") and "_num" not in name
         flops = self.flops + (0.6 * jac.count("\n") if bdf else 0)  # + its Jacobian's
-        estimate = _estimate(flops) * (1.1 if name == "run_lanes" else 1.0)
+        estimate = _estimate(flops) * (1.1 if name.startswith("run_lanes") else 1.0)
         if self._path is None:
             note(f"compiling {self.name}'s {what} (~{estimate:.0f} s, not kept on disk)")
             dispatcher.compile(sig)
@@ -492,7 +492,7 @@ def module_source(model: pin.Model) -> tuple[str, int]:
                 (fwd_free, "free_lanes", True),
             ],
         ),  # fmt: skip
-        _LANES.read_text(encoding="utf-8").partition(_LANES_MARK)[2],
+        robot_entries.lanes(_LANES.read_text(encoding="utf-8").partition(_LANES_MARK)[2]),
         adams + robot_entries.copies(adams, robot_entries.PD_COPIES_ADAMS),
         bdf
         + robot_entries.copies(bdf, robot_entries.PD_COPIES_BDF)

@@ -8,6 +8,7 @@ compiled on first use with one signature:
   stub stands for them: its first use compiles ~12 % less; Adams's and BDF's entries
   leave them out too);
 * ``run_lanes``: a batch of PD-plus-gravity variants side by side (RK45, DOP853);
+  ``run_lanes_rkc`` the same with DOP853-RKC (its tail's code compiled there alone);
 * ``run_adams``, ``run_bdf``: Adams's method and SciPy's BDF (:data:`OWN_ENTRY`);
 * ``run_many_pd``, ``run_adams_pd``, ``run_bdf_pd``: the same under PD plus gravity alone,
   the most common law: copies of the template's functions whose law-dispatching calls
@@ -29,11 +30,13 @@ from typing import Any
 from rrt_pin.simulate import codes
 
 __all__ = [
+    "LANE_METHODS",
     "OWN_ENTRY",
     "PD_COPIES",
     "PD_COPIES_RKC",
     "SIGNATURES",
     "entry",
+    "lanes",
     "law_bound",
     "pd_entries",
     "pd_only",
@@ -44,7 +47,7 @@ __all__ = [
 OWN_ENTRY = {codes.METHOD_ADAMS: "run_adams", codes.METHOD_BDF: "run_bdf"}
 
 #: The methods a batch runs in lanes (the others' variants one after the other).
-LANE_METHODS = (codes.METHOD_RK45, codes.METHOD_DOP853)
+LANE_METHODS = (codes.METHOD_RK45, codes.METHOD_DOP853, codes.METHOD_DOP853_RKC)
 #: The template's functions copied as ``<name>_pd`` with these calls renamed: bound to PD
 #: plus gravity (the lanes' one law, and single runs under it). In order: a copy may call
 #: an earlier one.
@@ -100,6 +103,16 @@ def law_bound(text: str, name: str, calls: dict[str, str], renamed: str = "") ->
     return "\n\n" + out.rstrip() + "\n"
 
 
+def lanes(text: str) -> str:
+    """The lanes' part with both its entries: ``run_lanes_rkc`` and ``run_lanes``.
+
+    ``run_lanes`` is its copy with RKC's tail bound to stubs, so that a DOP853 or RK45
+    batch compiles none of it.
+    """
+    calls = {"rkc_prepare": "no_rkc_prepare", "rkc_consume": "no_rkc_consume"}
+    return text + law_bound(text, "run_lanes_rkc", calls, "run_lanes")
+
+
 def copies(text: str, table: tuple[tuple[Any, ...], ...]) -> str:
     """The copies of ``table``'s functions of ``text``: (name, calls[, renamed]) each."""
     return "".join(law_bound(text, *row) for row in table)
@@ -125,7 +138,7 @@ def entry(method: int, count: int, pd: bool, numeric: bool = False) -> str:
         return name + ("_pd" if pd else "")
     if method < codes.FIXED_STEP_FROM:
         if pd and count >= 2 and method in LANE_METHODS:
-            return "run_lanes"
+            return "run_lanes_rkc" if method == codes.METHOD_DOP853_RKC else "run_lanes"
         return "run_adaptive_pd" if pd else "run_adaptive"
     return "run_many_pd" if pd else "run_many"
 
@@ -173,6 +186,7 @@ def _lanes_signature(numba: Any) -> Any:
 #: Each entry's one signature (numba's types, given the numba module).
 SIGNATURES = {
     "run_lanes": _lanes_signature,
+    "run_lanes_rkc": _lanes_signature,
     **{
         name + suffix: _many_signature
         for name in ("run_many", "run_adaptive", "run_adams", "run_bdf", "run_bdf_num")

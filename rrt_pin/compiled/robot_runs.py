@@ -215,7 +215,8 @@ def _run(
     stated = physical_model(robot)  # what the metrics measure against, applied or not
     laws, C, (rt, rv) = law_arrays or _laws(robot, controllers)
     count, n = Y0.shape[0], Y0.shape[1]
-    lanes = _entry(count, options, laws, physical) == "run_lanes"
+    entry = _entry(count, options, laws, physical)
+    lanes = entry.startswith("run_lanes")
     room = _room(robot, physical) if lanes and phys[0] else np.full(nv, -np.inf)
     P = np.ascontiguousarray(np.vstack([P, stated.lower, stated.upper, stated.effort, room]))
     keep_code = _KEEP[keep]
@@ -233,7 +234,7 @@ def _run(
         method = codes.METHOD_BDF_NUMERIC  # SciPy's num_jac whatever the law
     if lanes:
         # side by side in vector lanes: the same steps, each variant its own
-        lanes = code.run_lanes
+        lanes = code.entry(entry)
         args = (
             method, Y0, t, atol, rtol, math.inf, max_steps, C, keep_code, band,
             out_y, out_tau, metrics, info, reached,
