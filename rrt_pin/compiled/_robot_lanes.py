@@ -512,7 +512,8 @@ def rkc_prepare(lane_b, mode, finished, ri, rf, Y, K, V, Z, Yold, Yolder, cheb, 
 
 @jit_inline
 def rkc_consume(lane_b, mode, finished, ri, rf, Y, K, V, Z, Yold, Yolder, FN, cheb, t, h_abs,
-                evals, attempts, i_out, t_eval, atol, rtol, keep, out_y, scratch, wf, asks, c):  # fmt: skip
+                evals, attempts, i_out, t_eval, atol, rtol, keep, out_y, scratch, wf, asks, c,
+                G):  # fmt: skip
     """Each lane that asked ẏ of ``rkc_prepare`` takes it from wf's rows (FREE_LANES_OUT …).
 
     A step of ρ's power iteration (``rkc_rho``'s), of a stage (``rkc_step``'s
@@ -520,7 +521,7 @@ def rkc_consume(lane_b, mode, finished, ri, rf, Y, K, V, Z, Yold, Yolder, FN, ch
     outputs, the new state, the next step; a new ρ every RKC_RHO_EVERY steps; the
     hand-back test at the next decision), as ``rkc_tail``'s. The sums over the
     coordinates run lane by lane side by side, each lane's in rkc_tail's order.
-    ``c`` (9, L): scratch.
+    ``c`` (9, L), ``G`` (4, n): scratch.
     """
     n = Y.shape[0]
     L = LANE_COUNT
@@ -641,22 +642,24 @@ def rkc_consume(lane_b, mode, finished, ri, rf, Y, K, V, Z, Yold, Yolder, FN, ch
                 ri[RI_IT, lane] = -1
                 ri[RI_PC, lane] = PC_RHO
                 continue
-            if keep != KEEP_FINAL:
+            m = i_out[lane]
+            if keep != KEEP_FINAL and m < T and t_eval[m] <= t_new:
                 ys = out_y[b] if keep == KEEP_TRAJECTORIES else scratch[lane]
-                m = i_out[lane]
+                for i in range(n):  # the lane's columns, contiguous for the outputs' loop
+                    G[0, i] = Y[i, lane]
+                    G[1, i] = K[0, i, lane]
+                    G[2, i] = Yold[i, lane]
+                    G[3, i] = FN[i, lane]
                 while m < T and t_eval[m] <= t_new:
                     x = (t_eval[m] - tl) / h
                     x2 = x * x
                     x3 = x2 * x
                     h00 = 2.0 * x3 - 3.0 * x2 + 1.0
-                    h10 = x3 - 2.0 * x2 + x
+                    c10 = (x3 - 2.0 * x2 + x) * h
                     h01 = 3.0 * x2 - 2.0 * x3
-                    h11 = x3 - x2
-                    for i in range(n):
-                        ys[m, i] = (
-                            h00 * Y[i, lane] + h10 * h * K[0, i, lane] + h01 * Yold[i, lane]
-                            + h11 * h * FN[i, lane]
-                        )  # fmt: skip
+                    c11 = (x3 - x2) * h
+                    for i in range(n):  # rkc_tail's h00·y + h10·h·f + h01·y₁ + h11·h·f₁
+                        ys[m, i] = h00 * G[0, i] + c10 * G[1, i] + h01 * G[2, i] + c11 * G[3, i]
                     m += 1
                 i_out[lane] = m
             for i in range(n):
@@ -806,7 +809,7 @@ def no_rkc_prepare(lane_b, mode, finished, ri, rf, Y, K, V, Z, Yold, Yolder, che
 @jit
 def no_rkc_consume(lane_b, mode, finished, ri, rf, Y, K, V, Z, Yold, Yolder, FN, cheb, t,
                    h_abs, evals, attempts, i_out, t_eval, atol, rtol, keep, out_y, scratch, wf,
-                   asks, c):  # fmt: skip
+                   asks, c, G):  # fmt: skip
     """``run_lanes``'s stand-in for rkc_consume (never called)."""
     return
 
@@ -887,7 +890,7 @@ def run_lanes_rkc(
     scratch = np.empty((L, T if keep == KEEP_METRICS else 1, n))
     taus = np.empty((T if keep == KEEP_METRICS else 1, nv))
     ws = (np.empty(nv), np.empty(3 * nv), np.empty((nv, nv)), P, phys)
-    F = np.empty((7, n))
+    F = np.empty((8, n))
     FL = np.zeros((7, n, L))
     wf = np.zeros(PHYS_ROWS * L)
     fold = np.zeros(L, dtype=np.bool_)
@@ -922,6 +925,7 @@ def run_lanes_rkc(
     cheb = np.zeros((L, 4, RKC_MAX_STAGES + 1 if handover else 1))
     asks = np.zeros(L, dtype=np.int64)
     cw = np.zeros((9, L))
+    G = np.zeros((4, n))
     next_b = first
     live = 0
     for lane in range(L):
@@ -1039,7 +1043,7 @@ def run_lanes_rkc(
                 if wanted:
                     rkc_consume(lane_b, mode, finished, ri, rf, Y, K, V, Z, Yold, Yolder, FN,
                                 cheb, t, h_abs, evals, attempts, i_out, t_eval, atol, rtol, keep,
-                                out_y, scratch, wf, asks, cw)  # fmt: skip
+                                out_y, scratch, wf, asks, cw, G)  # fmt: skip
                 if dop_stage and s == n_stages:
                     for i in range(n):  # the last stage's state
                         for lane in range(L):
@@ -1097,6 +1101,8 @@ def run_lanes_rkc(
                 for r in range(7):
                     for i in range(n):
                         F[r, i] = FL[r, i, lane]
+                for i in range(n):  # the lane's state, contiguous for the outputs' loop
+                    F[7, i] = Y[i, lane]
                 end = samples_until(t_eval, i_out[lane], t_new)
                 for j in range(i_out[lane], end):
                     x = (t_eval[j] - tl) / hl
@@ -1117,7 +1123,7 @@ def run_lanes_rkc(
                                 )
                                 * w
                                 + F[0, i]
-                            ) * x + Y[i, lane]
+                            ) * x + F[7, i]
                     else:
                         x2 = x * x
                         x3 = x2 * x
@@ -1125,7 +1131,7 @@ def run_lanes_rkc(
                         for i in range(n):
                             ys[j, i] = (
                                 hl * (F[0, i] * x + F[1, i] * x2 + F[2, i] * x3 + F[3, i] * x4)
-                                + Y[i, lane]
+                                + F[7, i]
                             )
                 i_out[lane] = end
             for i in range(n):

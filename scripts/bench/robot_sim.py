@@ -22,13 +22,16 @@ with ``pin.aba`` at the same tolerance). Each side then runs at the loosest rtol
                   Adams, outputs interpolated);
 * bdf             the same with ``method="BDF"`` (SciPy's BDF step for step, the loop's
                   generated Jacobian: implicit, for the stiff tail of the scene);
+* dop853-rkc      the same with ``method="DOP853-RKC"`` (DOP853 handing over to
+                  Runge–Kutta–Chebyshev in the stiff tail);
 * pinocchio       the same on rrt-pin's Pinocchio backend (odepack, its default method);
 * scipy loop      a hand-written ``solve_ivp(DOP853)`` over ``pin.aba`` and
                   ``pin.computeGeneralizedGravity`` (what a user writes without rrt-pin);
 * batch final     ``simulate_batch(..., keep="final", threads=1)`` of --batch variants (q0
                   spread by ±0.05 rad) at the rtol meeting a tenth of the accuracy, as
                   simulations a second on one core;
-* batch metrics   the same with ``keep="metrics"``.
+* batch metrics   the same with ``keep="metrics"``;
+* the two batches again with DOP853-RKC (at its own loosest rtol meeting the same).
 
     .venv/bin/python -m scripts.bench.robot_sim [--robots ur5,panda] [--repeat 5] [--batch 200]
 """
@@ -116,11 +119,13 @@ def bench(name: str, args: argparse.Namespace, t: np.ndarray) -> None:
         "compiled": lambda r: run(robot, law, q0, t, "compiled", r, "DOP853").q,
         "adams": lambda r: run(robot, law, q0, t, "compiled", r, "adams").q,
         "bdf": lambda r: run(robot, law, q0, t, "compiled", r, "BDF").q,
+        "dop853-rkc": lambda r: run(robot, law, q0, t, "compiled", r, "DOP853-RKC").q,
         "pinocchio": lambda r: run(robot, law, q0, t, "pinocchio", r).q,
         "scipy loop": lambda r: scipy_loop(robot, law, q0, t, r),
     }
     chosen = {}
-    evals = {"compiled": "DOP853", "adams": "adams", "bdf": "BDF", "pinocchio": None}
+    evals = {"compiled": "DOP853", "adams": "adams", "bdf": "BDF", "dop853-rkc": "DOP853-RKC",
+             "pinocchio": None}  # fmt: skip
     for side, f in sides.items():
         rtol, err = loosest(f, reference, args.accuracy)
         chosen[side] = rtol
@@ -135,25 +140,29 @@ def bench(name: str, args: argparse.Namespace, t: np.ndarray) -> None:
     q0s = q0 + rng.uniform(-0.05, 0.05, (B, robot.nv))
     batch_accuracy = args.accuracy / 10
     final = {}
-    for keep, rows in (("final", slice(-1, None)), ("metrics", slice(None))):
-        r, err = loosest(
-            lambda r, rows=rows: sides["compiled"](r)[rows], reference[rows], batch_accuracy
-        )
-        final[keep] = r
-        print(f"  batch {keep:<7}rtol {r:.0e}: max |q error| {err:.1e} "
-              f"({'the final state' if keep == 'final' else 'every output time'}, "
-              f"target {batch_accuracy:.0e})")  # fmt: skip
+    for side, method in (("compiled", "DOP853"), ("dop853-rkc", "DOP853-RKC")):
+        for keep, rows in (("final", slice(-1, None)), ("metrics", slice(None))):
+            r, err = loosest(
+                lambda r, rows=rows, side=side: sides[side](r)[rows], reference[rows],
+                batch_accuracy,
+            )  # fmt: skip
+            final[keep, method] = r
+            print(f"  batch {keep:<8}{method:<11} rtol {r:.0e}: max |q error| {err:.1e} "
+                  f"({'the final state' if keep == 'final' else 'every output time'}, "
+                  f"target {batch_accuracy:.0e})")  # fmt: skip
 
-    def batch(keep):
-        r = final[keep]
+    def batch(keep, method="DOP853"):
+        r = final[keep, method]
         return lambda: rrt_pin.simulate_batch(
-            robot, law, q0s, None, t, backend="compiled", keep=keep, threads=1,
+            robot, law, q0s, None, t, backend="compiled", keep=keep, threads=1, method=method,
             rtol=r, atol=r / 100, estimate_error=False, **PHYSICS,
         )  # fmt: skip
 
     timed = {s: (lambda s=s: sides[s](chosen[s])) for s in sides}
     timed["batch final"] = batch("final")
     timed["batch metrics"] = batch("metrics")
+    timed["batch final rkc"] = batch("final", "DOP853-RKC")
+    timed["batch metrics rkc"] = batch("metrics", "DOP853-RKC")
     start = time.perf_counter()
     med = interleaved(
         timed, args.repeat, inner=3
@@ -161,18 +170,22 @@ def bench(name: str, args: argparse.Namespace, t: np.ndarray) -> None:
     for side in sides:
         print(f"  {side:<12} {med[side] * 1e3:9.2f} ms")
     for keep in ("final", "metrics"):
-        rate = B / med[f"batch {keep}"]
-        print(f"  batch {keep:<7} {rate:9.0f} simulations/s on one core ({B} variants)")
-    for single in ("compiled", "adams", "bdf"):
+        for suffix, method in (("", "DOP853"), (" rkc", "DOP853-RKC")):
+            rate = B / med[f"batch {keep}{suffix}"]
+            print(f"  batch {keep:<7} {method:<11} {rate:9.0f} simulations/s on one core "
+                  f"({B} variants)")  # fmt: skip
+    for single in ("compiled", "adams", "bdf", "dop853-rkc"):
         fast = med[single]
         r_pin, r_scipy = med["pinocchio"] / fast, med["scipy loop"] / fast
         print(f"  {single}: {r_pin:.1f}x rrt-pin's Pinocchio backend (target 25x: "
               f"{verdict(r_pin >= 25)}), {r_scipy:.1f}x the SciPy loop (target 100x: "
               f"{verdict(r_scipy >= 100)})")  # fmt: skip
     target = 3000 if name == "ur5" else 1500
-    rate = min(B / med["batch metrics"], B / med["batch final"])
-    print(f"  batch {rate:.0f}/s/core (target {target}: {verdict(rate >= target)}); "
-          f"timed in {time.perf_counter() - start:.0f} s")  # fmt: skip
+    for suffix, method in (("", "DOP853"), (" rkc", "DOP853-RKC")):
+        rate = min(B / med[f"batch metrics{suffix}"], B / med[f"batch final{suffix}"])
+        print(f"  batch {method}: {rate:.0f}/s/core, the slower of final and metrics "
+              f"(target {target}: {verdict(rate >= target)})")  # fmt: skip
+    print(f"  timed in {time.perf_counter() - start:.0f} s")
 
 
 def main(argv: list[str] | None = None) -> int:
