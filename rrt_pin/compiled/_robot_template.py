@@ -731,9 +731,9 @@ def metrics_of(t_eval, ys, taus, qf, band, row, law, c, rt, rv, ws):
     depth = 5 * nv + 1
     saturated = 6 * nv + 1
     peak = 7 * nv + 1
-    # One pass over the samples, row after row (the arrays are C-ordered): every metric
-    # is a running max, a last or first index, or a sum in the samples' order, so it has
-    # the bits of a pass of its own.
+    # Every metric is a running max, a last or first index, or a sum in the samples'
+    # order, so any order of the passes gives the same bits: joint by joint where no
+    # sample's demand is computed again, else one pass row after row.
     band_of = np.empty(nv)
     last = np.full(nv, -1, dtype=np.int64)
     when = np.zeros(nv, dtype=np.int64)
@@ -751,44 +751,96 @@ def metrics_of(t_eval, ys, taus, qf, band, row, law, c, rt, rv, ws):
         row[depth + k] = 0.0
         row[saturated + k] = 0.0
         row[peak + k] = 0.0
-    energy = 0.0
-    before = 0.0
-    for i in range(T):
-        again = False
-        if phys[0] != 0:
+    again_any = False  # a sample whose demand must be computed again (effort limits applied)
+    if phys[0] != 0:
+        for i in range(T):
             for k in range(nv):
                 if abs(taus[i, k]) >= P[2, k]:
-                    again = True
-        if again:
-            efforts(t_eval[i], ys[i], law, c, rt, rv, demand, work, m)
-        dt = t_eval[i] - t_eval[i - 1] if i > 0 else 0.0
-        p = 0.0
+                    again_any = True
+    energy = 0.0
+    before = 0.0
+    if not again_any:  # column by column, each joint's metrics in registers
         for k in range(nv):
-            q = ys[i, k]
-            if abs(q - qf[k]) > band_of[k]:
-                last[k] = i
-            a = abs(taus[i, k])
-            if a > row[2 * nv + k]:
-                row[2 * nv + k] = a
-                when[k] = i
-            row[4 * nv + k] = max(row[4 * nv + k], abs(q - ys[0, k]))
-            worst = row[depth + k]
-            if P[8, k] - q > worst:
-                worst = P[8, k] - q
-            if q - P[9, k] > worst:
-                worst = q - P[9, k]
-            row[depth + k] = worst
-            d = abs(demand[k]) if again else a
-            if d > row[peak + k]:
-                row[peak + k] = d
-            now = 1.0 if d > P[10, k] else 0.0
+            qk, bk, y0 = qf[k], band_of[k], ys[0, k]
+            lo, hi, limit = P[8, k], P[9, k], P[10, k]
+            last_k, peak_k, when_k, exc_k, depth_k, demand_k, sat_k, over_k = (
+                -1,
+                -1.0,
+                0,
+                0.0,
+                0.0,
+                0.0,
+                0.0,
+                0.0,
+            )
+            for i in range(T):
+                q = ys[i, k]
+                if abs(q - qk) > bk:
+                    last_k = i
+                a = abs(taus[i, k])
+                if a > peak_k:
+                    peak_k = a
+                    when_k = i
+                exc_k = max(exc_k, abs(q - y0))
+                if lo - q > depth_k:
+                    depth_k = lo - q
+                if q - hi > depth_k:
+                    depth_k = q - hi
+                if a > demand_k:
+                    demand_k = a
+                now = 1.0 if a > limit else 0.0
+                if i > 0:
+                    sat_k += 0.5 * (now + over_k) * (t_eval[i] - t_eval[i - 1])
+                over_k = now
+            last[k], when[k] = last_k, when_k
+            row[2 * nv + k], row[4 * nv + k] = peak_k, exc_k
+            row[depth + k], row[peak + k], row[saturated + k] = depth_k, demand_k, sat_k
+        for i in range(T):
+            p = 0.0
+            for k in range(nv):
+                p += abs(taus[i, k] * ys[i, nv + k])
             if i > 0:
-                row[saturated + k] += 0.5 * (now + over[k]) * dt
-            over[k] = now
-            p += abs(taus[i, k] * ys[i, nv + k])
-        if i > 0:
-            energy += 0.5 * (p + before) * dt
-        before = p
+                energy += 0.5 * (p + before) * (t_eval[i] - t_eval[i - 1])
+            before = p
+    else:
+        energy = 0.0
+        before = 0.0
+        for i in range(T):
+            again = False
+            if phys[0] != 0:
+                for k in range(nv):
+                    if abs(taus[i, k]) >= P[2, k]:
+                        again = True
+            if again:
+                efforts(t_eval[i], ys[i], law, c, rt, rv, demand, work, m)
+            dt = t_eval[i] - t_eval[i - 1] if i > 0 else 0.0
+            p = 0.0
+            for k in range(nv):
+                q = ys[i, k]
+                if abs(q - qf[k]) > band_of[k]:
+                    last[k] = i
+                a = abs(taus[i, k])
+                if a > row[2 * nv + k]:
+                    row[2 * nv + k] = a
+                    when[k] = i
+                row[4 * nv + k] = max(row[4 * nv + k], abs(q - ys[0, k]))
+                worst = row[depth + k]
+                if P[8, k] - q > worst:
+                    worst = P[8, k] - q
+                if q - P[9, k] > worst:
+                    worst = q - P[9, k]
+                row[depth + k] = worst
+                d = abs(demand[k]) if again else a
+                if d > row[peak + k]:
+                    row[peak + k] = d
+                now = 1.0 if d > P[10, k] else 0.0
+                if i > 0:
+                    row[saturated + k] += 0.5 * (now + over[k]) * dt
+                over[k] = now
+                p += abs(taus[i, k] * ys[i, nv + k])
+            if i > 0:
+                energy += 0.5 * (p + before) * dt
+            before = p
     for k in range(nv):
         if last[k] == -1:
             row[nv + k] = t_eval[0]
