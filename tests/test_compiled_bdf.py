@@ -219,7 +219,7 @@ def test_auto_never_sends_the_arm_a_method_its_kernel_refuses(method, monkeypatc
 
 def test_auto_counts_a_method_ready_only_when_its_own_entry_is(monkeypatch):
     """A robot whose run_many is built but not run_bdf: auto does not wait for BDF's compile."""
-    from rrt_pin.compiled import robot_code
+    from rrt_pin.compiled import robot_code, robot_entries
     from rrt_pin.core import backends
     from rrt_pin.robot import robots
 
@@ -229,13 +229,15 @@ def test_auto_counts_a_method_ready_only_when_its_own_entry_is(monkeypatch):
     def state(model, batch=False, code=None, pd=False, numeric=False):  # noqa: ANN001, ANN202
         seen.append(code)
         laws.append(pd)
-        return False, False, code not in robot_code.OWN_ENTRY  # run_many built, not run_bdf
+        return False, False, code not in robot_entries.OWN_ENTRY  # run_many built, not run_bdf
 
     laws = []
     monkeypatch.setattr(robot_code, "state", state)
     assert backends.choose(ur5, "simulate", "BDF", 1e6, controllers=[None]).name == "pinocchio"
     assert backends.choose(ur5, "simulate", "DOP853", 1e6, controllers=[None]).name == "compiled"
-    assert robot_code.OWN_ENTRY.get(seen[0]) == "run_bdf" and seen[1] not in robot_code.OWN_ENTRY
+    assert (
+        robot_entries.OWN_ENTRY.get(seen[0]) == "run_bdf" and seen[1] not in robot_entries.OWN_ENTRY
+    )
     # the laws tell which entry: PD plus gravity's own, else the general one
     backends.choose(ur5, "simulate", "DOP853", 1e6, controllers=[_pd(ur5)])
     assert laws == [False, False, True]

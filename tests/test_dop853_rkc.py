@@ -187,8 +187,10 @@ def test_a_pd_run_on_its_own_entry_equals_the_general_entry(ur5, monkeypatch):
 
     law, q0 = _scene(ur5, "ur5")
     pd = _run(ur5, law, "DOP853-RKC", 1e-8, q0=q0)
-    assert robot_entries.entry(methods.get("DOP853-RKC").code, 1, True) == "run_adaptive_pd"
-    monkeypatch.setattr(robot_entries, "entry", lambda method, count, pd, numeric: "run_adaptive")
+    assert robot_entries.entry(methods.get("DOP853-RKC").code, 1, True) == "run_adaptive_rkc_pd"
+    monkeypatch.setattr(
+        robot_entries, "entry", lambda method, count, pd, numeric: "run_adaptive_rkc"
+    )
     general = _run(ur5, law, "DOP853-RKC", 1e-8, q0=q0)
     assert np.array_equal(pd.q, general.q) and pd.n_evals == general.n_evals
 
@@ -199,3 +201,32 @@ def test_a_diverging_run_is_reported_with_the_coordinate(ur5):
         _run(ur5, law, "DOP853-RKC", 1e-8, t=np.linspace(0.0, 100.0, 11), q0=np.full(6, 0.3))
     assert 0.0 <= e.value.t < 100.0
     assert any(name in str(e.value) for name in (*ur5.q_names, *ur5.qd_names))
+
+
+def test_dop853s_entries_compile_none_of_rkcs_code(ur5):
+    """DOP853's and RK45's entries reach a stub where DOP853-RKC's reach rkc_tail: a plain
+    DOP853 run or batch compiles none of RKC's code (its first use is not longer for it)."""
+    import re
+
+    from rrt_pin.compiled.robot_code import module_source
+
+    source, _ = module_source(ur5.model)
+    calls = {}
+    for found in re.finditer(r"\ndef (\w+)\((.*?)(?=\n@jit|\Z)", source, flags=re.DOTALL):
+        calls[found.group(1)] = set(re.findall(r"\b(\w+)\(", found.group(2)))
+
+    def reaches(entry):
+        seen, todo = set(), [entry]
+        while todo:
+            name = todo.pop()
+            if name in seen or name not in calls:
+                continue
+            seen.add(name)
+            todo.extend(calls[name])
+        return seen
+
+    for entry in ("run_adaptive", "run_adaptive_pd", "run_many", "run_lanes"):
+        assert not reaches(entry) & {"rkc_tail", "rkc_tail_pd", "rkc_prepare", "rkc_consume"}
+    assert "rkc_tail" in reaches("run_adaptive_rkc")
+    assert "rkc_tail_pd" in reaches("run_adaptive_rkc_pd")
+    assert {"rkc_prepare", "rkc_consume"} <= reaches("run_lanes_rkc")

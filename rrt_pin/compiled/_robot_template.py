@@ -75,10 +75,6 @@ N_STIFF = 15
 STIFF_H_RHO = 3.25
 
 
-def rkc_tail(*args):  # rrt_pin/compiled/_robot_rkc.py's, appended
-    raise NotImplementedError
-
-
 STATUS_OK, STATUS_NONFINITE, STATUS_STEP_UNDERFLOW = 0, 1, 2
 STATUS_MAX_STEPS, STATUS_NO_CONVERGENCE, STATUS_EFFORT_NONFINITE = 4, 5, 6
 # --- template ---
@@ -366,7 +362,9 @@ def adaptive(method, y0, t_eval, atol, rtol, max_step, max_steps, law, c, rt, rv
     into out_y[0] (the same steps). Returns (status, coordinate, evals, rows, t).
     DOP853-RKC is DOP853 handing over to ``rkc_tail`` after N_STIFF steps in a row at
     the edge of its stability (h·ρ̂ > STIFF_H_RHO, from the step's last two stages at
-    t + h), and on again where RKC hands back.
+    t + h), and on again where RKC hands back: in the copy ``adaptive_rkc`` (and its PD
+    copy), which calls ``rkc_tail``; here a stub stands for it, so that the entries of
+    DOP853 and RK45 compile none of RKC's code.
     """
     n = y0.shape[0]
     handover = method == METHOD_DOP853_RKC
@@ -558,7 +556,7 @@ def adaptive(method, y0, t_eval, atol, rtol, max_step, max_steps, law, c, rt, rv
             f[i] = K[n_stages, i]
         done = t - t_bound >= 0.0
         if handover and streak >= N_STIFF and not done:
-            status, k, evals, steps, i_out, t, h_abs, done = rkc_tail(
+            status, k, evals, steps, i_out, t, h_abs, done = no_rkc_tail(
                 t, y, f, h_abs, t_eval, i_out, atol, rtol, max_step,
                 max_steps - n_steps - n_rejected, law, c, rt, rv, dense, out_y, ws,
             )  # fmt: skip
@@ -573,6 +571,13 @@ def adaptive(method, y0, t_eval, atol, rtol, max_step, max_steps, law, c, rt, rv
                     out_y[0, i] = y[i]
                 i_out = 1
             return STATUS_OK, -1, n_evals, i_out, t
+
+
+@jit
+def no_rkc_tail(t, y, f, h_abs, t_eval, i_out, atol, rtol, max_step, budget, law, c, rt, rv,
+                dense, out_y, ws):  # fmt: skip
+    """``adaptive``'s stand-in for ``rkc_tail`` (never called: DOP853-RKC runs ``adaptive_rkc``)."""
+    return STATUS_OK, -1, 0, 0, i_out, t, h_abs, False
 
 
 @jit

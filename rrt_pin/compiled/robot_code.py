@@ -445,7 +445,8 @@ def module_source(model: pin.Model) -> tuple[str, int]:
     if not mark:  # pragma: no cover - the template's own marker
         raise RuntimeError(f"{_TEMPLATE} lost its line {_MARK.strip()!r}")
     body += robot_entries.copies(body, robot_entries.PD_COPIES)
-    for method in ("adaptive", "adams", "bdf", "bdf_num"):  # no fixed-step integrator
+    body += robot_entries.copies(body, robot_entries.RKC_COPIES)  # adaptive_rkc(_pd)
+    for method in ("adaptive", "adaptive_rkc", "adams", "bdf", "bdf_num"):  # no fixed step
         general, pd = {"fixed": "no_fixed"}, {"fixed_pd": "no_fixed"}
         if method != "adaptive":
             general, pd = general | {"adaptive": method}, pd | {"adaptive_pd": f"{method}_pd"}
@@ -562,10 +563,6 @@ def integrators_for(model: pin.Model, name: str | None = None) -> RobotCode:
     _models.remember("robot", model, {"digest": digest})
     _MODELS.put(model, value=(pin.Model(model), code))
     return code
-
-
-#: The entry of the methods that have their own (the others: ``run_many``, ``run_lanes``).
-OWN_ENTRY = robot_entries.OWN_ENTRY
 
 
 def state(

@@ -34,6 +34,7 @@ __all__ = [
     "OWN_ENTRY",
     "PD_COPIES",
     "PD_COPIES_RKC",
+    "RKC_COPIES",
     "SIGNATURES",
     "entry",
     "lanes",
@@ -44,7 +45,11 @@ __all__ = [
 
 #: The entry of the methods that have their own (the others: ``run_adaptive``,
 #: ``run_many``, ``run_lanes``).
-OWN_ENTRY = {codes.METHOD_ADAMS: "run_adams", codes.METHOD_BDF: "run_bdf"}
+OWN_ENTRY = {
+    codes.METHOD_ADAMS: "run_adams",
+    codes.METHOD_BDF: "run_bdf",
+    codes.METHOD_DOP853_RKC: "run_adaptive_rkc",
+}
 
 #: The methods a batch runs in lanes (the others' variants one after the other).
 LANE_METHODS = (codes.METHOD_RK45, codes.METHOD_DOP853, codes.METHOD_DOP853_RKC)
@@ -54,7 +59,7 @@ LANE_METHODS = (codes.METHOD_RK45, codes.METHOD_DOP853, codes.METHOD_DOP853_RKC)
 PD_COPIES = (
     ("first_step", {"rhs": "rhs_pd_law"}),
     ("metrics_of", {"efforts": "efforts_pd_law"}),
-    ("adaptive", {"rhs": "rhs_pd_law", "first_step": "first_step_pd", "rkc_tail": "rkc_tail_pd"}),
+    ("adaptive", {"rhs": "rhs_pd_law", "first_step": "first_step_pd"}),
     ("fixed", {"rhs": "rhs_pd_law"}),
     ("efforts_at", {"efforts": "efforts_pd_law"}),
     (
@@ -67,7 +72,13 @@ PD_COPIES = (
         },
     ),  # fmt: skip
 )
-#: The same for DOP853-RKC's tail (``_robot_rkc.py``, called by ``adaptive``).
+#: ``adaptive`` (and its PD copy) with RKC's tail: the template's calls a stub, so that
+#: DOP853's and RK45's entries compile none of it.
+RKC_COPIES = (
+    ("adaptive", {"no_rkc_tail": "rkc_tail"}, "adaptive_rkc"),
+    ("adaptive_pd", {"no_rkc_tail": "rkc_tail_pd"}, "adaptive_rkc_pd"),
+)
+#: The same for DOP853-RKC's tail (``_robot_rkc.py``, called by ``adaptive_rkc``).
 PD_COPIES_RKC = (
     ("rkc_rho", {"rhs": "rhs_pd_law"}),
     ("rkc_step", {"rhs": "rhs_pd_law"}),
@@ -133,6 +144,8 @@ def entry(method: int, count: int, pd: bool, numeric: bool = False) -> str:
     ``numeric``: every variant's Jacobian is ``num_jac``); anything else one variant
     after the other.
     """
+    if method == codes.METHOD_DOP853_RKC and pd and count >= 2:
+        return "run_lanes_rkc"
     if method in OWN_ENTRY:
         name = OWN_ENTRY[method] + ("_num" if numeric and method == codes.METHOD_BDF else "")
         return name + ("_pd" if pd else "")
@@ -189,7 +202,14 @@ SIGNATURES = {
     "run_lanes_rkc": _lanes_signature,
     **{
         name + suffix: _many_signature
-        for name in ("run_many", "run_adaptive", "run_adams", "run_bdf", "run_bdf_num")
+        for name in (
+            "run_many",
+            "run_adaptive",
+            "run_adaptive_rkc",
+            "run_adams",
+            "run_bdf",
+            "run_bdf_num",
+        )
         for suffix in ("", "_pd")
     },
 }
