@@ -13,7 +13,8 @@ For each robot and rtol (atol = rtol/100) this prints:
   same steps): evaluations, accepted steps, and the share of them with h·ρ̂ > 3.25
   (Hairer's stiffness test in DOP853: ρ̂ = |f(y₁) − f(y₁₂)| / |y₁ − y₁₂| from the step's
   last stage), with their evaluations;
-* a handover (a prototype, not used by rrt-pin): DOP853 until ``--after`` consecutive
+* a handover (this script's Python prototype; rrt-pin's compiled one, with a two-way
+  switch, is ``method="DOP853-RKC"``): DOP853 until ``--after`` consecutive
   steps pass that test, then the Runge–Kutta–Chebyshev method (Sommeijer, Shampine and
   Verwer 1997: order 2, s stages, stable along the negative real axis to ≈ 0.65·s²;
   its own error estimate and step control, s from a power-iteration estimate of the
