@@ -151,3 +151,30 @@ def robot_urdf(name: str) -> Path:
     if not path.is_file():
         pytest.skip(f"example-robot-data has no {ROBOTS[name]}")
     return path
+
+
+def call_graph(source: str) -> dict[str, set[str]]:
+    """Each function of a generated module's source and the names it calls."""
+    import ast
+
+    out = {}
+    for node in ast.parse(source).body:
+        if isinstance(node, ast.FunctionDef):
+            out[node.name] = {
+                c.func.id
+                for c in ast.walk(node)
+                if isinstance(c, ast.Call) and isinstance(c.func, ast.Name)
+            }
+    return out
+
+
+def reaches(calls: dict[str, set[str]], name: str) -> set[str]:
+    """The functions of ``calls`` that ``name`` reaches, however deep (itself included)."""
+    seen, todo = set(), [name]
+    while todo:
+        f = todo.pop()
+        if f in seen or f not in calls:
+            continue
+        seen.add(f)
+        todo.extend(calls[f])
+    return seen

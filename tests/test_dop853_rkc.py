@@ -206,24 +206,14 @@ def test_a_diverging_run_is_reported_with_the_coordinate(ur5):
 def test_dop853s_entries_compile_none_of_rkcs_code(ur5):
     """DOP853's and RK45's entries reach a stub where DOP853-RKC's reach rkc_tail: a plain
     DOP853 run or batch compiles none of RKC's code (its first use is not longer for it)."""
-    import re
-
     from rrt_pin.compiled.robot_code import module_source
+    from tests.support import call_graph
+    from tests.support import reaches as reached
 
-    source, _ = module_source(ur5.model)
-    calls = {}
-    for found in re.finditer(r"\ndef (\w+)\((.*?)(?=\n@jit|\Z)", source, flags=re.DOTALL):
-        calls[found.group(1)] = set(re.findall(r"\b(\w+)\(", found.group(2)))
+    calls = call_graph(module_source(ur5.model)[0])
 
     def reaches(entry):
-        seen, todo = set(), [entry]
-        while todo:
-            name = todo.pop()
-            if name in seen or name not in calls:
-                continue
-            seen.add(name)
-            todo.extend(calls[name])
-        return seen
+        return reached(calls, entry)
 
     for entry in ("run_adaptive", "run_adaptive_pd", "run_many", "run_lanes"):
         assert not reaches(entry) & {"rkc_tail", "rkc_tail_pd", "rkc_prepare", "rkc_consume"}

@@ -345,45 +345,26 @@ def test_the_lanes_call_pd_copies_that_name_no_other_laws_dynamics(ur5):
     assert not re.search(r"\b(mass_matrix|bias|forward)\(", pd_law)
 
 
-def _calls(source: str) -> dict[str, set[str]]:
-    """Each function of a generated module and the names it calls."""
-    import ast
-
-    out = {}
-    for node in ast.parse(source).body:
-        if isinstance(node, ast.FunctionDef):
-            out[node.name] = {
-                c.func.id
-                for c in ast.walk(node)
-                if isinstance(c, ast.Call) and isinstance(c.func, ast.Name)
-            }
-    return out
-
-
 @pytest.mark.parametrize(
-    "entry", ["run_many_pd", "run_adaptive_pd", "run_adams_pd", "run_bdf_pd", "run_lanes"]
-)
+    "entry",
+    ["run_many_pd", "run_adaptive_pd", "run_adaptive_rkc_pd", "run_adams_pd", "run_bdf_pd",
+     "run_lanes", "run_lanes_rkc"],
+)  # fmt: skip
 def test_the_pd_entries_reach_no_other_laws_dynamics(ur5, entry):
     """Everything a PD entry calls, however deep, is PD plus gravity's: its first use
     compiles no tracking law (M, bias), open-loop or general law dispatch; the general
     entries do reach them (the walk sees through the calls)."""
     from rrt_pin.compiled.robot_code import module_source
+    from tests.support import call_graph, reaches
 
-    calls = _calls(module_source(ur5.model)[0])
+    calls = call_graph(module_source(ur5.model)[0])
 
     def reached(name):
-        seen, todo = set(), [name]
-        while todo:
-            f = todo.pop()
-            if f in seen or f not in calls:
-                continue
-            seen.add(f)
-            todo.extend(calls[f])
-        return seen
+        return reaches(calls, name)
 
     other_laws = {"rhs", "efforts", "mass_matrix", "bias", "forward", "interp_at", "metrics_of"}
     assert reached(entry) & other_laws == set()
-    if entry != "run_lanes":  # the lanes have dynamics of their own
+    if not entry.startswith("run_lanes"):  # the lanes have dynamics of their own
         assert "rhs_pd_law" in reached(entry)
         assert {"mass_matrix", "bias", "forward"} <= reached(entry.removesuffix("_pd"))
         # only the fixed-step methods' entry compiles their integrators

@@ -48,8 +48,8 @@ LAW_PD_GRAVITY = METHOD_DOP853 = KEEP_FINAL = KEEP_METRICS = KEEP_TRAJECTORIES =
 STATUS_OK = STATUS_STEP_UNDERFLOW = STATUS_MAX_STEPS = STATUS_EFFORT_NONFINITE = 0
 STATUS_NONFINITE = 0
 METHOD_DOP853_RKC = N_STIFF = RKC_MAX_STAGES = RKC_RHO_EVERY = 0
-STIFF_H_RHO = D8_STABLE_H_RHO = HAND_BACK = RKC_EPS = 0.0
-rkc_stages = free_lanes  # _robot_rkc.py's
+STIFF_H_RHO = D8_STABLE_H_RHO = HAND_BACK = 0.0
+rkc_stages = rkc_coefficients = free_lanes  # _robot_rkc.py's
 # --- lanes ---
 
 
@@ -456,21 +456,10 @@ def rkc_prepare(lane_b, mode, finished, ri, rf, Y, K, V, Z, Yold, Yolder, cheb, 
             rf[RF_TNEW, lane] = t_new
             ri[RI_S, lane] = s
             # rkc_step's coefficients and first stage (the lane's own)
-            Tc, dT, d2T, bc = cheb[lane, 0], cheb[lane, 1], cheb[lane, 2], cheb[lane, 3]
-            w0 = 1.0 + RKC_EPS / (s * s)
-            Tc[0], dT[0], d2T[0] = 1.0, 0.0, 0.0
-            Tc[1], dT[1], d2T[1] = w0, 1.0, 0.0
-            for j in range(2, s + 1):
-                Tc[j] = 2.0 * w0 * Tc[j - 1] - Tc[j - 2]
-                dT[j] = 2.0 * Tc[j - 1] + 2.0 * w0 * dT[j - 1] - dT[j - 2]
-                d2T[j] = 4.0 * dT[j - 1] + 2.0 * w0 * d2T[j - 1] - d2T[j - 2]
-            w1 = dT[s] / d2T[s]
-            for j in range(2, s + 1):
-                bc[j] = d2T[j] / (dT[j] * dT[j])
-            bc[0] = bc[1] = bc[2]
+            w0, w1 = rkc_coefficients(s, cheb[lane])
             rf[RF_W0, lane] = w0
             rf[RF_W1, lane] = w1
-            mu1 = bc[1] * w1
+            mu1 = cheb[lane, 3, 1] * w1
             for i in range(n):
                 Yolder[i, lane] = Y[i, lane]
                 Yold[i, lane] = Y[i, lane] + mu1 * h * K[0, i, lane]

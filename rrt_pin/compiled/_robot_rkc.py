@@ -123,14 +123,12 @@ def rkc_stages(h, rho):
 
 
 @jit
-def rkc_step(t, y, fy, h, s, law, c, rt, rv, W, cheb, ws):
-    """One RKC step of s stages from (t, y), fy = f(t, y): the new state into W[0].
+def rkc_coefficients(s, cheb):
+    """RKC's recurrence of s stages: T_j, T_j', T_j'' at w0 and b_j into cheb's rows 0–3.
 
-    W (4, n): rows 0–2 the stages' states (rotated), row 3 f at a stage; ``cheb``
-    (4, RKC_MAX_STAGES + 1): T_j(w0), T_j'(w0), T_j''(w0) and b_j. Returns the row of W
-    holding the result.
+    Returns (w0, w1). The one computation of them: single runs' and the lanes' steps
+    take the same bits from it.
     """
-    n = y.shape[0]
     w0 = 1.0 + RKC_EPS / (s * s)
     T, dT, d2T, b = cheb[0], cheb[1], cheb[2], cheb[3]
     T[0], dT[0], d2T[0] = 1.0, 0.0, 0.0
@@ -143,6 +141,20 @@ def rkc_step(t, y, fy, h, s, law, c, rt, rv, W, cheb, ws):
     for j in range(2, s + 1):
         b[j] = d2T[j] / (dT[j] * dT[j])
     b[0] = b[1] = b[2]
+    return w0, w1
+
+
+@jit
+def rkc_step(t, y, fy, h, s, law, c, rt, rv, W, cheb, ws):
+    """One RKC step of s stages from (t, y), fy = f(t, y): the new state into W[0].
+
+    W (4, n): rows 0–2 the stages' states (rotated), row 3 f at a stage; ``cheb``
+    (4, RKC_MAX_STAGES + 1): T_j(w0), T_j'(w0), T_j''(w0) and b_j. Returns the row of W
+    holding the result.
+    """
+    n = y.shape[0]
+    w0, w1 = rkc_coefficients(s, cheb)
+    T, b = cheb[0], cheb[3]
     # Y1 = y + μ̃₁·h·f(y) (row 1), Y0 = y (row 2)
     mu1 = b[1] * w1
     older, old, new = 2, 1, 0
