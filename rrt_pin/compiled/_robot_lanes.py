@@ -381,8 +381,8 @@ def first_steps(phys, Y, start, F0, F1, Ytmp, hz, atol, rtol, order, interval, m
 #: The rows of the lanes' RKC state (``ri``: integers, ``rf``: floats), one column a lane.
 RI_PC, RI_J, RI_S, RI_SINCE, RI_IT, RI_LIMIT, RI_PENDING, RI_BACK = range(8)
 RI_ROWS = 8
-RF_H, RF_TNEW, RF_RHO, RF_RAW, RF_DZ, RF_W0, RF_W1, RF_DNORM = range(8)
-RF_ROWS = 8
+RF_H, RF_TNEW, RF_RHO, RF_RAW, RF_DZ, RF_W0, RF_W1 = range(7)
+RF_ROWS = 7
 #: What a lane in RKC's tail does next: decide its step, estimate ρ, a stage, ẏ at the
 #: step's end, or nothing until the next round (done, failed, or handed back).
 PC_DECIDE, PC_RHO, PC_STAGE, PC_END, PC_IDLE = 0, 1, 2, 3, 4

@@ -73,8 +73,6 @@ METHOD_DOP853, METHOD_RK4, METHOD_SYMPLECTIC_EULER, FIXED_STEP_FROM = 1, 11, 10,
 METHOD_DOP853_RKC = 5
 N_STIFF = 15
 STIFF_H_RHO = 3.25
-
-
 STATUS_OK, STATUS_NONFINITE, STATUS_STEP_UNDERFLOW = 0, 1, 2
 STATUS_MAX_STEPS, STATUS_NO_CONVERGENCE, STATUS_EFFORT_NONFINITE = 4, 5, 6
 # --- template ---
@@ -757,11 +755,11 @@ def metrics_of(t_eval, ys, taus, qf, band, row, law, c, rt, rv, ws):
         row[saturated + k] = 0.0
         row[peak + k] = 0.0
     again_any = False  # a sample whose demand must be computed again (effort limits applied)
-    if phys[0] != 0:
-        for i in range(T):
-            for k in range(nv):
-                if abs(taus[i, k]) >= P[2, k]:
-                    again_any = True
+    i = 0
+    while phys[0] != 0 and not again_any and i < T:
+        for k in range(nv):
+            again_any = again_any or abs(taus[i, k]) >= P[2, k]
+        i += 1
     energy = 0.0
     before = 0.0
     if not again_any:  # column by column, each joint's metrics in registers
@@ -808,8 +806,6 @@ def metrics_of(t_eval, ys, taus, qf, band, row, law, c, rt, rv, ws):
                 energy += 0.5 * (p + before) * (t_eval[i] - t_eval[i - 1])
             before = p
     else:
-        energy = 0.0
-        before = 0.0
         for i in range(T):
             again = False
             if phys[0] != 0:

@@ -30,7 +30,7 @@ from typing import Any
 from rrt_pin.simulate import codes
 
 __all__ = [
-    "LANE_METHODS",
+    "LANES_ENTRY",
     "OWN_ENTRY",
     "PD_COPIES",
     "PD_COPIES_RKC",
@@ -51,8 +51,13 @@ OWN_ENTRY = {
     codes.METHOD_DOP853_RKC: "run_adaptive_rkc",
 }
 
-#: The methods a batch runs in lanes (the others' variants one after the other).
-LANE_METHODS = (codes.METHOD_RK45, codes.METHOD_DOP853, codes.METHOD_DOP853_RKC)
+#: The lanes' entry of each method a batch runs in lanes (the others' variants one after
+#: the other).
+LANES_ENTRY = {
+    codes.METHOD_RK45: "run_lanes",
+    codes.METHOD_DOP853: "run_lanes",
+    codes.METHOD_DOP853_RKC: "run_lanes_rkc",
+}
 #: The template's functions copied as ``<name>_pd`` with these calls renamed: bound to PD
 #: plus gravity (the lanes' one law, and single runs under it). In order: a copy may call
 #: an earlier one.
@@ -139,19 +144,17 @@ def pd_only(controllers: Sequence[Any]) -> bool:
 def entry(method: int, count: int, pd: bool, numeric: bool = False) -> str:
     """The entry a job runs: method code ``method``, ``count`` variants, all under PD + G (``pd``).
 
-    Adaptive PD-plus-gravity variants (two or more) run side by side in lanes; Adams's
-    method and BDF on their own entries (BDF without its generated Jacobian where
-    ``numeric``: every variant's Jacobian is ``num_jac``); anything else one variant
-    after the other.
+    Adaptive PD-plus-gravity variants (two or more) of RK45, DOP853 and DOP853-RKC run
+    side by side in lanes (:data:`LANES_ENTRY`); Adams's method, BDF and DOP853-RKC
+    otherwise on their own entries (BDF without its generated Jacobian where ``numeric``:
+    every variant's Jacobian is ``num_jac``); anything else one variant after the other.
     """
-    if method == codes.METHOD_DOP853_RKC and pd and count >= 2:
-        return "run_lanes_rkc"
+    if pd and count >= 2 and method in LANES_ENTRY:
+        return LANES_ENTRY[method]
     if method in OWN_ENTRY:
         name = OWN_ENTRY[method] + ("_num" if numeric and method == codes.METHOD_BDF else "")
         return name + ("_pd" if pd else "")
     if method < codes.FIXED_STEP_FROM:
-        if pd and count >= 2 and method in LANE_METHODS:
-            return "run_lanes_rkc" if method == codes.METHOD_DOP853_RKC else "run_lanes"
         return "run_adaptive_pd" if pd else "run_adaptive"
     return "run_many_pd" if pd else "run_many"
 
