@@ -837,6 +837,19 @@ def efforts_lanes(ys, rows, c, taus, gw, P, phys):
 
 
 @jit
+def efforts_at_lanes(t_eval, rows, law, c, rt, rv, ys, taus, ws):
+    """``efforts_at`` under PD plus gravity (single runs' copies), by ``efforts_lanes``.
+
+    G(q) of LANE_COUNT samples a call instead of one: the same bits as the template's
+    ``efforts_at`` with ``efforts_pd_law`` (the lanes' rows equal single runs'), about a
+    quarter of its time at a run's outputs. ``ws``: the run's workspace (P, phys).
+    """
+    P, phys = ws[3], ws[4]
+    gw = np.zeros(PHYS_ROWS * LANE_COUNT)
+    return efforts_lanes(ys, rows, c, taus, gw, P, phys)
+
+
+@jit
 def run_lanes_rkc(
     method, Y0, t_eval, atol, rtol, max_step, max_steps, C, keep, band,
     out_y, out_tau, metrics, info, t_reached, first, stop, P, phys,

@@ -66,13 +66,12 @@ PD_COPIES = (
     ("metrics_of", {"efforts": "efforts_pd_law"}),
     ("adaptive", {"rhs": "rhs_pd_law", "first_step": "first_step_pd"}),
     ("fixed", {"rhs": "rhs_pd_law"}),
-    ("efforts_at", {"efforts": "efforts_pd_law"}),
     (
         "run_many",
         {
             "adaptive": "adaptive_pd",
             "fixed": "fixed_pd",
-            "efforts_at": "efforts_at_pd",
+            "efforts_at": "efforts_at_lanes",
             "metrics_of": "metrics_of_pd",
         },
     ),  # fmt: skip
