@@ -5,17 +5,19 @@ The scene is :mod:`scripts.bench.robot_sim`'s: 15 s (--tf) under PD plus gravity
 compensation, τ = −kd·q̇ − kp·(q − qf) + G(q), from q0 = qf + 0.3 rad (0.01 m for a
 slider), outputs every 10 ms; the reference is rrt-pin's compiled DOP853 at rtol 1e-13.
 
-MuJoCo's model is the robot's URDF (``robots.urdf_path``) read by MuJoCo's importer, with
-what rrt-pin does not model switched off: visual and collision elements removed (no
-meshes, no contacts: ``mjDSBL_CONTACT``), ``<mimic>`` removed (Pinocchio ignores it),
-the URDF's joint damping, friction and armature set to 0, joint limits off, the joints'
-actuator-force limits (MuJoCo's importer takes them from ``effort``) off, and the
-constraint stage disabled (``mjDSBL_CONSTRAINT``: nothing is constrained). The law is
-inside the model, so ``mujoco.rollout`` runs it without Python per step: one position
-actuator a joint (gain kp, bias [0, −kp, −kd], ctrl = qf, no ctrl or force limits) and
-``gravcomp = 1`` on every body (MuJoCo adds G(q) as a passive force). Printed checks:
-MuJoCo's mass matrix and bias forces against ``pin.crba`` and ``pin.rnea(q, v, 0)``,
-its actuator plus passive forces against rrt-pin's law, at random states.
+rrt-pin runs the law alone (``effort_limits=False, position_limits=False,
+losses=False``), and MuJoCo's model is the robot's URDF (``robots.urdf_path``) read by
+MuJoCo's importer with what the law alone does not model switched off: visual and
+collision elements removed (no meshes, no contacts: ``mjDSBL_CONTACT``), ``<mimic>``
+removed (Pinocchio ignores it), the URDF's joint damping, friction and armature set to
+0, joint limits off, the joints' actuator-force limits (MuJoCo's importer takes them
+from ``effort``) off, and the constraint stage disabled (``mjDSBL_CONSTRAINT``: nothing
+is constrained). The law is inside the model, so ``mujoco.rollout`` runs it without
+Python per step: one position actuator a joint (gain kp, bias [0, −kp, −kd], ctrl = qf,
+no ctrl or force limits) and ``gravcomp = 1`` on every body (MuJoCo adds G(q) as a
+passive force). Printed checks: MuJoCo's mass matrix and bias forces against
+``pin.crba`` and ``pin.rnea(q, v, 0)``, its actuator plus passive forces against
+rrt-pin's law, at random states.
 
 For each integrator (RK4; Euler and implicitfast to show) the largest step of the ladder
 10 ms … 1 µs (each divides the 10 ms outputs) whose max |q error| meets --accuracy
@@ -27,7 +29,7 @@ little more of an integrator than stability; --tf 2 ends the runs before they se
 Timed interleaved in one run (medians), one core each:
 
 * rrt-pin   ``simulate_batch(..., backend="compiled", keep="final" | "metrics",
-            threads=1)`` of --batch variants (q0 spread by ±0.05 rad), at the loosest rtol
+            threads=1, method=--method)`` of --batch variants (q0 spread by ±0.05 rad), at the loosest rtol
             of 1e-6 … 1e-13 in half-decades (--per-decade; atol = rtol/100) whose final
             state (final) or every output (metrics) meets --accuracy on the scene's run and
             three variants (MuJoCo's steps, 1-2-5 a decade, are chosen on the same runs);
@@ -37,6 +39,7 @@ Timed interleaved in one run (medians), one core each:
 
     .venv/bin/python -m scripts.bench.robot_peers [--robots ur5,panda] [--batch 200]
         [--mujoco-batch 20] [--repeat 3] [--accuracy 1e-9] [--tf 15] [--markdown]
+        [--method DOP853-RKC]
 """
 
 from __future__ import annotations
@@ -331,14 +334,15 @@ def loosest_rtol(side, refs, rows, accuracy, ladder=None) -> tuple[float, tuple[
 def bench(name: str, args: argparse.Namespace, t: np.ndarray) -> list[str]:
     """One robot's checks, steps and timings; returns its rows of the Markdown table."""
     import rrt_pin
-    from scripts.bench.robot_sim import scene
+    from scripts.bench.robot_sim import PHYSICS, scene
 
     robot, law, q0, qf = scene(name)
 
     def rrt(q0_, rtol, keep="trajectories", **kw):
+        # the law alone, as MuJoCo's model (no limits, losses or saturation)
         r = rrt_pin.simulate_batch(robot, law, np.atleast_2d(q0_), None, t, backend="compiled",
                                    keep=keep, threads=1, rtol=rtol, atol=rtol / 100,
-                                   estimate_error=False, **kw)  # fmt: skip
+                                   estimate_error=False, **PHYSICS, **kw)  # fmt: skip
         return r
 
     rrt(q0, 1e-6)  # compiles or loads the kernels
@@ -384,9 +388,9 @@ def bench(name: str, args: argparse.Namespace, t: np.ndarray) -> list[str]:
     for keep, rows in (("final", slice(-1, None)), ("metrics", slice(None))):
         side = f"rrt-pin {keep}"
         ladder = rtol_ladder(args.per_decade, 3 if args.loose and keep == "final" else 6)
-        rtols[keep], errors[side] = loosest_rtol(lambda r: rrt(q0c, r, method="DOP853").q, refs,
+        rtols[keep], errors[side] = loosest_rtol(lambda r: rrt(q0c, r, method=args.method).q, refs,
                                                  rows, args.accuracy, ladder)  # fmt: skip
-        print(f"  rrt-pin {keep:<8} rtol {rtols[keep]:.2g}: max |q error| final "
+        print(f"  rrt-pin {keep:<8} {args.method} rtol {rtols[keep]:.2g}: max |q error| final "
               f"{errors[side][0]:.1e}, every output {errors[side][1]:.1e}")  # fmt: skip
 
     # the timed sides
@@ -394,8 +398,8 @@ def bench(name: str, args: argparse.Namespace, t: np.ndarray) -> list[str]:
     setting = {}
     for keep in ("final", "metrics"):
         side = f"rrt-pin {keep}"
-        funcs[side] = lambda keep=keep: rrt(q0s, rtols[keep], keep=keep)
-        setting[side] = (f'rrt-pin simulate_batch(keep="{keep}"), {B} variants, DOP853 '
+        funcs[side] = lambda keep=keep: rrt(q0s, rtols[keep], keep=keep, method=args.method)
+        setting[side] = (f'rrt-pin simulate_batch(keep="{keep}"), {B} variants, {args.method} '
                          f"rtol {rtols[keep]:.2g}", B)  # fmt: skip
         result = funcs[side]()
         out = result.q[checked, -1]  # the batch's own final rows against the references
@@ -470,6 +474,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--loose", action="store_true",
                     help="for the final state, both ladders further: rrt-pin's tolerances from "
                     "1e-3, MuJoCo's steps up to 50 ms (beyond the outputs)")  # fmt: skip
+    ap.add_argument("--method", default="DOP853", choices=("DOP853", "DOP853-RKC"),
+                    help="rrt-pin's method (DOP853; DOP853-RKC hands the settled tail to "
+                    "Runge–Kutta–Chebyshev)")  # fmt: skip
     ap.add_argument("--markdown", action="store_true", help="print the table as Markdown")
     args = ap.parse_args(argv)
     require()
