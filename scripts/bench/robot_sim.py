@@ -32,7 +32,10 @@ run (medians):
                   spread by ±0.05 rad) at the rtol meeting a tenth of the accuracy on the
                   scene's run and three of the variants, as simulations a second on one core;
 * batch metrics   the same with ``keep="metrics"``;
-* the two batches again with DOP853-RKC (at its own loosest rtol meeting the same).
+* the two batches again with DOP853-RKC (at its own loosest rtol meeting the same);
+* bare            DOP853-RKC's and BDF's compiled runs alone (``robot_runs.run_one`` with
+                  the output times t0 and tf only, at the same rtol, the law alone): no
+                  front door, no outputs, the ceiling of a single run's ratio.
 
     .venv/bin/python -m scripts.bench.robot_sim [--robots ur5,panda] [--repeat 5] [--batch 200]
 """
@@ -51,6 +54,8 @@ from rrt_pin.robot import robots
 from rrt_pin.simulate.control import pd_gravity_controller
 from scripts.bench.common import interleaved, verdict
 
+#: The compiled single runs also timed bare (``robot_runs.run_one`` from t0 to tf only).
+BARE = {"dop853-rkc": "DOP853-RKC", "bdf": "BDF"}
 LADDER = [10.0 ** (-k / 2) for k in range(12, 27)]  # 1e-6 … 1e-13 in half decades
 TF = 15.0
 
@@ -170,6 +175,19 @@ def bench(name: str, args: argparse.Namespace, t: np.ndarray) -> None:
         )  # fmt: skip
 
     timed = {s: (lambda s=s: sides[s](chosen[s])) for s in sides}
+    ends = t[[0, -1]]
+
+    def bare(side: str, method: str):
+        """The compiled run alone: two output times, no front door (the law alone)."""
+        from rrt_pin.compiled import robot_runs
+        from rrt_pin.simulate.options import resolve
+
+        r = chosen[side]
+        options = resolve(ends, backend="compiled", method=method, rtol=r, atol=r / 100)
+        return lambda: robot_runs.run_one(robot, law, q0, np.zeros(robot.nv), ends, options)
+
+    for side, method in BARE.items():
+        timed[f"bare {side}"] = bare(side, method)
     timed["batch final"] = batch("final")
     timed["batch metrics"] = batch("metrics")
     timed["batch final rkc"] = batch("final", "DOP853-RKC")
@@ -191,6 +209,11 @@ def bench(name: str, args: argparse.Namespace, t: np.ndarray) -> None:
         print(f"  {single}: {r_pin:.1f}x rrt-pin's Pinocchio backend (target 25x: "
               f"{verdict(r_pin >= 25)}), {r_scipy:.1f}x the SciPy loop (target 100x: "
               f"{verdict(r_scipy >= 100)})")  # fmt: skip
+    for side in BARE:
+        r_pin = med["pinocchio"] / med[f"bare {side}"]
+        print(f"  bare {side}: {med[f'bare {side}'] * 1e3:.2f} ms, {r_pin:.1f}x rrt-pin's Pinocchio "
+              "backend: the integration alone (two output times, no front door), a single "
+              "run's ceiling")  # fmt: skip
     target = 3000 if name == "ur5" else 1500
     for suffix, method in (("", "DOP853"), (" rkc", "DOP853-RKC")):
         rate = min(B / med[f"batch metrics{suffix}"], B / med[f"batch final{suffix}"])
