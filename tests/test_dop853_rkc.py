@@ -220,3 +220,25 @@ def test_dop853s_entries_compile_none_of_rkcs_code(ur5):
     assert "rkc_tail" in reaches("run_adaptive_rkc")
     assert "rkc_tail_pd" in reaches("run_adaptive_rkc_pd")
     assert {"rkc_prepare", "rkc_consume"} <= reaches("run_lanes_rkc")
+
+
+@pytest.mark.parametrize("accuracy", [1e-4, 1e-6, 1e-8])
+def test_it_takes_dop853s_tolerances_for_the_accuracy_asked_and_keeps_it(accuracy):
+    """Calibrated as DOP853, whose steps it takes until it hands over (the catalogue's hardest
+    problems then bind it too): the tolerances DOP853's calibration gives for the accuracy
+    asked. On the calibration's UR5 problem, which hands over, the run keeps the accuracy
+    and its estimate (DOP853's companion) stays within 0.3–3× of the true error."""
+    from rrt_pin.simulate.accuracy import ROBOT_PROBLEMS, max_error, reference
+
+    chosen = methods.tolerances("compiled", "DOP853-RKC", accuracy)
+    assert chosen == methods.tolerances("compiled", "DOP853", accuracy)
+    assert methods.calibration_key("compiled", "DOP853-RKC") == ("compiled", "DOP853")
+    problem = ROBOT_PROBLEMS["ur5"]
+    run = problem.run(backend="compiled", method="DOP853-RKC", accuracy=accuracy)
+    assert (run.rtol, run.atol) == chosen
+    dop853 = problem.run(backend="compiled", method="DOP853", accuracy=accuracy,
+                         estimate_error=False)  # fmt: skip
+    assert run.n_evals < dop853.n_evals  # it handed over
+    error = max_error(run.q, reference(problem).q)
+    assert error <= accuracy
+    assert 0.3 <= max(run.error_estimate, 1e-11) / max(error, 1e-11) <= 3.0

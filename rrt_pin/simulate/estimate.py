@@ -37,7 +37,7 @@ import numpy as np
 from rrt_pin.core.errors import DivergenceError, InputError
 from rrt_pin.simulate import calibration
 from rrt_pin.simulate.extremes import deviation
-from rrt_pin.simulate.methods import ACCURACY
+from rrt_pin.simulate.methods import ACCURACY, calibration_key
 from rrt_pin.simulate.results import ErrorEstimate
 
 if TYPE_CHECKING:
@@ -100,7 +100,8 @@ def companion(options: Options, t: np.ndarray | None = None) -> tuple[Options, f
     m = options.method
     if m.adaptive:
         rtol, atol = float(options.rtol), float(options.atol)  # type: ignore[arg-type]
-        k, _ = calibration.COMPANIONS.get((options.backend, m.name), (1.0 / TIGHTER, 1.0))
+        key = calibration_key(options.backend, m.name)
+        k, _ = calibration.COMPANIONS.get(key, (1.0 / TIGHTER, 1.0))
         if k > 1.0 and rtol * k > LOOSEST:
             k = 1.0 / TIGHTER
         if k < 1.0:
@@ -128,7 +129,7 @@ def rate(options: Options) -> float:
     """The rate p of error ∝ tolᵖ (adaptive methods, measured) or stepᵖ (fixed-step: the order)."""
     m = options.method
     if m.adaptive:
-        return calibration.COMPANIONS.get((options.backend, m.name), (0.1, 1.0))[1]
+        return calibration.COMPANIONS.get(calibration_key(options.backend, m.name), (0.1, 1.0))[1]
     return float(m.order or 1)
 
 

@@ -34,6 +34,7 @@ __all__ = [
     "METHODS",
     "RTOL_FLOOR",
     "Method",
+    "calibration_key",
     "get",
     "names",
     "tolerances",
@@ -90,6 +91,10 @@ class Method:
             Richardson's formula), else None.
         min_rtol: the smallest relative tolerance it can honour (adaptive methods,
             :data:`RTOL_FLOOR` unless given), else None. A tighter one is refused.
+        calibrated_as: the method whose calibration (the tolerances for the accuracy
+            asked, the estimate's companion) this one takes, or None for its own: a
+            method that takes another's steps wherever it does not hand over, so that
+            the other's problems, the hardest of the catalogue, bind it too.
     """
 
     name: str
@@ -105,9 +110,10 @@ class Method:
     atol: float | None = None
     order: int | None = None
     min_rtol: float | None = None
+    calibrated_as: str | None = None
 
     def __post_init__(self) -> None:
-        if self.adaptive and self.rtol is None:
+        if self.adaptive and self.rtol is None:  # (one calibrated as another: set below)
             rtol, atol = tolerances(self.backends[0], self.name, ACCURACY)
             object.__setattr__(self, "rtol", rtol)
             object.__setattr__(self, "atol", atol)
@@ -127,11 +133,14 @@ def tolerances(backend: str, method: str, accuracy: float = ACCURACY) -> tuple[f
     factor (:data:`rrt_pin.simulate.calibration.SAFETY`), is within ``accuracy``
     [rad or m], as is every tighter rung's; its tightest rung when none is (the
     run's error estimate then says whether the accuracy was met). atol = rtol / :data:`~rrt_pin.simulate.calibration.ATOL_RATIO`.
+    A method calibrated as another (:attr:`Method.calibrated_as`) gets that one's.
     A method the calibration does not cover gets :data:`DEFAULT_RTOL`, :data:`DEFAULT_ATOL`.
     A method that runs step for step on several backends gets the same (the tightest
     of their choices), so that its backends give the same numbers.
     """
     entry = METHODS.get(method) if "METHODS" in globals() else None
+    if entry is not None and entry.calibrated_as:
+        return tolerances(backend, entry.calibrated_as, accuracy)
     if entry is not None and entry.code is not None and len(entry.backends) > 1:
         chosen = [_tolerances(b, method, accuracy) for b in entry.backends]
         known = [c for c in chosen if c is not None]
@@ -153,6 +162,12 @@ def _tolerances(backend: str, method: str, accuracy: float) -> tuple[float, floa
             break
         rtol = r
     return rtol, rtol / calibration.ATOL_RATIO
+
+
+def calibration_key(backend: str, method: str) -> tuple[str, str]:
+    """The (backend, method) under which the calibration holds ``method``'s measurements."""
+    entry = METHODS.get(method)
+    return backend, (entry.calibrated_as or method) if entry is not None else method
 
 
 _BOTH = ("pinocchio", "compiled")
@@ -205,6 +220,7 @@ METHODS: dict[str, Method] = {
             backends=("compiled",),
             batch=("compiled",),
             code=codes.METHOD_DOP853_RKC,
+            calibrated_as="DOP853",  # DOP853's steps until it hands over, bit for bit
         ),
         Method("LSODA", SCIPY, "scipy's LSODA, analytic Jacobian", adaptive=True, implicit=True),
         Method("Radau", SCIPY, "implicit Runge–Kutta of order 5", adaptive=True, implicit=True),
@@ -256,6 +272,18 @@ METHODS: dict[str, Method] = {
         ),
     )
 }
+
+
+def _take_calibrations() -> None:
+    """The default tolerances of each method calibrated as another: that one's."""
+    for m in METHODS.values():
+        if m.calibrated_as:
+            rtol, atol = tolerances(m.backends[0], m.name, ACCURACY)
+            object.__setattr__(m, "rtol", rtol)
+            object.__setattr__(m, "atol", atol)
+
+
+_take_calibrations()
 
 
 def get(name: object, backend: str | None = None, batch: bool = False) -> Method:
