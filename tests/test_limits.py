@@ -441,6 +441,40 @@ def test_crossings_are_measured_as_the_samples_say(seed):
     assert past.any() == (reach > 0.0)  # both branches are taken across the seeds
 
 
+@pytest.mark.parametrize("seed", range(8))
+def test_a_quiet_run_is_one_with_no_sample_past_a_limit(seed):
+    """``crossings.quiet`` (one pass, the single run's shortcut to no events) says exactly
+    whether the sample-by-sample definition finds nothing past a limit and no NaN; and
+    ``limit_events`` gives, through it or not, the events ``measure`` finds."""
+    from rrt_pin.robot.limits import Physical
+    from rrt_pin.simulate.crossings import _events, measure, quiet
+
+    rng = np.random.default_rng(100 + seed)
+    T, n = 50, 3
+    t = np.linspace(0.0, 1.0, T)
+    p = Physical(np.array([-1.0, -np.inf, -2.0]), np.array([1.0, 2.0, np.inf]),
+                 np.array([5.0, np.inf, 3.0]), np.array([4.0, 4.0, np.inf]), np.zeros(n),
+                 np.zeros(n))  # fmt: skip
+    q = rng.uniform(-0.9, 0.9, (T, n))
+    qd = rng.uniform(-3.9, 3.9, (T, n))
+    tau = rng.uniform(-2.9, 2.9, (T, n))
+    kind = seed % 4  # 0: inside every limit; 1: a position past; 2: a demand; 3: a NaN
+    if kind == 1:
+        q[rng.integers(T), 0] = [-1.0 - 1e-12, 1.0 + 1e-12][seed // 4]  # just past
+    elif kind == 2:
+        tau[rng.integers(T), 2] = [3.0 + 1e-12, -3.5][seed // 4]
+    elif kind == 3:
+        [qd, tau][seed // 4][rng.integers(T), 1] = np.nan
+    past = (q < p.lower) | (q > p.upper) | (np.abs(qd) > p.velocity) | (np.abs(tau) > p.effort)
+    nan = np.isnan(q).any() or np.isnan(qd).any() or np.isnan(tau).any()
+    assert quiet(q, qd, tau, p) == (not past.any() and not nan) == (kind == 0)
+    assert quiet(q, qd, None, p) == (kind in (0, 2) or (kind == 3 and seed // 4 == 1))
+    full = _events(t, measure(t, q[None], qd[None], tau[None], p), 0, ["a", "b", "c"], ["rad"] * 3)
+    got = limit_events(t, q, qd, tau, p, ["a", "b", "c"], ["rad"] * 3)
+    assert repr(got) == repr(full)  # (repr: a NaN extent equals itself there)
+    assert (full == ()) == (kind in (0, 3))  # a NaN sample is not an event: only not quiet
+
+
 @pytest.mark.parametrize("name", ["ur5", "panda"])
 def test_a_limits_effective_inertia_is_one_over_the_inverse_mass_matrixs_diagonal(name):
     """limit_inertia reads M⁻¹'s diagonal from Pinocchio's computeMinverse; the same as

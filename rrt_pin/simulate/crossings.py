@@ -18,7 +18,15 @@ from rrt_pin.robot.limits import Physical
 from rrt_pin.simulate.extremes import extremes
 from rrt_pin.simulate.extremes import peak as extremes_peak
 
-__all__ = ["KINDS", "LimitEvent", "batch_limit_events", "deepest", "limit_events", "measure"]
+__all__ = [
+    "KINDS",
+    "LimitEvent",
+    "batch_limit_events",
+    "deepest",
+    "limit_events",
+    "measure",
+    "quiet",
+]
 
 #: The kinds of limit events.
 KINDS = ("position", "effort", "velocity")
@@ -163,6 +171,28 @@ def _events(
     return tuple(events)
 
 
+def quiet(q: np.ndarray, qd: np.ndarray, demanded: np.ndarray | None, p: Physical) -> bool:
+    """Whether one run (shapes (T, nv)) has no sample past a limit and no NaN sample.
+
+    One pass: the samples of q, q̇ and the demand copied side by side, one row a
+    coordinate, then each row's min and max; the same comparisons as :func:`measure`
+    (a sample is past a limit where :func:`measure` says so, and NaN is never quiet).
+    """
+    arrays = (q, qd) if demanded is None else (q, qd, demanded)
+    if q.shape[0] == 0:
+        return False  # measure's answer (an error: no samples)
+    n = q.shape[1]
+    rows = np.empty((n * len(arrays), q.shape[0]))
+    for i, a in enumerate(arrays):
+        rows[i * n : (i + 1) * n] = a.T
+    lo, hi = rows.min(axis=1), rows.max(axis=1)
+    if np.isnan(lo).any() or np.isnan(hi).any():
+        return False
+    peak = np.maximum(-lo[n:], hi[n:])  # |q̇|, then |demand|
+    limits = np.concatenate([p.velocity, p.effort]) if demanded is not None else p.velocity
+    return bool((lo[:n] >= p.lower).all() and (hi[:n] <= p.upper).all() and (peak <= limits).all())
+
+
 def limit_events(
     t: np.ndarray,
     q: np.ndarray,
@@ -174,6 +204,9 @@ def limit_events(
 ) -> tuple[LimitEvent, ...]:
     """The limit events of one run sampled at ``t`` (shapes (T, nv)), by first time.
 
+    A run that stays within every limit (:func:`quiet`, the common case) has none, found
+    in one pass over its samples; else :func:`measure` finds them.
+
     Args:
         t: output times (T,) [s].
         q: coordinates [rad or m].
@@ -183,6 +216,8 @@ def limit_events(
         joints: each coordinate's joint name (nv,).
         units: each coordinate's unit, ``rad`` or ``m`` (nv,).
     """
+    if quiet(q, qd, demanded, p):
+        return ()
     d = None if demanded is None else demanded[None]
     return _events(t, measure(t, q[None], qd[None], d, p), 0, joints, units)
 

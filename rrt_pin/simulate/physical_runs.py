@@ -30,6 +30,7 @@ from rrt_pin.robot.limits import (
     physical_model,
 )
 from rrt_pin.simulate.crossings import batch_limit_events, limit_events
+from rrt_pin.simulate.extremes import peak
 from rrt_pin.simulate.methods import FIXED_STEP, SYMPLECTIC
 
 if TYPE_CHECKING:
@@ -172,8 +173,8 @@ def demanded(
         return tau
     out = tau
     for b, law in enumerate(laws):
-        if law is None:
-            continue
+        if law is None or (peak(tau[b : b + 1])[0] < applied.effort).all():
+            continue  # no effort at its limit (one pass over the samples)
         rows = np.flatnonzero((np.abs(tau[b]) >= applied.effort).any(axis=1))
         if rows.size == 0:
             continue
