@@ -60,9 +60,7 @@ METHOD_DOP853 = 1
 METHOD_ADAMS = 2  # Shampine–Gordon variable-order Adams (any robot's generated integrators only)
 METHOD_BDF = 3  # SciPy's BDF with the loop's generated Jacobian (any robot's generated code only)
 METHOD_BDF_NUMERIC = 4  # the same with SciPy's finite-difference Jacobian, whatever the law
-METHOD_DOP853_RKC = (
-    5  # DOP853 handing over to RKC in its stiff tail (any robot's generated code only)
-)
+METHOD_DOP853_RKC = 5  # DOP853 handing over to RKC in a stiff tail (generated code only)
 METHOD_SYMPLECTIC_EULER = 10
 METHOD_RK4 = 11
 METHOD_VERLET = 12
