@@ -167,7 +167,8 @@ def _tolerances(backend: str, method: str, accuracy: float) -> tuple[float, floa
 def calibration_key(backend: str, method: str) -> tuple[str, str]:
     """The (backend, method) under which the calibration holds ``method``'s measurements."""
     entry = METHODS.get(method)
-    return backend, (entry.calibrated_as or method) if entry is not None else method
+    measured = entry.calibrated_as if entry is not None and entry.calibrated_as else method
+    return backend, measured
 
 
 _BOTH = ("pinocchio", "compiled")

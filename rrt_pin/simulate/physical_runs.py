@@ -173,8 +173,8 @@ def demanded(
         return tau
     out = tau
     for b, law in enumerate(laws):
-        if law is None or (peak(tau[b : b + 1])[0] < applied.effort).all():
-            continue  # no effort at its limit (one pass over the samples)
+        if law is None or not tau.shape[1] or (peak(tau[b : b + 1])[0] < applied.effort).all():
+            continue  # no sample, or no effort at its limit (one pass over the samples)
         rows = np.flatnonzero((np.abs(tau[b]) >= applied.effort).any(axis=1))
         if rows.size == 0:
             continue
