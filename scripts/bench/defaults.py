@@ -106,19 +106,29 @@ def simulations(repeat: int) -> list[dict]:
     return [_scene_row(name, repeat) for name in ("chapter", "ur5", "panda")]
 
 
-def _scene_row(name: str, repeat: int) -> dict:
+def _scene(name: str) -> tuple:
+    """(robot, law, q0, output times, the SciPy loop, the reference q) of a scene.
+
+    The compiled code is loaded (compiled once if needed) here, before any timing.
+    Panda's finger touches its stop: the loop has no compliant limits, so neither side
+    does (``position_limits=False`` for the reference and every rrt-pin side).
+    """
     if name == "chapter":
         robot, law, q0 = _arm_scene()
         t, loop = rrt_pin.time_grid(15.0, 0.01), _arm_loop
     else:
         robot, law, q0, _ = scene(name)
         t, loop = rrt_pin.time_grid(5.0, 0.01), robot_loop
-    # Panda's finger touches its stop: the loop has no compliant limits, so neither side does
-    kw = {"position_limits": False}
-    # the compiled code loaded (compiled once if needed) before any timing
     rrt_pin.simulate(robot, law, q0, None, t[:3], backend="compiled", estimate_error=False)
     reference = rrt_pin.simulate(robot, law, q0, None, t, backend="compiled", method="DOP853",
-                                 rtol=1e-13, atol=1e-15, estimate_error=False, **kw).q  # fmt: skip
+                                 rtol=1e-13, atol=1e-15, estimate_error=False,
+                                 position_limits=False).q  # fmt: skip
+    return robot, law, q0, t, loop, reference
+
+
+def _scene_row(name: str, repeat: int) -> dict:
+    robot, law, q0, t, loop, reference = _scene(name)
+    kw = {"position_limits": False}  # as the reference (see _scene)
     rtol, loop_err = _loosest(lambda r: loop(robot, law, q0, t, r), reference)
     runs = {
         "loop": lambda: loop(robot, law, q0, t, rtol),
@@ -191,14 +201,6 @@ def inverses(repeat: int) -> list[dict]:
     return rows
 
 
-def _scene(name: str) -> tuple:
-    if name == "chapter":
-        robot, law, q0 = _arm_scene()
-        return robot, law, q0, rrt_pin.time_grid(15.0, 0.01), _arm_loop
-    robot, law, q0, _ = scene(name)
-    return robot, law, q0, rrt_pin.time_grid(5.0, 0.01), robot_loop
-
-
 def bounds(repeat: int) -> None:
     """Each backend's method at its loosest rtol meeting 1e-8 on the scene, no estimate."""
     print("| scene | side | loosest rtol meeting 1e-8 (error) | time | SciPy loop ÷ side |")
@@ -209,11 +211,8 @@ def bounds(repeat: int) -> None:
 
 
 def _bound_rows(name: str, repeat: int) -> list[str]:
-    robot, law, q0, t, loop = _scene(name)
-    kw = {"position_limits": False, "estimate_error": False}
-    rrt_pin.simulate(robot, law, q0, None, t[:3], backend="compiled", **kw)
-    reference = rrt_pin.simulate(robot, law, q0, None, t, backend="compiled", method="DOP853",
-                                 rtol=1e-13, atol=1e-15, **kw).q  # fmt: skip
+    robot, law, q0, t, loop, reference = _scene(name)
+    kw = {"position_limits": False, "estimate_error": False}  # as the reference
 
     def side(backend, method):
         return lambda r: rrt_pin.simulate(robot, law, q0, None, t, backend=backend,
